@@ -1,0 +1,65 @@
+"""dopplertof: a Doppler time-of-flight camera simulator on stock Mitsuba 3.
+
+    import dopplertof
+    dopplertof.set_variant("llvm_ad_rgb")     # optional: LLVM RGB is the default
+    scene = dopplertof.load_file("scene.xml")
+    img = dopplertof.render(scene, spp=1024, seed=0)   # float32 (H, W, C), signed
+"""
+
+from __future__ import annotations
+
+from . import backend as _backend
+
+__version__ = "0.1.0"
+
+# Point Dr.Jit at a usable libLLVM before anything starts its LLVM backend; a missing
+# one is reported by set_variant() with what to install.
+try:
+    _backend.ensure_libllvm()
+except _backend.BackendError:
+    pass
+
+from .backend import BackendError, set_variant  # noqa: E402
+from .params import ParameterError, RenderParams  # noqa: E402
+from .render import RenderResult, render, render_result  # noqa: E402
+
+
+def _ensure_variant():
+    import mitsuba as mi
+
+    if mi.variant() is None or not (mi.variant().startswith("llvm_")
+                                    or mi.variant().startswith("cuda_")):
+        set_variant()
+    else:
+        from . import integrators
+
+        integrators.register()
+
+
+def load_file(path, overrides=None, **kwargs):
+    """Load a Mitsuba 3 XML scene (with <animation> keyframes); sets LLVM RGB if no
+    JIT variant is set. ``overrides`` (or keyword arguments) set <default> values."""
+    _ensure_variant()
+    from .scene import load_file as _load
+
+    return _load(path, {**(overrides or {}), **kwargs})
+
+
+def load_dict(scene: dict):
+    """Load a dict scene (Mitsuba's load_dict format, with dopplertof.Animation)."""
+    _ensure_variant()
+    from .scene import load_dict as _load
+
+    return _load(scene)
+
+
+def __getattr__(name):
+    if name in ("Animation", "SceneError", "DopplerScene"):
+        from . import scene
+
+        return getattr(scene, name)
+    raise AttributeError(name)
+
+
+__all__ = ["load_file", "load_dict", "render", "render_result", "RenderResult", "set_variant",
+           "RenderParams", "ParameterError", "BackendError", "Animation", "SceneError"]

@@ -1,0 +1,132 @@
+"""Mitsuba variant choice and the libLLVM check (DESIGN section 6).
+
+The Mitsuba wheel's LLVM variants load the system's libLLVM at run time. Dr.Jit 1.5
+aborts the whole process inside LLVM 14 or 15 ("Cannot select ... fminimum"), so we
+must never let it load one of those: before Dr.Jit starts its LLVM backend we find a
+usable libLLVM and point ``DRJIT_LIBLLVM_PATH`` at it, or stop with a clear message.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+
+#: oldest libLLVM major version that Dr.Jit 1.5 runs on (14 and 15 abort; 19 is tested)
+MIN_LLVM_MAJOR = 16
+
+DEFAULT_VARIANT = "llvm_ad_rgb"
+
+_SEARCH_GLOBS = (
+    "/usr/lib/x86_64-linux-gnu/libLLVM*.so*",
+    "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/lib64/libLLVM*.so*",
+    "/usr/lib/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+    "/opt/homebrew/opt/llvm/lib/libLLVM*.dylib",
+    "/usr/local/opt/llvm/lib/libLLVM*.dylib",
+)
+
+INSTALL_HINT = (
+    "install LLVM >= {min} (Debian/Ubuntu: 'apt-get install libllvm19'), "
+    "or set DRJIT_LIBLLVM_PATH to a libLLVM.so of version >= {min}"
+)
+
+
+class BackendError(RuntimeError):
+    """No usable JIT backend: the message says what to install."""
+
+
+def llvm_major_version(path: str) -> int | None:
+    """Major LLVM version of a libLLVM file, read from its name (libLLVM-19.so, libLLVM.so.19.1)."""
+    name = os.path.basename(os.path.realpath(path))
+    for candidate in (name, os.path.basename(path)):
+        m = re.search(r"libLLVM[-.]?(?:so\.)?(\d+)", candidate)
+        if m:
+            return int(m.group(1))
+    return None
+
+
+def find_libllvm() -> str | None:
+    """Path of the newest usable libLLVM on this machine, or None."""
+    found: dict[str, int] = {}
+    for pattern in _SEARCH_GLOBS:
+        for path in glob.glob(pattern):
+            major = llvm_major_version(path)
+            if major is not None and major >= MIN_LLVM_MAJOR and os.path.isfile(path):
+                found.setdefault(os.path.realpath(path), major)
+    if not found:
+        return None
+    return max(found.items(), key=lambda kv: (kv[1], kv[0]))[0]
+
+
+def ensure_libllvm() -> str:
+    """Point Dr.Jit at a usable libLLVM; return its path or raise BackendError.
+
+    A user-set DRJIT_LIBLLVM_PATH is respected when it names an existing file of a
+    usable version, and rejected with the reason otherwise.
+    """
+    hint = INSTALL_HINT.format(min=MIN_LLVM_MAJOR)
+    user = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if user:
+        if not os.path.isfile(user):
+            raise BackendError(f"DRJIT_LIBLLVM_PATH={user} does not exist; {hint}")
+        major = llvm_major_version(user)
+        if major is not None and major < MIN_LLVM_MAJOR:
+            raise BackendError(
+                f"DRJIT_LIBLLVM_PATH={user} is LLVM {major}, which crashes Dr.Jit 1.5; {hint}"
+            )
+        return user
+    path = find_libllvm()
+    if path is None:
+        raise BackendError(f"no usable libLLVM found for Mitsuba's LLVM variants; {hint}")
+    os.environ["DRJIT_LIBLLVM_PATH"] = path
+    return path
+
+
+def set_variant(variant: str | None = None) -> str:
+    """Select a Mitsuba JIT variant (LLVM RGB by default) after the libLLVM check.
+
+    Importing this package registers the D-ToF integrator for the chosen variant.
+    """
+    variant = variant or DEFAULT_VARIANT
+    if variant.startswith("scalar_"):
+        raise BackendError(
+            f"variant {variant!r} runs Python per sample and is not supported; "
+            "use an llvm_* (CPU) or cuda_* (GPU) variant"
+        )
+    if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
+        raise BackendError(f"unknown variant {variant!r}: expected llvm_* or cuda_*")
+    if variant.startswith("llvm_"):
+        ensure_libllvm()
+    import mitsuba as mi
+
+    if variant not in mi.variants():
+        raise BackendError(f"variant {variant!r} is not in this Mitsuba build: {mi.variants()}")
+    try:
+        mi.set_variant(variant)
+    except Exception as exc:  # CUDA without a GPU, most often
+        raise BackendError(f"cannot use variant {variant!r}: {exc}") from None
+    if variant.startswith("cuda_"):
+        import drjit as dr
+
+        if not dr.has_backend(dr.JitBackend.CUDA):
+            raise BackendError(f"variant {variant!r} needs a CUDA GPU and driver; none found")
+    from . import integrators  # noqa: F401  registers the plugins for this variant
+
+    integrators.register()
+    return variant
+
+
+def require_variant():
+    """The mitsuba module with a JIT variant set, or a clear error."""
+    import mitsuba as mi
+
+    v = mi.variant()
+    if v is None or not (v.startswith("llvm_") or v.startswith("cuda_")):
+        raise BackendError(
+            "no Mitsuba JIT variant is set: call dopplertof.set_variant() "
+            "(or mitsuba.set_variant('llvm_ad_rgb')) first"
+        )
+    return mi

@@ -1,0 +1,233 @@
+"""The D-ToF path tracer: one symbolic Dr.Jit loop per pass.
+
+A unidirectional path tracer (next-event estimation and BSDF sampling combined with
+MIS, Russian roulette) in which every contribution is weighted by the modulation of
+its own full path length at its own sample time (DESIGN section 1). Doppler shifts
+are not added by hand: they follow because path lengths depend on time.
+
+Time-path sampling (DESIGN section 2) decides each lane's time and which of its
+random numbers it shares with the other samples of its group.
+"""
+
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+
+from .. import sampling
+from ..modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation_by_index, wave
+from ..scene.bodies import BodyFrames, intersect, occluded
+
+
+class PassLayout:
+    """Which pixel, group and sample each lane of a pass renders.
+
+    Lanes are pixel-major: lane = pixel * samples + s, for samples s0 .. s0+samples-1
+    of every pixel.
+    """
+
+    def __init__(self, mi, n_pixels: int, samples: int, first_sample, group_size: int):
+        lane = dr.arange(mi.UInt32, n_pixels * samples)
+        self.pixel = lane // samples
+        self.sample = first_sample + lane % samples
+        self.group = self.sample // group_size
+        self.index = self.sample % group_size
+
+
+def _mis_power(pdf_a, pdf_b):
+    a2 = dr.square(pdf_a)
+    w = a2 / (a2 + dr.square(pdf_b))
+    return dr.select(dr.isfinite(w), w, 0.0)
+
+
+class ModulationWeight:
+    """w(L, t): the modulation weight of a contribution of path length L at time t.
+
+    Scalars enter the kernel as opaque variables, so that one compiled kernel serves
+    every frequency, offset and (in low-pass mode) waveform.
+    """
+
+    def __init__(self, mi, modulation):
+        self.low_pass = modulation.low_pass
+        F = mi.Float if self.low_pass else mi.Float64
+        self.F = F
+        self.omega_g = dr.opaque(F, modulation.omega_g)
+        self.omega_d = dr.opaque(F, modulation.omega_d)
+        self.omega_s = dr.opaque(F, modulation.omega_s)
+        self.psi = dr.opaque(F, modulation.psi)
+        self.g0 = dr.opaque(F, modulation.g0)
+        self.g1 = dr.opaque(F, modulation.g1)
+        self.k_length = dr.opaque(F, modulation.omega_g / SPEED_OF_LIGHT)  # rad per metre
+        self.waveform = modulation.waveform
+        self.waveform_index = dr.opaque(mi.UInt32, WAVEFORMS.index(modulation.waveform))
+
+    def __call__(self, path_length, t):
+        """Weight of a contribution; ``t`` is the time since the exposure start (s)."""
+        if self.low_pass:
+            # g1 * C(theta), theta = omega_d t + psi + omega_g L / c
+            theta = self.omega_d * t + self.psi + self.k_length * path_length
+            return self.g1 * correlation_by_index(self.waveform_index, theta, dr)
+        # s(t) * g(t - L / c), phases in float64 (omega_g t reaches ~1e5 rad)
+        sensor = wave(self.waveform, self.omega_s * t + self.psi, dr)
+        light = self.g0 + self.g1 * wave(self.waveform, self.omega_g * t
+                                         - self.k_length * path_length, dr)
+        return mi_float(sensor * light)
+
+
+def mi_float(x):
+    import mitsuba as mi
+
+    return mi.Float(x)
+
+
+class FilmSampler:
+    """Film positions by importance sampling the reconstruction filter (box, tent,
+    gaussian), so that every sample belongs to its own pixel with weight 1."""
+
+    SUPPORTED = ("BoxFilter", "TentFilter", "GaussianFilter")
+
+    def __init__(self, film):
+        rfilter = film.rfilter()
+        self.kind = rfilter.class_name()
+        if self.kind not in self.SUPPORTED:
+            raise ValueError(
+                f"reconstruction filter {self.kind} is not supported (it has negative lobes "
+                "or no sampling routine): use box, tent or gaussian"
+            )
+        self.radius = float(rfilter.radius())
+
+    def offset(self, mi, u):
+        """Offset from the pixel centre, in pixels, for uniform numbers u in [0,1)."""
+        if self.kind == "BoxFilter":
+            return u - 0.5
+        if self.kind == "TentFilter":
+            return mi.warp.interval_to_tent(u) * self.radius
+        # Gaussian truncated at its radius (Mitsuba: radius = 4 sigma)
+        sigma = self.radius / 4.0
+        s = 1.0 / (sigma * math.sqrt(2.0))
+        e = math.erf(self.radius * s)
+        return dr.erfinv(dr.clip((2.0 * u - 1.0) * e, -0.9999999, 0.9999999)) / s
+
+
+@dr.syntax
+def trace_pass(mi, setup, layout: PassLayout):
+    """Render one pass; returns the per-lane Spectrum of time-averaged measurements."""
+    scene = setup.scene
+    static = scene.static
+    sensor = scene.sensor
+    film = sensor.film()
+    params = setup.params
+    mod = setup.modulation
+    weight = setup.weight
+
+    streams = sampling.CorrelatedStreams(
+        mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth
+    )
+
+    # ---- Time of each lane ----
+    t_frac = sampling.time_fraction(
+        mi, streams, layout.group, layout.index, group_size=setup.group_size,
+        groups_per_pixel=setup.groups_per_pixel, method=setup.method,
+        antithetic_shift=setup.antithetic_shift, stratify=setup.stratify,
+        double=not mod.low_pass,
+    )
+    t_rel = t_frac * weight.F(mod.exposure)  # since exposure start, float64 in full mode
+    time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
+
+    # ---- Camera ray (stage 0) ----
+    crop_size = film.crop_size()
+    crop_offset = film.crop_offset()
+    film_size = film.size()
+    px = mi.Float(layout.pixel % crop_size[0])
+    py = mi.Float(layout.pixel // crop_size[0])
+    u_film = streams.get_2d(0, sampling.DIM_FILM)
+    pos = mi.Point2f(
+        (px + 0.5 + setup.film_sampler.offset(mi, u_film.x) + crop_offset[0]) / film_size[0],
+        (py + 0.5 + setup.film_sampler.offset(mi, u_film.y) + crop_offset[1]) / film_size[1],
+    )
+    u_aperture = streams.get_2d(0, sampling.DIM_APERTURE)
+    ray, ray_weight = sensor.sample_ray(time, 0.5, pos, u_aperture)
+    # Path length from the lens point, not from the near clip plane.
+    camera_offset = setup.near_clip / dr.dot(ray.d, setup.camera_forward)
+
+    # Per-lane body transforms at the lanes' times, once per path (none: static scene)
+    frames = (BodyFrames(mi, scene.bodies, time, setup.shutter_open,
+                         setup.shutter_open + mod.exposure) if scene.bodies else None)
+
+    # ---- Loop state ----
+    L = mi.Spectrum(0.0)  # accumulated modulated measurement
+    beta = mi.Spectrum(ray_weight)  # path throughput
+    length = weight.F(camera_offset)  # path length from the camera to the ray origin (m)
+    depth = mi.UInt32(0)  # surface hits so far
+    active = mi.Bool(True)
+    prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
+    prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
+    prev_bsdf_delta = mi.Bool(True)  # whether that sample was a delta lobe
+    eta = mi.Float(1.0)  # relative index of refraction along the path
+    bsdf_ctx = mi.BSDFContext()
+
+    # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
+    max_depth = mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF)
+    max_iterations = params.max_depth
+    rr_depth = params.rr_depth
+    show_direct_emitters = not setup.hide_emitters
+    while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
+        stage = depth + 1  # sampling stage of this hit's decisions
+        si = intersect(mi, static, frames, ray, active)
+        valid = active & si.is_valid()
+        length_hit = length + weight.F(dr.select(valid, si.t, 0.0))
+
+        # ---- Emission from an emitter hit by the ray ----
+        # (null emitter pointers evaluate to zero)
+        emitter = si.emitter(static)
+        hit_emitter = valid & ((depth > 0) | show_direct_emitters)
+        ds = mi.DirectionSample3f(static, si, prev_si)
+        em_pdf = dr.select(prev_bsdf_delta, 0.0,
+                           static.pdf_emitter_direction(prev_si, ds, hit_emitter & ~prev_bsdf_delta))
+        mis_hit = _mis_power(prev_bsdf_pdf, em_pdf)
+        Le = emitter.eval(si, hit_emitter)
+        L += dr.select(hit_emitter, beta * Le * mis_hit * weight(length_hit, t_rel), 0.0)
+
+        active_next = valid & (depth + 1 < max_depth)
+        bsdf = si.bsdf(ray)
+
+        # ---- Next-event estimation ----
+        active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+        u_em = streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER))
+        ds, em_weight = static.sample_emitter_direction(si, u_em, False, active_em)
+        active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
+        shadow_ray = si.spawn_ray_to(ds.p)
+        active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
+        wo = si.to_local(ds.d)
+
+        # ---- BSDF evaluation and sampling ----
+        u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
+        u_dir = streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR))
+        bsdf_val, bsdf_pdf, bs, bsdf_weight = bsdf.eval_pdf_sample(
+            bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
+
+        mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
+        length_em = length_hit + weight.F(ds.dist)
+        L += dr.select(active_em, beta * bsdf_val * em_weight * mis_em
+                       * weight(length_em, t_rel), 0.0)
+
+        # ---- Continue the path ----
+        ray = si.spawn_ray(si.to_world(bs.wo))
+        beta *= bsdf_weight
+        eta *= bs.eta
+        prev_si = mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n)
+        prev_bsdf_pdf = bs.pdf
+        prev_bsdf_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+        length = length_hit
+        u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
+        depth[valid] += 1
+
+        # ---- Russian roulette ----
+        beta_max = dr.max(beta)
+        rr_prob = dr.minimum(beta_max * dr.square(eta), 0.95)
+        rr_active = depth >= rr_depth
+        beta[rr_active] *= dr.rcp(rr_prob)
+        active = active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)
+
+    return L

@@ -1,0 +1,139 @@
+"""Image files, written atomically: EXR and NPY keep the signed values; PNG is a preview.
+
+Every writer renders to a temporary file in the target folder and renames it into
+place, so that a failed or interrupted write never leaves a partial file and never
+replaces a good one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+
+import numpy as np
+
+FORMATS = (".exr", ".npy", ".png")
+
+
+class OutputError(ValueError):
+    """An output path that cannot be written (unknown extension, missing folder...)."""
+
+
+def check_output_path(path) -> str:
+    """Validate an output path before any work is done; returns its extension."""
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in FORMATS:
+        raise OutputError(f"unknown output extension {ext or '(none)'!r} in {path}: "
+                          f"use one of {', '.join(FORMATS)}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise OutputError(f"output folder does not exist: {folder}")
+    if not os.access(folder, os.W_OK):
+        raise OutputError(f"output folder is not writable: {folder}")
+    if os.path.isdir(path):
+        raise OutputError(f"output path is a folder: {path}")
+    return ext
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside ``path`` (same extension); rename on success."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    base, ext = os.path.splitext(os.path.basename(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
+    os.close(fd)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_npy(path, array: np.ndarray) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.save(f, np.asarray(array))
+
+
+def write_json(path, data: dict) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(data, f, indent=2, sort_keys=True, default=_json_default)
+            f.write("\n")
+
+
+def _json_default(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
+    """Float32 OpenEXR via Mitsuba's Bitmap (needs a Mitsuba variant set)."""
+    import mitsuba as mi
+
+    img = np.ascontiguousarray(np.asarray(image, dtype=np.float32))
+    if img.ndim == 2:
+        img = img[..., None]
+    bitmap = mi.Bitmap(img)
+    if metadata:
+        props = bitmap.metadata()
+        for key, value in metadata.items():
+            text = value if isinstance(value, str) else json.dumps(value, default=_json_default)
+            props[f"dopplertof.{key}"] = text
+    with atomic_path(path) as tmp:
+        bitmap.write(tmp)
+
+
+def preview_scalar(image: np.ndarray) -> np.ndarray:
+    """The signed scalar a preview shows: the mean over channels."""
+    img = np.asarray(image, dtype=np.float64)
+    return img.mean(axis=-1) if img.ndim == 3 else img
+
+
+def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
+              label: str = "time-averaged correlation (mean of channels)",
+              cmap: str = "RdBu_r", metadata: dict | None = None) -> None:
+    """Signed preview: diverging colormap centred on zero, with a colour bar."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    data = preview_scalar(image)
+    finite = data[np.isfinite(data)]
+    vmax = float(np.percentile(np.abs(finite), 99.5)) if finite.size else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    h, w = data.shape
+    fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / w + 0.6), dpi=120)
+    im = ax.imshow(data, cmap=cmap, vmin=-vmax, vmax=vmax, interpolation="nearest")
+    ax.set_title(title)
+    ax.set_axis_off()
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    bar.set_label(label)
+    fig.tight_layout()
+    info = {"Software": "dopplertof"}
+    if metadata:
+        info["Description"] = json.dumps(metadata, default=_json_default)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", metadata=info)
+    plt.close(fig)
+
+
+def write_image(path, image: np.ndarray, metadata: dict | None = None, **png_kwargs) -> None:
+    """Write by extension: .exr (float32), .npy (raw array), .png (signed preview)."""
+    ext = check_output_path(path)
+    if ext == ".npy":
+        write_npy(path, image)
+    elif ext == ".exr":
+        write_exr(path, image, metadata)
+    else:
+        write_png(path, image, metadata=metadata, **png_kwargs)

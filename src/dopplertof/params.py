@@ -1,0 +1,218 @@
+"""Parameters of a D-ToF render: names, types, defaults and the derived quantities.
+
+Names and defaults follow the published implementation (DESIGN section 1). The same
+parser serves the XML ``<integrator>`` and ``<sampler>`` elements, Mitsuba's
+``Properties`` (when the plugin is built by Mitsuba itself), Python dicts and ``-D``
+style overrides, so that a name means the same everywhere and an unknown name is an
+error everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
+from .sampling import METHODS
+
+#: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
+DEFAULT_EXPOSURE = 0.0015
+
+#: path_correlation_depth value meaning "the whole path"
+FULL_CORRELATION = 1 << 16
+
+
+class ParameterError(ValueError):
+    """A parameter with an unknown name, a wrong type or a value out of range."""
+
+
+@dataclass(frozen=True)
+class RenderParams:
+    """Everything that defines a D-ToF measurement and its sampling.
+
+    Frequencies are in MHz and times in seconds, as in the published scenes.
+    """
+
+    # ---- Exposure and modulation ----
+    time: float | None = None  #: exposure T (s); None: the sensor shutter, else 0.0015
+    w_g: float = 30.0  #: illumination modulation frequency f_g (MHz)
+    w_s: float | None = None  #: sensor modulation frequency f_s (MHz); default f_g + h / T
+    g_0: float = 0.5  #: illumination offset g0
+    g_1: float = 0.5  #: illumination amplitude g1
+    sensor_phase_offset: float = 0.0  #: psi (radians), used when hetero_offset is not given
+    hetero_frequency: float | None = None  #: h: f_s = f_g + h / T (beat periods per exposure)
+    hetero_offset: float | None = None  #: o: psi = 2 pi o
+    wave_function_type: str = "sinusoidal"
+    low_frequency_component_only: bool = True
+    # ---- Path tracing ----
+    max_depth: int = -1  #: longest path in segments (-1: unbounded)
+    rr_depth: int = 5  #: depth at which Russian roulette starts
+    hide_emitters: bool = False
+    # ---- Time-path sampling ----
+    time_sampling_method: str = "antithetic"
+    antithetic_shift: float | None = None  #: default 0.5 (shifted) or 0 (mirrored)
+    path_correlation_depth: int = FULL_CORRELATION  #: stages sharing random numbers
+    time_correlate_number: int = 2  #: K, samples per correlated group
+    use_stratified_sampling_for_each_interval: bool = True
+
+    # ---- Parsing ----
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values: dict, where: str = "parameters", base=None):
+        """Parse ``{name: value}`` (values typed or strings) on top of ``base``."""
+        base = base or cls()
+        known = {f.name: f for f in fields(cls)}
+        changes = {}
+        for name, value in values.items():
+            if name == "path_correlate_number":  # the published sampler's name
+                name = "path_correlation_depth"
+            if name not in known:
+                raise ParameterError(
+                    f"{where}: unknown parameter {name!r} (known: {', '.join(sorted(known))})"
+                )
+            changes[name] = _coerce(name, value, _TYPES[name], where)
+        return replace(base, **changes).validated(where)
+
+    def validated(self, where: str = "parameters"):
+        def fail(msg):
+            raise ParameterError(f"{where}: {msg}")
+
+        for name in ("w_g", "w_s", "g_0", "g_1", "sensor_phase_offset", "hetero_frequency",
+                     "hetero_offset", "antithetic_shift", "time"):
+            v = getattr(self, name)
+            if v is not None and not math.isfinite(v):
+                fail(f"{name} must be finite, got {v}")
+        if self.time is not None and self.time <= 0:
+            fail(f"time (the exposure) must be > 0 seconds, got {self.time}")
+        if self.w_g <= 0:
+            fail(f"w_g must be > 0 MHz, got {self.w_g}")
+        if self.w_s is not None and self.w_s <= 0:
+            fail(f"w_s must be > 0 MHz, got {self.w_s}")
+        if self.w_s is not None and self.hetero_frequency is not None:
+            fail("give w_s or hetero_frequency, not both (hetero_frequency sets w_s = w_g + h / T)")
+        if self.wave_function_type not in WAVEFORMS:
+            fail(f"unknown wave_function_type {self.wave_function_type!r}: expected one of "
+                 f"{', '.join(WAVEFORMS)}")
+        if not self.low_frequency_component_only and self.wave_function_type not in FULL_WAVEFORMS:
+            fail(f"wave_function_type {self.wave_function_type!r} pairs a trapezoid sensor with "
+                 "a delta illumination and has no full-waveform form; set "
+                 "low_frequency_component_only=true")
+        if self.time_sampling_method not in METHODS:
+            fail(f"unknown time_sampling_method {self.time_sampling_method!r}: expected one of "
+                 f"{', '.join(METHODS)}")
+        if self.max_depth < -1 or self.max_depth == 0:
+            fail(f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}")
+        if self.rr_depth < 1:
+            fail(f"rr_depth must be >= 1, got {self.rr_depth}")
+        if self.path_correlation_depth < 0:
+            fail(f"path_correlation_depth must be >= 0, got {self.path_correlation_depth}")
+        if self.time_correlate_number < 1:
+            fail(f"time_correlate_number must be >= 1, got {self.time_correlate_number}")
+        if (self.time_sampling_method == "antithetic_mirror"
+                and self.time_correlate_number != 2):
+            fail("time_sampling_method 'antithetic_mirror' pairs samples: it needs "
+                 f"time_correlate_number=2, got {self.time_correlate_number}")
+        return self
+
+    # ---- Derived quantities ----
+
+    def exposure(self, shutter: float) -> float:
+        """Exposure T: ``time`` when given, else the sensor's shutter interval, else 0.0015."""
+        if self.time is not None:
+            return self.time
+        return shutter if shutter > 0 else DEFAULT_EXPOSURE
+
+    def modulation(self, shutter: float) -> "Modulation":
+        T = self.exposure(shutter)
+        f_g = self.w_g * 1e6
+        if self.hetero_frequency is not None:
+            f_s = f_g + self.hetero_frequency / T
+        elif self.w_s is not None:
+            f_s = self.w_s * 1e6
+        else:
+            f_s = f_g
+        psi = (2 * math.pi * self.hetero_offset if self.hetero_offset is not None
+               else self.sensor_phase_offset)
+        shift = self.antithetic_shift
+        if shift is None:
+            shift = 0.0 if self.time_sampling_method == "antithetic_mirror" else 0.5
+        return Modulation(
+            exposure=T, omega_g=2 * math.pi * f_g, omega_d=2 * math.pi * (f_s - f_g), psi=psi,
+            g0=self.g_0, g1=self.g_1, waveform=self.wave_function_type,
+            low_pass=self.low_frequency_component_only, antithetic_shift=shift,
+        )
+
+
+@dataclass(frozen=True)
+class Modulation:
+    """Derived, SI units: what the integrator evaluates per contribution."""
+
+    exposure: float  #: T (s)
+    omega_g: float  #: illumination angular frequency (rad/s)
+    omega_d: float  #: omega_s - omega_g (rad/s)
+    psi: float  #: sensor phase offset (rad)
+    g0: float
+    g1: float
+    waveform: str
+    low_pass: bool
+    antithetic_shift: float
+    c: float = field(default=SPEED_OF_LIGHT)
+
+    @property
+    def omega_s(self) -> float:
+        return self.omega_g + self.omega_d
+
+    @property
+    def hetero_frequency(self) -> float:
+        return self.omega_d * self.exposure / (2 * math.pi)
+
+
+_TYPES = {
+    "time": float, "w_g": float, "w_s": float, "g_0": float, "g_1": float,
+    "sensor_phase_offset": float, "hetero_frequency": float, "hetero_offset": float,
+    "wave_function_type": str, "low_frequency_component_only": bool, "max_depth": int,
+    "rr_depth": int, "hide_emitters": bool, "time_sampling_method": str,
+    "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
+    "use_stratified_sampling_for_each_interval": bool,
+}
+assert set(_TYPES) == set(RenderParams.names())
+
+_TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "a boolean"}
+
+
+def _coerce(name, value, typ, where):
+    def bad():
+        return ParameterError(f"{where}: parameter {name!r} must be {_TYPE_NAMES[typ]}, "
+                              f"got {value!r}")
+
+    if typ is bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.strip().lower() in ("true", "false", "1", "0"):
+            return value.strip().lower() in ("true", "1")
+        raise bad()
+    if typ is str:
+        if isinstance(value, str):
+            return value.strip()
+        raise bad()
+    if isinstance(value, bool):
+        raise bad()
+    if typ is int:
+        try:
+            f = float(value)
+        except (TypeError, ValueError):
+            raise bad() from None
+        if not math.isfinite(f) or f != int(f):
+            raise bad()
+        return int(f)
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        raise bad() from None
+    if not math.isfinite(f):
+        raise ParameterError(f"{where}: parameter {name!r} must be finite, got {value!r}")
+    return f

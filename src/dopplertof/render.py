@@ -1,0 +1,191 @@
+"""Render a D-ToF image: passes of bounded memory, deterministic accumulation, progress.
+
+The samples of every pixel are cut into fixed *chunks* (8 groups of K samples each).
+A pass renders a whole number of chunks for all pixels; each chunk is summed in
+float64 on its own and the chunk sums are added in chunk order. A sample's random
+numbers depend only on (seed, pixel, sample index, dimension), so the image is bitwise
+the same whatever the pass size.
+"""
+
+from __future__ import annotations
+
+import sys
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import sampling
+from .params import RenderParams
+from .sampling import check_group_config
+
+#: lanes per pass (memory bound: a few hundred MB of JIT state at most)
+DEFAULT_MAX_LANES = 1 << 21
+
+#: groups per accumulation chunk
+GROUPS_PER_CHUNK = 8
+
+
+@dataclass
+class RenderResult:
+    """A rendered image and what produced it."""
+
+    image: np.ndarray  #: float32 (H, W, C), the time-averaged measurement (signed)
+    metadata: dict = field(default_factory=dict)
+
+
+@dataclass
+class RenderSetup:
+    """Everything the path tracing kernel reads, resolved for one render."""
+
+    scene: object
+    params: RenderParams
+    modulation: object
+    weight: object
+    seed: object
+    correlation_depth: object
+    method: object
+    antithetic_shift: object
+    group_size: int
+    groups_per_pixel: int
+    stratify: bool
+    shutter_open: float
+    film_sampler: object
+    near_clip: float
+    camera_forward: object
+    hide_emitters: bool
+
+
+def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
+    import drjit as dr
+
+    from .integrators.dtof_path import FilmSampler, ModulationWeight
+
+    sensor = scene.sensor
+    mod = params.modulation(scene.shutter_interval)
+    K = params.time_correlate_number
+    to_world = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)
+    forward = to_world[:3, 2, 0]
+    forward = forward / np.linalg.norm(forward)
+    near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
+    weight = ModulationWeight(mi, mod)
+    return RenderSetup(
+        scene=scene, params=params, modulation=mod, weight=weight,
+        seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
+        correlation_depth=dr.opaque(mi.UInt32, min(params.path_correlation_depth, 1 << 30)),
+        method=dr.opaque(mi.UInt32, sampling.method_index(params.time_sampling_method)),
+        antithetic_shift=dr.opaque(weight.F, mod.antithetic_shift),
+        group_size=K, groups_per_pixel=spp // K,
+        stratify=params.use_stratified_sampling_for_each_interval,
+        shutter_open=scene.shutter_open, film_sampler=FilmSampler(sensor.film()),
+        near_clip=near_clip, camera_forward=mi.Vector3f(*map(float, forward)),
+        hide_emitters=params.hide_emitters,
+    )
+
+
+def _show_progress(progress) -> bool:
+    if progress is not None:
+        return bool(progress)
+    return sys.stderr.isatty()
+
+
+def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
+                  progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
+                  pass_chunks: int | None = None) -> RenderResult:
+    """Render ``scene`` (a DopplerScene); see :func:`render`."""
+    from .backend import require_variant
+
+    mi = require_variant()
+    if scene.variant != mi.variant():
+        raise RuntimeError(
+            f"the scene was loaded with variant {scene.variant!r} but {mi.variant()!r} is set"
+        )
+    p = scene.params
+    if params is not None:
+        p = params if isinstance(params, RenderParams) else RenderParams.from_mapping(
+            dict(params), where="render parameters", base=p)
+    spp = scene.spp if spp is None else int(spp)
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    check_group_config(p.time_sampling_method, p.time_correlate_number, spp)
+
+    film = scene.sensor.film()
+    width, height = (int(v) for v in film.crop_size())
+    n_pixels = width * height
+    setup = _make_setup(mi, scene, p, spp, int(seed))
+
+    # ---- Pass plan: whole chunks per pass ----
+    chunk = min(spp, GROUPS_PER_CHUNK * setup.group_size)
+    n_chunks = -(-spp // chunk)
+    if pass_chunks is None:
+        pass_chunks = max(1, max_lanes // (n_pixels * chunk))
+    pass_chunks = max(1, min(int(pass_chunks), n_chunks))
+
+    from tqdm import tqdm
+
+    from .integrators.dtof_path import PassLayout, trace_pass
+
+    total = None
+    nonfinite = 0
+    started = _time.perf_counter()
+    bar = tqdm(total=spp, unit="spp", desc="rendering", disable=not _show_progress(progress),
+               leave=False, file=sys.stderr)
+    import drjit as dr
+
+    try:
+        for first_chunk in range(0, n_chunks, pass_chunks):
+            chunks = range(first_chunk, min(n_chunks, first_chunk + pass_chunks))
+            s0 = first_chunk * chunk
+            s1 = min(spp, chunks[-1] * chunk + chunk)
+            samples = s1 - s0
+            layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0),
+                                setup.group_size)
+            value = trace_pass(mi, setup, layout)
+            dr.eval(value)
+            lanes = np.stack([np.asarray(value[c]) for c in range(_channels(value))], axis=-1)
+            lanes = lanes.reshape(n_pixels, samples, -1)
+            bad = ~np.all(np.isfinite(lanes), axis=-1)
+            if bad.any():
+                nonfinite += int(bad.sum())
+                lanes[bad] = 0.0
+            for j in range(len(chunks)):
+                part = lanes[:, j * chunk:(j + 1) * chunk].sum(axis=1, dtype=np.float64)
+                total = part if total is None else total + part
+            bar.update(samples)
+    finally:
+        bar.close()
+
+    image = (total / spp).astype(np.float32).reshape(height, width, -1)
+    mod = setup.modulation
+    metadata = {
+        "measurement": "time-averaged correlation (1/T) * integral over the exposure; "
+                       "multiply by exposure_s for the integrated value",
+        "exposure_s": mod.exposure,
+        "omega_g_rad_s": mod.omega_g,
+        "omega_d_rad_s": mod.omega_d,
+        "psi_rad": mod.psi,
+        "spp": spp,
+        "seed": int(seed),
+        "variant": mi.variant(),
+        "nonfinite_samples_dropped": nonfinite,
+        "render_seconds": _time.perf_counter() - started,
+        "params": {k: getattr(p, k) for k in RenderParams.names()},
+    }
+    return RenderResult(image, metadata)
+
+
+def _channels(value) -> int:
+    try:
+        return len(value)
+    except TypeError:
+        return 1
+
+
+def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> np.ndarray:
+    """Render a D-ToF image: float32 (H, W, C), the time-averaged measurement.
+
+    ``spp`` defaults to the scene's sampler count; ``params`` (a dict or RenderParams)
+    overrides integrator parameters of the scene. The value is signed and equals
+    (1/T) * the integral over the exposure; multiply by T for the integrated charge.
+    """
+    return render_result(scene, spp, seed, params, **kwargs).image

@@ -1,0 +1,164 @@
+"""Time sampling and correlated random streams (DESIGN section 2).
+
+A pixel's samples come in groups of K. Every random number is a hash of
+(seed, pixel, stream, dimension): the *shared* stream of a group (keyed by the group
+index) or the sample's *own* stream (keyed by its global sample index). Stage ``k`` of
+a path (0: camera ray; k >= 1: the decisions at the k-th surface hit) draws from the
+shared stream when ``k < path_correlation_depth``. Because dimensions are fixed per
+stage and numbers are hashed rather than drawn from a sequential generator, the two
+streams stay aligned whatever is selected, and a sample replays exactly for the same
+pixel, sample index and dimension, whatever the pass it is rendered in.
+
+All functions work on Dr.Jit arrays of the current Mitsuba variant.
+"""
+
+from __future__ import annotations
+
+METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+
+# ---- Dimension layout -------------------------------------------------------
+DIM_TIME = 0  #: the time sample
+DIM_STRATUM_ROTATION = 1  #: random rotation of the time strata across groups
+DIM_FILM = 2  #: film position (2 numbers)
+DIM_APERTURE = 4  #: lens position (2 numbers)
+DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here
+DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), spare (2)
+
+# Offsets within a bounce's block of dimensions.
+BOUNCE_EMITTER = 0
+BOUNCE_BSDF_LOBE = 2
+BOUNCE_BSDF_DIR = 3
+BOUNCE_RR = 5
+
+# TEA rounds: 8 to derive keys, 6 per number (4 shows correlations between
+# consecutive dimensions).
+_KEY_ROUNDS = 8
+_NUMBER_ROUNDS = 6
+
+#: largest sample count per pixel the 32-bit stream keys allow
+MAX_SPP = 1 << 30
+
+
+def method_index(name: str) -> int:
+    try:
+        return METHODS.index(name)
+    except ValueError:
+        raise ValueError(
+            f"unknown time_sampling_method {name!r}: expected one of {', '.join(METHODS)}"
+        ) from None
+
+
+def bounce_dim(depth, offset: int):
+    """Dimension of a decision at surface hit ``depth`` (0-based)."""
+    return DIM_FIRST_BOUNCE + DIMS_PER_BOUNCE * depth + offset
+
+
+class CorrelatedStreams:
+    """The shared and own random streams of a set of lanes.
+
+    Parameters are Dr.Jit UInt32 arrays (one entry per lane) except ``seed`` and
+    ``correlation_depth``, which may be opaque scalars.
+    """
+
+    def __init__(self, mi, pixel, group, sample, seed, correlation_depth):
+        self.mi = mi
+        base, _ = mi.sample_tea_32(pixel, seed, _KEY_ROUNDS)
+        self.base = base
+        self.key_group, _ = mi.sample_tea_32(base, group * 2, _KEY_ROUNDS)
+        self.key_own, _ = mi.sample_tea_32(base, sample * 2 + 1, _KEY_ROUNDS)
+        self.correlation_depth = correlation_depth
+
+    def key(self, stage):
+        """The stream key of a sampling stage (0: camera, k: k-th surface hit)."""
+        import drjit as dr
+
+        return dr.select(stage < self.correlation_depth, self.key_group, self.key_own)
+
+    def get_1d(self, stage, dim):
+        return self.mi.sample_tea_float32(self.key(stage), dim, _NUMBER_ROUNDS)
+
+    def get_2d(self, stage, dim):
+        key = self.key(stage)
+        return self.mi.Point2f(
+            self.mi.sample_tea_float32(key, dim, _NUMBER_ROUNDS),
+            self.mi.sample_tea_float32(key, dim + 1, _NUMBER_ROUNDS),
+        )
+
+
+def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: int,
+                  groups_per_pixel: int, method, antithetic_shift, stratify: bool,
+                  double: bool):
+    """Sample time as a fraction of the exposure, in [0, 1), per lane.
+
+    ``method`` (an index into METHODS) and ``antithetic_shift`` may be opaque
+    JIT scalars, so that one compiled kernel serves every method. ``double``
+    returns Float64 (full-waveform mode needs time resolved far below one period
+    of the modulation).
+    """
+    import drjit as dr
+
+    Float = mi.Float64 if double else mi.Float
+    sample = mi.sample_tea_float64 if double else mi.sample_tea_float32
+    K = group_size
+
+    # ---- Primal numbers: one per group (antithetic) or per sample (others) ----
+    u_group = sample(streams.key_group, DIM_TIME, _NUMBER_ROUNDS)
+    u_own = sample(streams.key_own, DIM_TIME, _NUMBER_ROUNDS)
+    is_antithetic = method >= 2
+    u = dr.select(is_antithetic, u_group, u_own)
+
+    # ---- Full time stratification across the groups of a pixel ----
+    if stratify and groups_per_pixel > 1:
+        G = groups_per_pixel
+        # A random cyclic rotation of the strata, per pixel and sample index in
+        # the group (so that the K streams of the stratified method are not
+        # aligned stratum by stratum); antithetic groups share index 0.
+        rot_index = dr.select(is_antithetic, 0, index)
+        rot_key, _ = mi.sample_tea_32(streams.base, rot_index * 2 + 0x7FFFFFFF, _KEY_ROUNDS)
+        rotation = mi.UInt32(mi.sample_tea_float32(rot_key, DIM_STRATUM_ROTATION, _NUMBER_ROUNDS) * G)
+        stratum = (group + dr.minimum(rotation, G - 1)) % G
+        u = (Float(stratum) + u) * (1.0 / G)
+
+    # ---- The four methods ----
+    fi = Float(index)
+    t_uniform = u
+    t_stratified = (fi + u) * (1.0 / K)
+    shift = Float(antithetic_shift) if K == 2 else Float(1.0 / K)
+    t_shifted = u + fi * shift
+    t_shifted -= dr.floor(t_shifted)
+    t_mirror = dr.select(index == 0, u, 1.0 - u + Float(antithetic_shift))
+    t_mirror -= dr.floor(t_mirror)
+
+    t = dr.select(method == 0, t_uniform, t_stratified)
+    t = dr.select(method == 2, t_shifted, t)
+    t = dr.select(method == 3, t_mirror, t)
+    return t
+
+
+def check_group_config(method: str, group_size: int, spp: int) -> None:
+    """Errors for a sample count or group size the methods cannot use."""
+    if group_size < 1:
+        raise ValueError(f"time_correlate_number must be >= 1, got {group_size}")
+    if spp < 1:
+        raise ValueError(f"spp must be >= 1, got {spp}")
+    if spp > MAX_SPP:
+        raise ValueError(f"spp {spp} exceeds the supported maximum {MAX_SPP}")
+    if spp % group_size != 0:
+        raise ValueError(
+            f"spp {spp} is not a multiple of the group size time_correlate_number={group_size}"
+        )
+    if method == "antithetic_mirror" and group_size != 2:
+        raise ValueError(
+            f"time_sampling_method 'antithetic_mirror' pairs samples: it needs "
+            f"time_correlate_number=2, got {group_size}"
+        )
+
+
+__all__ = [
+    "METHODS",
+    "CorrelatedStreams",
+    "time_fraction",
+    "method_index",
+    "check_group_config",
+    "bounce_dim",
+]

@@ -1,0 +1,281 @@
+"""Keyframed rigid motion of a body (DESIGN section 3).
+
+A body's shapes are loaded once, in a scene of their own, at the pose of the first
+keyframe (the *reference pose*). At time t the body is that geometry moved by the
+relative transform  Rel(t) = M(t) M_ref^-1,  where M(t) interpolates the keyframes.
+
+Interpolation modes:
+
+* ``rigid`` (default): each keyframe matrix is split into translation T, rotation R
+  and stretch S (polar decomposition, M = T R S); T and S are lerped and R slerped.
+* ``matrix``: plain element-wise lerp of the 4x4 matrices (published behaviour).
+
+The same code evaluates the motion on NumPy arrays (ground truth, bounding boxes) and
+on Dr.Jit arrays (per-lane in the renderer): transforms are a 3x3 nested list
+``A`` (``None`` for the identity) and a translation list ``b``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+INTERPOLATIONS = ("rigid", "matrix")
+
+
+class MotionError(ValueError):
+    """An animation that cannot be interpolated."""
+
+
+@dataclass(frozen=True)
+class Keyframes:
+    """Times (seconds, strictly increasing) and 4x4 world matrices of one animation."""
+
+    times: tuple
+    matrices: tuple  # of 4x4 nested tuples (hashable: shapes with equal keyframes share a body)
+    interpolation: str = "rigid"
+
+    @staticmethod
+    def create(times, matrices, interpolation="rigid", where="animation"):
+        times = [float(t) for t in times]
+        mats = [np.asarray(m, dtype=np.float64).reshape(4, 4) for m in matrices]
+        if interpolation not in INTERPOLATIONS:
+            raise MotionError(
+                f"{where}: unknown interpolation {interpolation!r}: expected one of "
+                f"{', '.join(INTERPOLATIONS)}"
+            )
+        if len(times) < 2:
+            raise MotionError(f"{where}: an animation needs at least 2 keyframes, got {len(times)}")
+        if not all(np.isfinite(times)):
+            raise MotionError(f"{where}: keyframe times must be finite, got {times}")
+        for a, b in zip(times, times[1:]):
+            if not b > a:
+                kind = "duplicate" if a == b else "unsorted"
+                raise MotionError(
+                    f"{where}: {kind} keyframe times {a} and {b}: times must be strictly increasing"
+                )
+        for t, m in zip(times, mats):
+            if not np.all(np.isfinite(m)):
+                raise MotionError(f"{where}: keyframe at time {t} has a non-finite matrix")
+            if not np.allclose(m[3], [0, 0, 0, 1]):
+                raise MotionError(f"{where}: keyframe at time {t} is not an affine transform")
+            det = np.linalg.det(m[:3, :3])
+            scale = max(np.abs(m[:3, :3]).max(), 1e-300)
+            if abs(det) <= 1e-12 * scale**3:
+                raise MotionError(f"{where}: keyframe at time {t} has a non-invertible matrix")
+        return Keyframes(
+            tuple(times), tuple(tuple(map(tuple, m)) for m in mats), interpolation
+        )
+
+    def matrix_array(self) -> np.ndarray:
+        return np.array(self.matrices, dtype=np.float64)
+
+
+# ---- Small generic linear algebra (NumPy or Dr.Jit entries) -----------------
+
+def _is_numpy(x) -> bool:
+    return isinstance(x, (np.ndarray, float, int, np.floating))
+
+
+def _where(mask, a, b):
+    if _is_numpy(mask):
+        return np.where(mask, a, b)
+    import drjit as dr
+
+    return dr.select(mask, a, b)
+
+
+def _matmul3(A, B):
+    return [[sum(A[i][k] * B[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+
+def _matvec3(A, v):
+    if A is None:
+        return list(v)
+    return [A[i][0] * v[0] + A[i][1] * v[1] + A[i][2] * v[2] for i in range(3)]
+
+
+def _transpose3(A):
+    return [[A[j][i] for j in range(3)] for i in range(3)]
+
+
+def _inverse3(A):
+    """Inverse by the adjugate (per lane for JIT arrays)."""
+    c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1]
+    c01 = A[1][2] * A[2][0] - A[1][0] * A[2][2]
+    c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0]
+    inv_det = 1.0 / (A[0][0] * c00 + A[0][1] * c01 + A[0][2] * c02)
+    return [
+        [c00 * inv_det, (A[0][2] * A[2][1] - A[0][1] * A[2][2]) * inv_det,
+         (A[0][1] * A[1][2] - A[0][2] * A[1][1]) * inv_det],
+        [c01 * inv_det, (A[0][0] * A[2][2] - A[0][2] * A[2][0]) * inv_det,
+         (A[0][2] * A[1][0] - A[0][0] * A[1][2]) * inv_det],
+        [c02 * inv_det, (A[0][1] * A[2][0] - A[0][0] * A[2][1]) * inv_det,
+         (A[0][0] * A[1][1] - A[0][1] * A[1][0]) * inv_det],
+    ]
+
+
+def _quat_to_matrix(w, x, y, z):
+    return [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+
+
+def _matrix_to_quat(R: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    return np.array([w, x, y, z])
+
+
+def _polar(A: np.ndarray):
+    """A = R S with R a proper rotation and S symmetric (negative when det A < 0)."""
+    U, sig, Vt = np.linalg.svd(A)
+    R = U @ Vt
+    S = Vt.T @ np.diag(sig) @ Vt
+    if np.linalg.det(R) < 0:
+        R, S = -R, -S
+    return R, S
+
+
+class Motion:
+    """The interpolated motion of one body, relative to its reference pose."""
+
+    def __init__(self, keyframes: Keyframes):
+        self.keyframes = keyframes
+        self.times = np.array(keyframes.times)
+        mats = keyframes.matrix_array()
+        self.matrices = mats
+        self.linear = mats[:, :3, :3]
+        self.translation = mats[:, :3, 3]
+        self.ref_inverse = np.linalg.inv(mats[0])
+        # Translation only when every keyframe has the same linear part: the
+        # relative transform is then a pure translation, exactly.
+        self.translation_only = bool(np.all(self.linear == self.linear[0]))
+        if keyframes.interpolation == "rigid":
+            polar = [_polar(a) for a in self.linear]
+            quats = [_matrix_to_quat(r) for r, _ in polar]
+            for i in range(1, len(quats)):  # shortest arcs
+                if np.dot(quats[i - 1], quats[i]) < 0:
+                    quats[i] = -quats[i]
+            self.quats = np.array(quats)
+            self.stretch = np.array([s for _, s in polar])
+
+    # ---- Interpolation ----
+
+    def _segment(self, j: int, t):
+        """World matrix (A, b) on segment j at times t (alpha clamped to [0, 1])."""
+        t0, t1 = float(self.times[j]), float(self.times[j + 1])
+        alpha = (t - t0) * (1.0 / (t1 - t0))
+        alpha = np.clip(alpha, 0.0, 1.0) if _is_numpy(alpha) else _clip_jit(alpha)
+        beta = 1.0 - alpha
+        T0, T1 = self.translation[j].tolist(), self.translation[j + 1].tolist()
+        b = [beta * T0[i] + alpha * T1[i] for i in range(3)]
+        if self.translation_only:
+            return None, b
+        if self.keyframes.interpolation == "matrix":
+            A0, A1 = self.linear[j].tolist(), self.linear[j + 1].tolist()
+            A = [[beta * A0[r][c] + alpha * A1[r][c] for c in range(3)] for r in range(3)]
+            return A, b
+        q0, q1 = self.quats[j].tolist(), self.quats[j + 1].tolist()
+        cos_omega = float(np.clip(np.dot(q0, q1), -1.0, 1.0))
+        omega = float(np.arccos(cos_omega))
+        if omega < 1e-6:
+            w0, w1 = beta, alpha
+        else:
+            sin_omega = float(np.sin(omega))
+            sin = np.sin if _is_numpy(alpha) else _jit_sin
+            w0 = sin(beta * omega) * (1.0 / sin_omega)
+            w1 = sin(alpha * omega) * (1.0 / sin_omega)
+        q = [w0 * q0[i] + w1 * q1[i] for i in range(4)]
+        norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
+        q = [c / norm for c in q]
+        R = _quat_to_matrix(*q)
+        S0, S1 = self.stretch[j].tolist(), self.stretch[j + 1].tolist()
+        S = [[beta * S0[r][c] + alpha * S1[r][c] for c in range(3)] for r in range(3)]
+        return _matmul3(R, S), b
+
+    def world(self, t):
+        """Interpolated world matrix at times t: (A or None for unchanged linear part, b)."""
+        A, b = self._segment(0, t)
+        for j in range(1, len(self.times) - 1):
+            Aj, bj = self._segment(j, t)
+            mask = t >= float(self.times[j])
+            b = [_where(mask, bj[i], b[i]) for i in range(3)]
+            if A is not None:
+                A = [[_where(mask, Aj[r][c], A[r][c]) for c in range(3)] for r in range(3)]
+        return A, b
+
+    def relative(self, t):
+        """Rel(t) = M(t) M_ref^-1 as (A or None for identity, b), and its inverse."""
+        A, b = self.world(t)
+        if A is None:  # pure translation
+            ref_b = self.translation[0].tolist()
+            rb = [b[i] - ref_b[i] for i in range(3)]
+            return (None, rb), (None, [-x for x in rb])
+        ref_inv = self.ref_inverse.tolist()
+        RA = _matmul3(A, [row[:3] for row in ref_inv[:3]])
+        Rb = [b[i] + sum(A[i][k] * ref_inv[k][3] for k in range(3)) for i in range(3)]
+        IA = _inverse3(RA)
+        Ib = [-x for x in _matvec3(IA, Rb)]
+        return (RA, Rb), (IA, Ib)
+
+    def world_matrix(self, t: float) -> np.ndarray:
+        """4x4 world matrix at a scalar time (NumPy, float64)."""
+        A, b = self.world(np.float64(t))
+        M = np.eye(4)
+        M[:3, :3] = self.linear[0] if A is None else np.array(A, dtype=np.float64)
+        M[:3, 3] = np.array(b, dtype=np.float64)
+        return M
+
+    def relative_matrix(self, t: float) -> np.ndarray:
+        return self.world_matrix(t) @ self.ref_inverse
+
+    def swept_bbox(self, bbox_min, bbox_max, t_start: float, t_end: float, samples: int = 257):
+        """World bounding box of the reference-pose box over [t_start, t_end].
+
+        Corners are moved at densely sampled times and every keyframe inside the
+        interval; 1% of the diagonal is added to cover rotation between samples.
+        """
+        lo, hi = np.asarray(bbox_min, float), np.asarray(bbox_max, float)
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                            for z in (lo[2], hi[2])])
+        times = list(np.linspace(t_start, t_end, samples))
+        times += [t for t in self.times if t_start <= t <= t_end]
+        pts = np.concatenate([(self.relative_matrix(t) @ corners.T).T[:, :3] for t in times])
+        pmin, pmax = pts.min(axis=0), pts.max(axis=0)
+        pad = 0.01 * np.linalg.norm(pmax - pmin) + 1e-6
+        return pmin - pad, pmax + pad
+
+
+def _clip_jit(x):
+    import drjit as dr
+
+    return dr.clip(x, 0.0, 1.0)
+
+
+def _jit_sin(x):
+    import drjit as dr
+
+    return dr.sin(x)
+
+
+# ---- Applying a transform (A or None, b) -------------------------------------
+
+def transform_point(T, p):
+    A, b = T
+    q = _matvec3(A, p)
+    return [q[i] + b[i] for i in range(3)]
+
+
+def transform_vector(T, v):
+    return _matvec3(T[0], v)
+
+
+def transform_normal(T_inverse, n):
+    """Normals move with the inverse transpose of the linear part."""
+    A = T_inverse[0]
+    return list(n) if A is None else _matvec3(_transpose3(A), n)

@@ -1,0 +1,55 @@
+"""The loaded scene: static Mitsuba scene, moving bodies, sensor and parameters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from ..params import RenderParams
+
+
+class SceneError(ValueError):
+    """A scene that cannot be loaded; the message names the problem and where."""
+
+
+@dataclass(frozen=True)
+class DopplerScene:
+    static: object  #: mi.Scene with the static shapes, the sensor and the emitters
+    bodies: tuple  #: MovingBody, one per animation
+    params: RenderParams  #: from the scene's <integrator> and <sampler>
+    spp: int  #: the sensor sampler's sample count
+    variant: str  #: the Mitsuba variant it was loaded with
+    source: str = "<dict>"
+
+    @property
+    def sensor(self):
+        return self.static.sensors()[0]
+
+    @property
+    def shutter_open(self) -> float:
+        return float(self.sensor.shutter_open())
+
+    @property
+    def shutter_interval(self) -> float:
+        return float(self.sensor.shutter_open_time())
+
+    def with_params(self, **changes) -> "DopplerScene":
+        """A copy with integrator parameters changed (validated)."""
+        params = RenderParams.from_mapping(changes, where="parameters", base=self.params)
+        return replace(self, params=params)
+
+
+def build(mi, static, bodies, params: RenderParams, source: str) -> DopplerScene:
+    """Checks shared by the XML and dict loaders."""
+    sensors = static.sensors()
+    if len(sensors) != 1:
+        raise SceneError(f"{source}: a D-ToF scene needs exactly one sensor, found {len(sensors)}")
+    for emitter in static.emitters():
+        if emitter.is_environment():
+            raise SceneError(
+                f"{source}: environment emitters are not modulated sources of a ToF camera; "
+                "remove it (ambient light belongs to the sensor noise model)"
+            )
+    if not static.emitters():
+        raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
+    spp = int(sensors[0].sampler().sample_count())
+    return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source)
