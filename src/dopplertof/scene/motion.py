@@ -75,7 +75,7 @@ class Keyframes:
 # ---- Small generic linear algebra (NumPy or Dr.Jit entries) -----------------
 
 def _is_numpy(x) -> bool:
-    return isinstance(x, (np.ndarray, float, int, np.floating))
+    return isinstance(x, (np.ndarray, float, int, bool, np.floating, np.bool_))
 
 
 def _where(mask, a, b):

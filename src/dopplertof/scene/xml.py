@@ -254,7 +254,7 @@ def _body_document(root: ET.Element, shapes) -> str:
 
 
 def _load_string(mi, text: str, source: str, base_dir: str):
-    resolver = mi.Thread.thread().file_resolver()
+    resolver = mi.file_resolver()
     resolver.prepend(base_dir)
     try:
         return mi.load_string(text)

@@ -1,0 +1,97 @@
+"""The command line: outputs, exit codes, one-line errors, untouched files on failure."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import PUBLISHED
+
+SMALL = ["-D", "resx=12", "-D", "resy=10", "--spp", "4", "--quiet"]
+
+
+def run(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "dopplertof.cli", *args],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("ext", [".npy", ".exr", ".png"])
+def test_render_writes_each_format(tmp_path, ext):
+    out = tmp_path / f"img{ext}"
+    proc = run("render", PUBLISHED, *SMALL, "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert out.is_file() and out.stat().st_size > 0
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]  # no temporary left behind
+    if ext == ".npy":
+        img = np.load(out)
+        assert img.shape == (10, 12, 3) and img.dtype == np.float32
+    if ext == ".exr":
+        import mitsuba as mi
+
+        bmp = np.array(mi.Bitmap(str(out)))
+        assert bmp.shape == (10, 12, 3)
+
+
+def test_npy_equals_library_render(tmp_path):
+    import dopplertof
+
+    out = tmp_path / "a.npy"
+    assert run("render", PUBLISHED, *SMALL, "--seed", "3", "-o", str(out)).returncode == 0
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    assert np.array_equal(np.load(out), dopplertof.render(scene, spp=4, seed=3))
+
+
+@pytest.mark.parametrize("args,message", [
+    (["render", "missing.xml", "-o", "{out}"], "scene file not found"),
+    (["render", PUBLISHED, *SMALL, "-o", "{dir}/x.tiff"], "unknown output extension"),
+    (["render", PUBLISHED, *SMALL, "-o", "{dir}/nodir/x.npy"], "output folder does not exist"),
+    (["render", PUBLISHED, "-D", "bogus=1", "-o", "{out}"], "unknown scene parameter 'bogus'"),
+    (["render", PUBLISHED, "-D", "resx=8", "--spp", "3", "-o", "{out}"],
+     "not a multiple of the group size"),
+    (["render", PUBLISHED, "-P", "wave_function_type=saw", "-o", "{out}"],
+     "unknown wave_function_type"),
+    (["render", PUBLISHED, "-D", "oops", "-o", "{out}"], "-D expects name=value"),
+])
+def test_bad_input_one_line_exit_2_output_untouched(tmp_path, args, message):
+    out = tmp_path / "keep.npy"
+    np.save(out, np.arange(3))
+    before = out.read_bytes()
+    args = [a.format(out=out, dir=tmp_path) for a in args]
+    proc = run(*args)
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert out.read_bytes() == before
+
+
+def test_debug_shows_traceback():
+    proc = run("--debug", "render", "missing.xml", "-o", "x.npy")
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_demo_runs_at_tiny_settings(tmp_path):
+    proc = run("demo", "-o", str(tmp_path), "--spp", "4", "--res", "16", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("homodyne", "heterodyne"):
+        assert np.load(tmp_path / f"{name}.npy").shape == (16, 16, 3)
+        assert (tmp_path / f"{name}.png").stat().st_size > 0
+    assert "heterodyne" in proc.stdout
+
+
+def test_mitsuba_plugin_renders_static_scene():
+    """<integrator type="dopplertof"> through plain mitsuba.load_string + mitsuba.render."""
+    import mitsuba as mi
+
+    import dopplertof
+
+    text = open(PUBLISHED).read()
+    start, end = text.index('<shape type="cube" id="ShortBox">'), text.index("<emitter")
+    text = text[:start] + text[end:]  # drop the moving boxes
+    text = text.replace('type="correlated"', 'type="independent"')
+    scene = mi.load_string(text, resx=8, resy=8)
+    img = np.array(mi.render(scene, spp=8, seed=1))
+    ours = dopplertof.render(dopplertof.scene.load_string(text, {"resx": 8, "resy": 8}),
+                             spp=8, seed=1)
+    assert np.array_equal(img, ours)

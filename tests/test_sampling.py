@@ -1,0 +1,105 @@
+"""The correlated sampler: exact replay, shared and own streams, time sampling methods."""
+
+import numpy as np
+import pytest
+
+import dopplertof
+from dopplertof import sampling
+
+
+def streams(pixel, group, sample, seed=7, depth=2):
+    import mitsuba as mi
+
+    return sampling.CorrelatedStreams(mi, mi.UInt32(pixel), mi.UInt32(group), mi.UInt32(sample),
+                                      mi.UInt32(seed), mi.UInt32(depth))
+
+
+def numbers(s, stage, dims=range(6, 30)):
+    import mitsuba as mi
+
+    return np.array([np.asarray(s.get_1d(mi.UInt32(stage), mi.UInt32(d))) for d in dims])
+
+
+def test_replay_is_exact_for_same_pixel_sample_dimension():
+    a = numbers(streams([3, 9, 9], [1, 4, 4], [2, 8, 9]), 1)
+    b = numbers(streams([3, 9, 9], [1, 4, 4], [2, 8, 9]), 1)
+    assert np.array_equal(a, b)
+
+
+def test_shared_stages_equal_within_group_and_own_stages_differ():
+    # samples 8 and 9 form group 4 (K = 2); correlation depth 2: stages 0 and 1 shared
+    s = streams([5, 5], [4, 4], [8, 9], depth=2)
+    for stage in (0, 1):
+        n = numbers(s, stage)
+        assert np.array_equal(n[:, 0], n[:, 1])
+    n = numbers(s, 2)
+    assert not np.any(n[:, 0] == n[:, 1])
+    # other pixels, groups and seeds give other numbers
+    assert not np.array_equal(numbers(streams(6, 4, 8), 0), numbers(streams(5, 4, 8), 0))
+    assert not np.array_equal(numbers(streams(5, 5, 10), 0), numbers(streams(5, 4, 8), 0))
+    assert not np.array_equal(numbers(streams(5, 4, 8, seed=8), 0),
+                              numbers(streams(5, 4, 8, seed=7), 0))
+
+
+def test_numbers_are_uniform():
+    import mitsuba as mi
+
+    n = 1 << 16
+    s = streams(np.arange(n) % 97, np.arange(n) // 2, np.arange(n), depth=0)
+    u = np.asarray(s.get_1d(mi.UInt32(3), mi.UInt32(17)))
+    assert u.min() >= 0 and u.max() < 1
+    counts, _ = np.histogram(u, bins=16, range=(0, 1))
+    chi2 = ((counts - n / 16) ** 2 / (n / 16)).sum()
+    assert chi2 < 40  # 15 degrees of freedom: p ~ 5e-4
+
+
+def times(method, K=2, G=8, shift=0.5, stratify=True):
+    import mitsuba as mi
+
+    spp = K * G
+    sample = np.arange(spp)
+    s = streams(np.zeros(spp, int), sample // K, sample)
+    t = sampling.time_fraction(mi, s, mi.UInt32(sample // K), mi.UInt32(sample % K),
+                               group_size=K, groups_per_pixel=G,
+                               method=mi.UInt32(sampling.method_index(method)),
+                               antithetic_shift=mi.Float(shift), stratify=stratify,
+                               double=False)
+    return np.asarray(t).reshape(G, K)
+
+
+def test_antithetic_pairs_are_shifted():
+    t = times("antithetic", shift=0.5)
+    np.testing.assert_allclose((t[:, 1] - t[:, 0]) % 1.0, 0.5, atol=1e-6)
+    t = times("antithetic", shift=0.3)
+    np.testing.assert_allclose((t[:, 1] - t[:, 0]) % 1.0, 0.3, atol=1e-6)
+
+
+def test_periodic_groups_of_four():
+    t = times("antithetic", K=4)
+    np.testing.assert_allclose(np.diff(t, axis=1) % 1.0, 0.25, atol=1e-6)
+
+
+def test_mirrored_pairs():
+    t = times("antithetic_mirror", shift=0.0)
+    np.testing.assert_allclose((t[:, 0] + t[:, 1]) % 1.0, 0.0, atol=1e-6)
+
+
+def test_stratified_within_group_and_across_groups():
+    t = times("stratified", K=2, G=8)
+    assert np.all((t[:, 0] < 0.5) & (t[:, 1] >= 0.5))
+    for i in range(2):  # each sample index covers every stratum of the group's interval
+        strata = np.floor((t[:, i] * 2 - i) * 8).astype(int)
+        assert sorted(strata) == list(range(8))
+
+
+def test_full_time_stratification_of_primal_numbers():
+    t = times("antithetic", K=2, G=16)
+    assert sorted(np.floor(t[:, 0] * 16).astype(int)) == list(range(16))
+    t = times("uniform", K=2, G=16, stratify=False)
+    assert t.min() >= 0 and t.max() < 1
+
+
+def test_mirror_needs_pairs():
+    with pytest.raises(dopplertof.ParameterError, match="needs time_correlate_number=2"):
+        dopplertof.RenderParams(time_sampling_method="antithetic_mirror",
+                                time_correlate_number=4).validated()

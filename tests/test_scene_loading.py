@@ -1,0 +1,156 @@
+"""Loading: the published fixture, animations, the dict API, and bad scenes."""
+
+import numpy as np
+import pytest
+
+import dopplertof
+from conftest import PUBLISHED
+from dopplertof.scene import SceneError
+
+BASE = """<scene version="3.0.0">
+  <integrator type="dopplertof">{integrator}</integrator>
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+      <rfilter type="box"/></film>
+    <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+  </sensor>
+  <emitter type="point"><point name="position" x="0" y="0" z="5"/>
+    <rgb name="intensity" value="10"/></emitter>
+  <bsdf type="diffuse" id="white"/>
+  {shapes}
+</scene>"""
+
+ANIM = """<shape type="cube" id="{id}"><ref id="white"/>
+  <animation name="to_world">{keyframes}</animation></shape>"""
+
+
+def load(integrator="", shapes="", **overrides):
+    return dopplertof.scene.load_string(BASE.format(integrator=integrator, shapes=shapes),
+                                        overrides)
+
+
+def keyframes(*times):
+    return "".join(f'<transform time="{t}"><translate z="{i * 0.01}"/></transform>'
+                   for i, t in enumerate(times))
+
+
+def test_published_fixture_renders_with_signal_on_moving_boxes():
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 48, "resy": 48})
+    assert scene.params.time_sampling_method == "antithetic"
+    assert scene.params.hetero_frequency == 1.0
+    assert scene.params.path_correlation_depth == 4 and scene.params.max_depth == 4
+    assert scene.shutter_interval == pytest.approx(0.0015)
+    assert len(scene.bodies) == 2 and scene.spp == 1024
+    H = dopplertof.render(scene, spp=128, seed=0, params={"hetero_frequency": 0}).mean(-1)
+    E = dopplertof.render(scene, spp=128, seed=0).mean(-1)
+    assert np.all(np.isfinite(E)) and np.all(np.isfinite(H))
+    # Tall box (left of centre): receding at 10 m/s, so E / H ~ omega_g 2 v T / (c 2 pi)
+    expected = 2 * 10 * 30e6 * 0.0015 / 299792458
+    tall = (slice(21, 42), slice(12, 22))
+    ratio = np.median((E[tall] / H[tall])[np.abs(H[tall]) > 0.02])
+    assert 0.6 * expected < ratio < 1.6 * expected
+    # A static wall (top rows): no Doppler signal beyond noise
+    wall = (slice(8, 16), slice(12, 36))
+    assert abs(np.median(E[wall] / H[wall])) < 0.2 * expected
+
+
+def test_defaults_and_overrides():
+    s = load(integrator='<float name="w_g" value="$f"/>', f=20)
+    assert s.params.w_g == 20.0
+    with pytest.raises(SceneError, match="unknown scene parameter 'nope'"):
+        load(nope=3)
+    with pytest.raises(SceneError, match=r"undefined parameter \$f"):
+        load(integrator='<float name="w_g" value="$f"/>')
+
+
+def test_shapes_with_equal_animation_form_one_body():
+    shapes = (ANIM.format(id="a", keyframes=keyframes(0, 1))
+              + ANIM.format(id="b", keyframes=keyframes(0, 1))
+              + ANIM.format(id="c", keyframes=keyframes(0, 2)))
+    s = load(shapes=shapes)
+    assert sorted(b.names for b in s.bodies) == [("a", "b"), ("c",)]
+
+
+@pytest.mark.parametrize("shapes,message", [
+    (ANIM.format(id="a", keyframes=keyframes(0)), "at least 2 keyframes"),
+    (ANIM.format(id="a", keyframes=keyframes(1, 0)), "unsorted keyframe times"),
+    (ANIM.format(id="a", keyframes=keyframes(0, 0)), "duplicate keyframe times"),
+    (ANIM.format(id="a", keyframes='<transform time="0"><scale value="0"/></transform>'
+                 '<transform time="1"/>'), "non-invertible"),
+    (ANIM.format(id="a", keyframes='<transform time="0"><translate x="nan"/></transform>'
+                 '<transform time="1"/>'), "non-finite"),
+    (ANIM.format(id="a", keyframes='<transform time="x"/><transform time="1"/>'),
+     "not a number"),
+    ('<shape type="cube"><animation name="bsdf"><transform time="0"/><transform time="1"/>'
+     '</animation></shape>', 'only <animation name="to_world">'),
+])
+def test_bad_animations(shapes, message):
+    with pytest.raises(SceneError, match=message):
+        load(shapes=shapes)
+
+
+def test_animated_emitter_is_an_error():
+    text = BASE.format(integrator="", shapes="").replace(
+        '<rgb name="intensity" value="10"/></emitter>',
+        '<rgb name="intensity" value="10"/><animation name="to_world"><transform time="0"/>'
+        '<transform time="1"/></animation></emitter>')
+    with pytest.raises(SceneError, match="emitter is not supported yet"):
+        dopplertof.scene.load_string(text)
+
+
+@pytest.mark.parametrize("integrator,message", [
+    ('<string name="wave_function_type" value="sawtooth"/>', "unknown wave_function_type"),
+    ('<string name="time_sampling_method" value="random"/>', "unknown time_sampling_method"),
+    ('<float name="time" value="-0.001"/>', "must be > 0"),
+    ('<float name="w_g" value="nan"/>', "must be finite"),
+    ('<integer name="max_dpeth" value="3"/>', "unknown parameter 'max_dpeth'"),
+    ('<integer name="max_depth" value="three"/>', "must be an integer"),
+])
+def test_bad_integrator_parameters(integrator, message):
+    with pytest.raises(SceneError, match=message) as info:
+        load(integrator=integrator)
+    assert "\n" not in str(info.value)
+    assert ":2:" in str(info.value)  # file and line of the <integrator>
+
+
+def test_malformed_xml_names_the_line():
+    with pytest.raises(SceneError, match=r"<string>:3: malformed XML"):
+        dopplertof.scene.load_string("<scene version='3.0.0'>\n<shape type='cube'>\n</scene>")
+
+
+def test_spp_not_multiple_of_group_size():
+    s = load()
+    with pytest.raises(ValueError, match="spp 7 is not a multiple of the group size "
+                                         "time_correlate_number=2"):
+        dopplertof.render(s, spp=7)
+
+
+def test_unknown_render_parameter():
+    with pytest.raises(dopplertof.ParameterError, match="unknown parameter 'hetero_freq'"):
+        dopplertof.render(load(), spp=2, params={"hetero_freq": 1})
+
+
+def test_dict_api_matches_xml():
+    mi = pytest.importorskip("mitsuba")
+    T = mi.ScalarTransform4f
+    xml_scene = load(shapes=ANIM.format(id="box", keyframes=keyframes(0, 0.0015)))
+    d = {
+        "type": "scene",
+        "integrator": {"type": "dopplertof"},
+        "sensor": {"type": "perspective",
+                   "to_world": T().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 8, "height": 8,
+                            "rfilter": {"type": "box"}},
+                   "sampler": {"type": "correlated", "sample_count": 4}},
+        "light": {"type": "point", "position": [0, 0, 5],
+                  "intensity": {"type": "rgb", "value": 10}},
+        "white": {"type": "diffuse"},
+        "box": {"type": "cube", "bsdf": {"type": "ref", "id": "white"},
+                "to_world": dopplertof.Animation([(0, T()), (0.0015, T().translate([0, 0, 0.01]))])},
+    }
+    dict_scene = dopplertof.load_dict(d)
+    a = dopplertof.render(xml_scene, spp=8, seed=3)
+    b = dopplertof.render(dict_scene, spp=8, seed=3)
+    assert np.abs(a).max() > 0
+    np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7)
