@@ -22,6 +22,8 @@ except _backend.BackendError:
 from .backend import BackendError, set_variant  # noqa: E402
 from .params import ParameterError, RenderParams  # noqa: E402
 from .render import RenderResult, render, render_result  # noqa: E402
+from . import scene  # noqa: E402
+from .scene import Animation, DopplerScene, SceneError  # noqa: E402
 
 
 def _ensure_variant():
@@ -40,26 +42,20 @@ def load_file(path, overrides=None, **kwargs):
     """Load a Mitsuba 3 XML scene (with <animation> keyframes); sets LLVM RGB if no
     JIT variant is set. ``overrides`` (or keyword arguments) set <default> values."""
     _ensure_variant()
-    from .scene import load_file as _load
-
-    return _load(path, {**(overrides or {}), **kwargs})
+    return scene.load_file(path, {**(overrides or {}), **kwargs})
 
 
-def load_dict(scene: dict):
+def load_string(text: str, overrides=None, **kwargs):
+    """Load a scene from XML text; see load_file."""
+    _ensure_variant()
+    return scene.load_string(text, {**(overrides or {}), **kwargs})
+
+
+def load_dict(scene_dict: dict):
     """Load a dict scene (Mitsuba's load_dict format, with dopplertof.Animation)."""
     _ensure_variant()
-    from .scene import load_dict as _load
-
-    return _load(scene)
+    return scene.load_dict(scene_dict)
 
 
-def __getattr__(name):
-    if name in ("Animation", "SceneError", "DopplerScene"):
-        from . import scene
-
-        return getattr(scene, name)
-    raise AttributeError(name)
-
-
-__all__ = ["load_file", "load_dict", "render", "render_result", "RenderResult", "set_variant",
+__all__ = ["load_file", "load_string", "load_dict", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",
            "RenderParams", "ParameterError", "BackendError", "Animation", "SceneError"]

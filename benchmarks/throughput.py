@@ -1,0 +1,137 @@
+"""Throughput: dopplertof against stock Mitsuba `path` on the same scene, side by side.
+
+Both render the same Cornell box at the same variant, resolution, spp and max depth;
+stock Mitsuba sees the moving bodies baked static at their first keyframe (it cannot
+move them). Runs are interleaved (stock, ours, stock, ours, ...) after a warm-up that
+compiles every kernel, and the median time of each is compared.
+
+    .venv/bin/python benchmarks/throughput.py [--res 256] [--spp 64] [--repeats 5]
+
+The last line reads `throughput ratio (2 moving bodies): X` (ours / stock time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+WALLS = """
+  <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.725, 0.71, 0.68"/></bsdf>
+  <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.63, 0.065, 0.05"/></bsdf>
+  <bsdf type="diffuse" id="green"><rgb name="reflectance" value="0.14, 0.45, 0.091"/></bsdf>
+  <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/></transform>
+    <ref id="white"/></shape>
+  <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="90"/>
+    <translate y="2"/></transform><ref id="white"/></shape>
+  <shape type="rectangle"><transform name="to_world"><translate y="1" z="-1"/></transform>
+    <ref id="white"/></shape>
+  <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="90"/>
+    <translate x="-1" y="1"/></transform><ref id="red"/></shape>
+  <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="-90"/>
+    <translate x="1" y="1"/></transform><ref id="green"/></shape>
+  <emitter type="point"><point name="position" x="0" y="1" z="6.8"/>
+    <rgb name="intensity" value="100"/></emitter>
+"""
+
+
+def scene_xml(n_bodies: int, moving: bool, integrator: str, res: int, spp: int,
+              depth: int) -> str:
+    """Cornell box with n boxes on a grid; ``moving`` adds keyframes (10 m/s along z)."""
+    boxes = []
+    side = int(np.ceil(np.sqrt(max(n_bodies, 1))))
+    size = 0.6 / side
+    for k in range(n_bodies):
+        i, j = divmod(k, side)
+        x = -0.7 + 1.4 * (j + 0.5) / side
+        z = -0.7 + 1.4 * (i + 0.5) / side
+        base = (f'<scale x="{size * 0.45}" y="{0.3 + 0.1 * (k % 3)}" z="{size * 0.45}"/>'
+                f'<rotate y="1" angle="{17 * k}"/><translate x="{x}" y="0.3" z="{z}"/>')
+        if moving:
+            v = 0.015 if k % 2 == 0 else -0.015
+            body = (f'<animation name="to_world"><transform time="0">{base}</transform>'
+                    f'<transform time="0.0015">{base}<translate z="{v}"/></transform>'
+                    f"</animation>")
+        else:
+            body = f'<transform name="to_world">{base}</transform>'
+        # each box has its own BSDF so that Mitsuba does not merge the static ones
+        boxes.append(f'<bsdf type="diffuse" id="b{k}"/><shape type="cube">{body}'
+                     f'<ref id="b{k}"/></shape>')
+    return f"""<scene version="3.0.0">
+  <integrator type="{integrator}"><integer name="max_depth" value="{depth}"/></integrator>
+  <sensor type="perspective"><float name="fov" value="19.5"/>
+    <transform name="to_world"><lookat origin="0,1,6.8" target="0,1,0" up="0,1,0"/></transform>
+    <float name="shutter_close" value="0.0015"/>
+    <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="{res}"/>
+      <integer name="height" value="{res}"/><rfilter type="box"/></film>
+  </sensor>
+  {WALLS}
+  {''.join(boxes)}
+</scene>"""
+
+
+def timed(fn) -> float:
+    import drjit as dr
+
+    dr.sync_thread()
+    t = time.perf_counter()
+    fn()
+    dr.sync_thread()
+    return time.perf_counter() - t
+
+
+def compare(n_bodies: int, moving: bool, args) -> float:
+    import mitsuba as mi
+
+    import dopplertof
+
+    stock = mi.load_string(scene_xml(n_bodies, False, "path", args.res, args.spp, args.depth))
+    ours = dopplertof.load_string(
+        scene_xml(n_bodies, moving, "dopplertof", args.res, args.spp, args.depth))
+    assert len(ours.bodies) == (n_bodies if moving else 0)
+
+    def run_stock():
+        np.asarray(mi.render(stock, spp=args.spp, seed=0))
+
+    def run_ours():
+        dopplertof.render(ours, spp=args.spp, seed=0, progress=False)
+
+    run_stock(), run_ours()  # warm-up: compile (or load cached) kernels
+    t_stock, t_ours = [], []
+    for _ in range(args.repeats):
+        t_stock.append(timed(run_stock))
+        t_ours.append(timed(run_ours))
+    s, o = statistics.median(t_stock), statistics.median(t_ours)
+    label = f"{n_bodies} moving bodies" if moving else f"static ({n_bodies} boxes)"
+    print(f"{label:>18}: stock path {s:7.3f} s   dopplertof {o:7.3f} s   ratio {o / s:5.2f}",
+          flush=True)
+    return o / s
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--res", type=int, default=256)
+    p.add_argument("--spp", type=int, default=64)
+    p.add_argument("--depth", type=int, default=4)
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--variant", default="llvm_ad_rgb")
+    args = p.parse_args()
+
+    import dopplertof
+
+    dopplertof.set_variant(args.variant)
+    print(f"variant {args.variant}, {args.res}x{args.res}, {args.spp} spp, max_depth "
+          f"{args.depth}, median of {args.repeats} interleaved runs")
+    static = compare(2, False, args)
+    sixteen = compare(16, True, args)
+    two = compare(2, True, args)
+    print(f"throughput ratio (static): {static:.3f}")
+    print(f"throughput ratio (16 moving bodies): {sixteen:.3f}")
+    print(f"throughput ratio (2 moving bodies): {two:.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,100 @@
+"""Variance of the time-path sampling methods on the published moving Cornell box.
+
+For each hetero_frequency, every time-sampling method x path correlation depth
+(0, 1, 2, full) x full time stratification (on/off) is rendered at the same spp and
+compared with a high-spp reference (antithetic, full correlation, other seed). Prints
+the RMSE table, seconds per render, and last the headline ratio
+
+    RMSE ratio at hetero_frequency=1 (uniform/independent over antithetic/full): X
+
+(naive = uniform time, independent paths, no stratification), and the same ratio at
+equal time.
+
+    .venv/bin/python benchmarks/variance.py            # 128x128, 1024 spp, ref x64
+    .venv/bin/python benchmarks/variance.py --quick    # 64x64, 256 spp, ref x64
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCENE = os.path.join(HERE, "..", "tests", "fixtures", "cornell_box_moving.xml")
+FULL = 1 << 16
+METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+DEPTHS = (0, 1, 2, FULL)
+
+
+def depth_name(d):
+    return "full" if d == FULL else str(d)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="64x64, 256 spp")
+    p.add_argument("--res", type=int)
+    p.add_argument("--spp", type=int)
+    p.add_argument("--ref-factor", type=int, default=64, help="reference spp = factor x spp")
+    p.add_argument("--hetero", type=float, nargs="+", default=[0.0, 0.5, 1.0])
+    p.add_argument("--variant", default="llvm_ad_rgb")
+    args = p.parse_args()
+    res = args.res or (64 if args.quick else 128)
+    spp = args.spp or (256 if args.quick else 1024)
+
+    import dopplertof
+
+    dopplertof.set_variant(args.variant)
+    scene = dopplertof.load_file(SCENE, {"resx": res, "resy": res})
+    print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, "
+          f"reference {spp * args.ref_factor} spp (antithetic, full correlation)", flush=True)
+
+    def render(h, method, depth, strat, n, seed):
+        params = dict(hetero_frequency=h, time_sampling_method=method,
+                      path_correlation_depth=depth,
+                      use_stratified_sampling_for_each_interval=strat)
+        t = time.perf_counter()
+        img = dopplertof.render(scene, spp=n, seed=seed, params=params, progress=False)
+        return img.astype(np.float64), time.perf_counter() - t
+
+    results = {}
+    for h in args.hetero:
+        ref, t_ref = render(h, "antithetic", FULL, True, spp * args.ref_factor, 1_000_003)
+        print(f"\nhetero_frequency={h:g}: reference in {t_ref:.0f} s, "
+              f"rms signal {np.sqrt(np.mean(ref ** 2)):.3e}", flush=True)
+        print(f"{'method':>18} {'depth':>5} {'strat':>5} {'RMSE':>10} {'seconds':>8}")
+        for strat in (False, True):
+            for method in METHODS:
+                for depth in DEPTHS:
+                    img, sec = render(h, method, depth, strat, spp, 1)
+                    rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
+                    results[(h, method, depth, strat)] = (rmse, sec)
+                    print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5} "
+                          f"{rmse:10.3e} {sec:8.2f}", flush=True)
+
+    print("\nRMSE ratio naive / each (uniform, independent, no stratification = 1):")
+    header = " ".join(f"h={h:<8g}" for h in args.hetero)
+    print(f"{'method':>18} {'depth':>5} {'strat':>5}  {header}")
+    for strat in (False, True):
+        for method in METHODS:
+            for depth in DEPTHS:
+                row = " ".join(
+                    f"{results[(h, 'uniform', 0, False)][0] / results[(h, method, depth, strat)][0]:<10.2f}"
+                    for h in args.hetero)
+                print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5}  {row}")
+
+    h = 1.0 if 1.0 in args.hetero else args.hetero[-1]
+    naive_rmse, naive_t = results[(h, "uniform", 0, False)]
+    best_rmse, best_t = results[(h, "antithetic", FULL, True)]
+    ratio = naive_rmse / best_rmse
+    equal_time = ratio * np.sqrt(naive_t / best_t)
+    print(f"RMSE ratio at hetero_frequency={h:g} at equal time: {equal_time:.1f}")
+    print(f"RMSE ratio at hetero_frequency={h:g} (uniform/independent over "
+          f"antithetic/full): {ratio:.1f}")
+
+
+if __name__ == "__main__":
+    main()
