@@ -79,6 +79,83 @@ def _select_transform(mi, dr, masks, transforms):
     return A, b
 
 
+#: above this many bodies, a lane's candidate bodies no longer fit one 32-bit mask and
+#: every body is tested in turn
+MAX_DISPATCHED_BODIES = 32
+
+
+def _box_distances(dr, frames, ray, active, upto):
+    """Per body, where the ray enters its swept box (inf: missed or beyond ``upto``)."""
+    out = []
+    for box in frames.boxes:
+        hit, near, far = box.ray_intersect(ray)
+        near = dr.maximum(near, 0.0)
+        out.append(dr.select(active & hit & (far >= 0) & (near <= upto), near, dr.inf))
+    return out
+
+
+def _transform_by_index(mi, dr, index, transforms):
+    return _select_transform(mi, dr, [index == k for k in range(len(transforms))], transforms)
+
+
+def _local_ray(mi, T, ray, maxt):
+    return mi.Ray3f(_vec(mi, mi.Point3f, transform_point(T, ray.o)),
+                    _vec(mi, mi.Vector3f, transform_vector(T, ray.d)), maxt, ray.time,
+                    ray.wavelengths)
+
+
+def _body_hits_each(mi, dr, frames, ray, active, pi, best_t):
+    """Test every body in turn (one body, or too many for the dispatch below)."""
+    winner = mi.UInt32(len(frames.bodies))
+    for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes, frames.to_local)):
+        box_hit, box_near, box_far = box.ray_intersect(ray)
+        test = active & box_hit & (box_near < best_t) & (box_far >= 0)
+        pib = body.scene.ray_intersect_preliminary(
+            _local_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), False, test)
+        closer = test & pib.is_valid() & (pib.t < best_t)
+        pi = dr.select(closer, pib, pi)
+        best_t = dr.select(closer, pib.t, best_t)
+        winner = dr.select(closer, k, winner)
+    return pi, winner
+
+
+def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
+    """Visit the bodies whose swept boxes the ray enters, nearest box first, until the
+    next box starts beyond the nearest hit. Each visit is one symbolic call that runs only
+    the body scenes present in a SIMD packet, so the cost follows what rays meet rather
+    than the number of bodies."""
+    n = len(frames.bodies)
+    entry = _box_distances(dr, frames, ray, active, dr.inf)
+    targets = [lambda r, active, body=body: body.scene.ray_intersect_preliminary(r, False, active)
+               for body in frames.bodies]
+
+    def nearest_untested(tested):
+        k_best, d_best = mi.UInt32(n), mi.Float(dr.inf)
+        for k, d in enumerate(entry):
+            closer = (((tested >> k) & 1) == 0) & (d < d_best)
+            d_best = dr.select(closer, d, d_best)
+            k_best = dr.select(closer, k, k_best)
+        return k_best, d_best
+
+    def more(tested, winner, pi, best_t):
+        return active & (nearest_untested(tested)[1] < best_t)
+
+    def visit(tested, winner, pi, best_t):
+        k, d = nearest_untested(tested)
+        go = active & (d < best_t)
+        tested = dr.select(go, tested | (mi.UInt32(1) << k), tested)
+        local = _local_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray,
+                           dr.minimum(ray.maxt, best_t))
+        pib = dr.switch(k, targets, local, active=go)
+        closer = go & pib.is_valid() & (pib.t < best_t)
+        return (tested, dr.select(closer, k, winner), dr.select(closer, pib, pi),
+                dr.select(closer, pib.t, best_t))
+
+    _, winner, pi, _ = dr.while_loop((mi.UInt32(0), mi.UInt32(n), pi, best_t), more, visit,
+                                     label="dopplertof_bodies", max_iterations=n)
+    return pi, winner
+
+
 def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
     """Nearest surface interaction (world space) of world rays at their lanes' times."""
     import drjit as dr
@@ -86,35 +163,20 @@ def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
     if frames is None or not frames.bodies:
         return static_scene.ray_intersect(ray, mi.RayFlags.All, False, active)
 
-    # ---- Cheap preliminary hits: static scene, then each body in its own frame ----
+    # ---- Cheap preliminary hits: static scene, then the bodies in their own frames ----
     pi = static_scene.ray_intersect_preliminary(ray, False, active)
     best_t = dr.select(pi.is_valid(), pi.t, dr.inf)
-    hit_o, hit_d = mi.Point3f(ray.o), mi.Vector3f(ray.d)
-    won = []
-    for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
-        box_hit, box_near, box_far = box.ray_intersect(ray)
-        test = active & box_hit & (box_near < best_t) & (box_far >= 0)
-        lo = _vec(mi, mi.Point3f, transform_point(inv, ray.o))
-        ld = _vec(mi, mi.Vector3f, transform_vector(inv, ray.d))
-        local_ray = mi.Ray3f(lo, ld, dr.minimum(ray.maxt, best_t), ray.time, ray.wavelengths)
-        pib = body.scene.ray_intersect_preliminary(local_ray, False, test)
-        closer = test & pib.is_valid() & (pib.t < best_t)
-        pi = dr.select(closer, pib, pi)
-        best_t = dr.select(closer, pib.t, best_t)
-        hit_o = dr.select(closer, lo, hit_o)
-        hit_d = dr.select(closer, ld, hit_d)
-        won = [w & ~closer for w in won] + [closer]
-
-    # ---- One full interaction, with the ray of the scene that won ----
-    hit_ray = mi.Ray3f(hit_o, hit_d, ray.maxt, ray.time, ray.wavelengths)
+    n = len(frames.bodies)
+    hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
+    pi, winner = hits(mi, dr, frames, ray, active, pi, best_t)
+    won = [winner == k for k in range(n)]
+    to_local = _select_transform(mi, dr, won, frames.to_local)
+    hit_ray = _local_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
     si = pi.compute_surface_interaction(hit_ray, mi.RayFlags.All, active)
 
     # ---- Back to world space (identity for static hits) ----
     to_world = _select_transform(mi, dr, won, frames.to_world)
-    to_local = _select_transform(mi, dr, won, frames.to_local)
-    on_body = won[0]
-    for w in won[1:]:
-        on_body |= w
+    on_body = winner < n
     p = _vec(mi, mi.Point3f, transform_point(to_world, si.p))
     n = dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_local, si.n)))
     sn = dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
@@ -139,13 +201,35 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
     import drjit as dr
 
     blocked = static_scene.ray_test(ray, active)
-    if frames is None:
+    if frames is None or not frames.bodies:
         return blocked
-    for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
-        box_hit, box_near, box_far = box.ray_intersect(ray)
-        test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
-        lo = _vec(mi, mi.Point3f, transform_point(inv, ray.o))
-        ld = _vec(mi, mi.Vector3f, transform_vector(inv, ray.d))
-        local_ray = mi.Ray3f(lo, ld, ray.maxt, ray.time, ray.wavelengths)
-        blocked |= body.scene.ray_test(local_ray, test)
+    n = len(frames.bodies)
+    if n == 1 or n > MAX_DISPATCHED_BODIES:
+        for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
+            box_hit, box_near, box_far = box.ray_intersect(ray)
+            test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
+            blocked |= body.scene.ray_test(_local_ray(mi, inv, ray, ray.maxt), test)
+        return blocked
+
+    # ---- Dispatch: visit only the bodies whose swept boxes the segment crosses ----
+    entry = _box_distances(dr, frames, ray, active, ray.maxt)
+    pending = mi.UInt32(0)
+    for k, d in enumerate(entry):
+        pending |= dr.select(dr.isfinite(d), mi.UInt32(1 << k), 0)
+    targets = [lambda r, active, body=body: body.scene.ray_test(r, active)
+               for body in frames.bodies]
+
+    def more(pending, blocked):
+        return active & ~blocked & (pending != 0)
+
+    def visit(pending, blocked):
+        go = active & ~blocked & (pending != 0)
+        k = dr.tzcnt(pending)
+        pending = dr.select(go, pending & ~(mi.UInt32(1) << k), pending)
+        k = dr.minimum(k, n - 1)
+        local = _local_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray, ray.maxt)
+        return pending, blocked | dr.switch(k, targets, local, active=go)
+
+    _, blocked = dr.while_loop((pending, blocked), more, visit, label="dopplertof_shadow",
+                               max_iterations=n)
     return blocked

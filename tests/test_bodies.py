@@ -1,0 +1,80 @@
+"""Moving bodies: rotation, the swept-box pre-test and the per-packet dispatch."""
+
+import numpy as np
+import pytest
+
+import dopplertof
+from dopplertof.scene import bodies
+
+
+def scene_text(shapes: str, res=16) -> str:
+    return f"""<scene version="3.0.0">
+  <integrator type="dopplertof"><integer name="max_depth" value="$depth"/>
+    <float name="hetero_frequency" value="0.5"/><float name="hetero_offset" value="0.1"/>
+    <float name="w_g" value="60"/></integrator>
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0,0,6" target="0,0,0" up="0,1,0"/></transform>
+    <float name="shutter_close" value="0.0015"/>
+    <film type="hdrfilm"><integer name="width" value="{res}"/><integer name="height" value="{res}"/>
+      <rfilter type="box"/></film>
+    <sampler type="independent"><integer name="sample_count" value="8"/></sampler>
+  </sensor>
+  <emitter type="point"><point name="position" x="0" y="0" z="6"/>
+    <rgb name="intensity" value="50"/></emitter>
+  <bsdf type="diffuse" id="white"/>
+  <shape type="rectangle"><transform name="to_world"><scale value="4"/>
+    <translate z="-2"/></transform><ref id="white"/></shape>
+  {shapes}
+</scene>"""
+
+
+def animated(kind, start, end, extra=""):
+    return (f'<shape type="{kind}"><ref id="white"/>{extra}<animation name="to_world">'
+            f'<transform time="0">{start}</transform>'
+            f'<transform time="0.0015">{end}</transform></animation></shape>')
+
+
+def test_sphere_spinning_about_its_centre_looks_static():
+    spin = animated("sphere", '<rotate y="1" angle="0"/><translate x="0.3"/>',
+                    '<rotate y="1" angle="90"/><translate x="0.3"/>')
+    still = ('<shape type="sphere"><ref id="white"/><transform name="to_world">'
+             '<translate x="0.3"/></transform></shape>')
+    a = dopplertof.load_string(scene_text(spin), depth=2)
+    b = dopplertof.load_string(scene_text(still), depth=2)
+    assert len(a.bodies) == 1 and not b.bodies
+    ia, ib = dopplertof.render(a, spp=16, seed=4), dopplertof.render(b, spp=16, seed=4)
+    assert np.abs(ib).max() > 1e-3
+    np.testing.assert_allclose(ia, ib, rtol=2e-3, atol=2e-6)
+
+
+def many_bodies():
+    shapes = []
+    for k in range(6):
+        x = -1.5 + 0.6 * k
+        start = f'<scale value="0.35"/><rotate z="1" angle="{10 * k}"/><translate x="{x}"/>'
+        end = (f'<scale value="0.35"/><rotate z="1" angle="{10 * k + 40 * (k % 2)}"/>'
+               f'<translate x="{x + 0.1 * (k % 3)}" z="{0.3 * (k % 2) - 0.2}"/>')
+        shapes.append(animated("cube" if k % 2 else "sphere", start, end))
+    return "".join(shapes)
+
+
+@pytest.mark.parametrize("depth", [2, 4])
+def test_dispatch_equals_testing_every_body(monkeypatch, depth):
+    scene = dopplertof.load_string(scene_text(many_bodies()), depth=depth)
+    assert len(scene.bodies) == 6
+    dispatched = dopplertof.render(scene, spp=8, seed=2)
+    monkeypatch.setattr(bodies, "MAX_DISPATCHED_BODIES", 0)
+    each = dopplertof.render(scene, spp=8, seed=2)
+    assert np.abs(each).max() > 1e-3
+    np.testing.assert_allclose(dispatched, each, rtol=1e-5, atol=1e-7)
+
+
+def test_swept_box_pretest_loses_nothing(monkeypatch):
+    scene = dopplertof.load_string(scene_text(many_bodies()), depth=3)
+    tight = dopplertof.render(scene, spp=8, seed=6)
+    import mitsuba as mi
+
+    huge = mi.ScalarBoundingBox3f(mi.ScalarPoint3f(-1e4), mi.ScalarPoint3f(1e4))
+    monkeypatch.setattr(bodies.MovingBody, "swept_bbox", lambda self, t0, t1: huge)
+    loose = dopplertof.render(scene, spp=8, seed=6)
+    np.testing.assert_allclose(tight, loose, rtol=1e-5, atol=1e-7)
