@@ -12,6 +12,7 @@ class UsageError(Exception):
 
 
 def _overrides(pairs) -> dict:
+    """``["name=value", ...]`` (from -D or -P) as a dict."""
     out = {}
     for item in pairs or []:
         if "=" not in item:
@@ -21,10 +22,6 @@ def _overrides(pairs) -> dict:
             raise UsageError(f"-D expects name=value, got {item!r}")
         out[name.strip()] = value
     return out
-
-
-def _params(pairs) -> dict:
-    return _overrides(pairs)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -68,7 +65,7 @@ def _cmd_render(args) -> int:
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, _overrides(args.defines))
     result = dopplertof.render_result(scene, spp=args.spp, seed=args.seed,
-                                      params=_params(args.params) or None,
+                                      params=_overrides(args.params) or None,
                                       progress=False if args.quiet else None)
     io.write_image(args.output, result.image, result.metadata)
     md = result.metadata

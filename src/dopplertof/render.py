@@ -17,7 +17,7 @@ import numpy as np
 
 from . import sampling
 from .params import RenderParams
-from .sampling import check_group_config
+from .sampling import check_sample_count
 
 #: lanes per pass (memory bound: a few hundred MB of JIT state at most)
 DEFAULT_MAX_LANES = 1 << 21
@@ -107,7 +107,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     spp = scene.spp if spp is None else int(spp)
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    check_group_config(p.time_sampling_method, p.time_correlate_number, spp)
+    check_sample_count(p.time_correlate_number, spp)
 
     film = scene.sensor.film()
     width, height = (int(v) for v in film.crop_size())

@@ -135,10 +135,8 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
     return t
 
 
-def check_group_config(method: str, group_size: int, spp: int) -> None:
-    """Errors for a sample count or group size the methods cannot use."""
-    if group_size < 1:
-        raise ValueError(f"time_correlate_number must be >= 1, got {group_size}")
+def check_sample_count(group_size: int, spp: int) -> None:
+    """Errors for a sample count that the correlated groups cannot use."""
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
     if spp > MAX_SPP:
@@ -147,11 +145,6 @@ def check_group_config(method: str, group_size: int, spp: int) -> None:
         raise ValueError(
             f"spp {spp} is not a multiple of the group size time_correlate_number={group_size}"
         )
-    if method == "antithetic_mirror" and group_size != 2:
-        raise ValueError(
-            f"time_sampling_method 'antithetic_mirror' pairs samples: it needs "
-            f"time_correlate_number=2, got {group_size}"
-        )
 
 
 __all__ = [
@@ -159,6 +152,6 @@ __all__ = [
     "CorrelatedStreams",
     "time_fraction",
     "method_index",
-    "check_group_config",
+    "check_sample_count",
     "bounce_dim",
 ]

@@ -50,6 +50,7 @@ class ModulationWeight:
 
     def __init__(self, mi, modulation):
         self.low_pass = modulation.low_pass
+        self.to_float32 = mi.Float
         F = mi.Float if self.low_pass else mi.Float64
         self.F = F
         self.omega_g = dr.opaque(F, modulation.omega_g)
@@ -72,13 +73,7 @@ class ModulationWeight:
         sensor = wave(self.waveform, self.omega_s * t + self.psi, dr)
         light = self.g0 + self.g1 * wave(self.waveform, self.omega_g * t
                                          - self.k_length * path_length, dr)
-        return mi_float(sensor * light)
-
-
-def mi_float(x):
-    import mitsuba as mi
-
-    return mi.Float(x)
+        return self.to_float32(sensor * light)
 
 
 class FilmSampler:
