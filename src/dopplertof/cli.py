@@ -6,6 +6,8 @@ import argparse
 import os
 import sys
 
+from .demo import DEMO_RES, DEMO_SPP
+
 
 class UsageError(Exception):
     pass
@@ -41,12 +43,50 @@ def _parser() -> argparse.ArgumentParser:
                    help="override an integrator parameter, e.g. -P hetero_frequency=1")
     r.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--checkpoint", metavar="FILE",
+                   help="save progress after every pass and resume from it after a kill")
 
-    d = sub.add_parser("demo", help="render the built-in moving Cornell box")
+    c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
+                       "depth reconstruction, exact truth, previews and summary.json")
+    c.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    c.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
+    c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
+                   "scene's sampler)")
+    c.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    c.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="set a <default> value of the scene (repeatable)")
+    c.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
+                   help="override an integrator parameter for every capture, e.g. -P w_g=20")
+    c.add_argument("--hetero-frequency", type=float, metavar="H",
+                   help="beat periods per exposure of the heterodyne captures, a non-zero "
+                   "integer (default: the scene's, else 1)")
+    c.add_argument("--unwrap-frequency", type=float, metavar="MHZ",
+                   help="second modulation frequency (MHz) to unwrap depth")
+    c.add_argument("--min-signal", type=float, metavar="FRACTION",
+                   help="velocity/depth are NaN where the homodyne signal is below this "
+                   "fraction of the image's 99th percentile (default 0.01)")
+    c.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
+    n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
+    n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")
+    n.add_argument("--photons-per-unit", type=float, metavar="K", help="photons/s at a pixel "
+                   "per unit of rendered value (default: the brightest pixel fills half the "
+                   "full well)")
+    n.add_argument("--quantum-efficiency", type=float, metavar="QE", help="default 0.4")
+    n.add_argument("--read-noise", type=float, metavar="E", help="electrons rms, default 5")
+    n.add_argument("--full-well", type=float, metavar="E", help="electrons, default 20000")
+    n.add_argument("--gain", type=float, metavar="E_PER_DN", help="electrons per DN, default 5")
+    n.add_argument("--bits", type=int, help="ADC bits, default 12")
+    n.add_argument("--ambient", type=float, metavar="PHOTONS_PER_S",
+                   help="unmodulated background photons/s per pixel, default 0")
+    n.add_argument("--noise-seed", type=int, metavar="S", help="default 0")
+
+    d = sub.add_parser("demo", help="one camera frame of the built-in moving Cornell box")
     d.add_argument("-o", "--output", default="demo_out", help="output folder")
-    d.add_argument("--spp", type=int, default=64)
-    d.add_argument("--res", type=int, default=128)
+    d.add_argument("--spp", type=int, default=DEMO_SPP, help=f"default {DEMO_SPP}")
+    d.add_argument("--res", type=int, default=DEMO_RES, help=f"default {DEMO_RES}")
     d.add_argument("--variant", default=None)
+    d.add_argument("--noise", action="store_true", help="add sensor noise (default camera)")
     d.add_argument("--quiet", action="store_true")
 
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
@@ -60,14 +100,19 @@ def _cmd_render(args) -> int:
     from . import io
 
     io.check_output_path(args.output)
+    if args.checkpoint and not os.path.isdir(os.path.dirname(os.path.abspath(args.checkpoint))):
+        raise UsageError(f"checkpoint folder does not exist: {args.checkpoint}")
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, _overrides(args.defines))
     result = dopplertof.render_result(scene, spp=args.spp, seed=args.seed,
                                       params=_overrides(args.params) or None,
-                                      progress=False if args.quiet else None)
+                                      progress=False if args.quiet else None,
+                                      checkpoint=args.checkpoint)
     io.write_image(args.output, result.image, result.metadata)
+    if args.checkpoint:  # the output is safe: the checkpoint has served
+        os.unlink(args.checkpoint)
     md = result.metadata
     if not args.quiet:
         print(f"wrote {args.output}: {result.image.shape[1]}x{result.image.shape[0]}, "
@@ -77,11 +122,46 @@ def _cmd_render(args) -> int:
     return 0
 
 
+_NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
+                  "quantum_efficiency": "quantum_efficiency", "read_noise": "read_noise",
+                  "full_well": "full_well", "gain": "gain", "bits": "bits",
+                  "ambient": "ambient", "noise_seed": "seed"}
+
+
+def _cmd_capture(args) -> int:
+    import dopplertof
+    from .camera import NoiseModel, format_summary, prepare_folder
+
+    if not os.path.isfile(args.scene):
+        raise UsageError(f"scene file not found: {args.scene}")
+    noise_args = {field: getattr(args, opt) for opt, field in _NOISE_OPTIONS.items()
+                  if getattr(args, opt) is not None}
+    noise = NoiseModel(**noise_args) if (args.noise or noise_args) else None
+    prepare_folder(args.output)
+    dopplertof.set_variant(args.variant)
+    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
+
+    def report(spec, seconds):
+        if not args.quiet:
+            print(f"  {spec.name:<16} {seconds:6.1f} s", flush=True)
+
+    result = dopplertof.capture(scene, spp=args.spp, seed=args.seed,
+                                params=_overrides(args.params) or None,
+                                hetero_frequency=args.hetero_frequency,
+                                unwrap_frequency=args.unwrap_frequency, noise=noise,
+                                min_signal_fraction=args.min_signal,
+                                progress=False if args.quiet else None, on_capture=report)
+    result.write(args.output)
+    print(format_summary(result.summary, args.output))
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from .demo import run_demo
 
     run_demo(args.output, spp=args.spp, res=args.res, variant=args.variant,
-             progress=False if args.quiet else None)
+             progress=False if args.quiet else None, noise=True if args.noise else None,
+             quiet=args.quiet)
     return 0
 
 
@@ -97,8 +177,8 @@ def main(argv=None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     try:
-        return {"render": _cmd_render, "demo": _cmd_demo, "figures": _cmd_figures}[
-            args.command](args)
+        return {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
+                "figures": _cmd_figures}[args.command](args)
     except KeyboardInterrupt:
         print("dopplertof: interrupted", file=sys.stderr)
         return 130

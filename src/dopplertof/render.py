@@ -9,6 +9,7 @@ the same whatever the pass size.
 
 from __future__ import annotations
 
+import os
 import sys
 import time as _time
 from dataclasses import dataclass, field
@@ -91,8 +92,14 @@ def _show_progress(progress) -> bool:
 
 def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                   progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
-                  pass_chunks: int | None = None) -> RenderResult:
-    """Render ``scene`` (a DopplerScene); see :func:`render`."""
+                  pass_chunks: int | None = None, checkpoint=None) -> RenderResult:
+    """Render ``scene`` (a DopplerScene); see :func:`render`.
+
+    ``checkpoint`` (a path) saves the accumulated chunks after every pass and resumes
+    from them: the final image is bitwise the one of an uninterrupted render. It is
+    refused for a different render (scene, parameters, spp, seed, variant). A complete
+    checkpoint returns the image at once; delete the file when the output is safe.
+    """
     from .backend import require_variant
 
     mi = require_variant()
@@ -125,15 +132,21 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
 
     from .integrators.dtof_path import PassLayout, trace_pass
 
-    total = None
+    total = np.zeros((n_pixels, _spectrum_channels(mi)), dtype=np.float64)
     nonfinite = 0
+    next_chunk = 0
+    key = _render_key(scene, p, spp, seed, mi.variant(), chunk)
+    if checkpoint is not None:
+        saved = _load_checkpoint(checkpoint, key)
+        if saved is not None:
+            total, nonfinite, next_chunk = saved
     started = _time.perf_counter()
-    bar = tqdm(total=spp, unit="spp", desc="rendering", disable=not _show_progress(progress),
-               leave=False, file=sys.stderr)
+    bar = tqdm(total=spp, initial=min(spp, next_chunk * chunk), unit="spp", desc="rendering",
+               disable=not _show_progress(progress), leave=False, file=sys.stderr)
     import drjit as dr
 
     try:
-        for first_chunk in range(0, n_chunks, pass_chunks):
+        for first_chunk in range(next_chunk, n_chunks, pass_chunks):
             chunks = range(first_chunk, min(n_chunks, first_chunk + pass_chunks))
             s0 = first_chunk * chunk
             s1 = min(spp, chunks[-1] * chunk + chunk)
@@ -150,8 +163,10 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                 lanes[bad] = 0.0
             for j in range(len(chunks)):
                 part = lanes[:, j * chunk:(j + 1) * chunk].sum(axis=1, dtype=np.float64)
-                total = part if total is None else total + part
+                total = total + part
             bar.update(samples)
+            if checkpoint is not None:
+                _save_checkpoint(checkpoint, key, total, nonfinite, chunks[-1] + 1)
     finally:
         bar.close()
 
@@ -172,6 +187,51 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         "params": {k: getattr(p, k) for k in RenderParams.names()},
     }
     return RenderResult(image, metadata)
+
+
+# ---- Checkpoints ----------------------------------------------------------------
+
+def _render_key(scene, params: RenderParams, spp: int, seed: int, variant: str,
+                chunk: int) -> str:
+    """What must match for a checkpoint to be resumed (hex digest)."""
+    import hashlib
+
+    text = repr((scene.fingerprint or scene.source, params, spp, int(seed), variant, chunk,
+                 GROUPS_PER_CHUNK))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that belongs to another render or cannot be read."""
+
+
+def _load_checkpoint(path, key: str):
+    if not os.path.exists(path):
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            saved_key = str(data["key"])
+            total, nonfinite, next_chunk = data["total"], int(data["nonfinite"]), int(data["next"])
+    except Exception as e:
+        raise CheckpointError(f"checkpoint {path} cannot be read: {e}") from None
+    if saved_key != key:
+        raise CheckpointError(
+            f"checkpoint {path} belongs to a different render (scene, parameters, spp, seed "
+            "or variant differ); delete it or choose another checkpoint file")
+    return total, nonfinite, next_chunk
+
+
+def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int) -> None:
+    from .io import atomic_path
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, key=np.array(key), total=total, nonfinite=np.array(nonfinite),
+                     next=np.array(next_chunk))
+
+
+def _spectrum_channels(mi) -> int:
+    return _channels(mi.Spectrum(0.0))
 
 
 def _channels(value) -> int:

@@ -149,4 +149,5 @@ def load_dict(scene: dict):
         body.update({k: s for k, s in shapes})
         bodies.append(MovingBody(load(body, f"body {[k for k, _ in shapes]}"), Motion(kf),
                                  tuple(k for k, _ in shapes)))
-    return build(mi, static_scene, bodies, params, "<dict>")
+    return build(mi, static_scene, bodies, params, "<dict>",
+                 repr(static) + repr(list(groups.items())))

@@ -19,6 +19,7 @@ class DopplerScene:
     spp: int  #: the sensor sampler's sample count
     variant: str  #: the Mitsuba variant it was loaded with
     source: str = "<dict>"
+    fingerprint: str = ""  #: hash of the resolved scene description (checkpoints compare it)
 
     @property
     def sensor(self):
@@ -38,7 +39,8 @@ class DopplerScene:
         return replace(self, params=params)
 
 
-def build(mi, static, bodies, params: RenderParams, source: str) -> DopplerScene:
+def build(mi, static, bodies, params: RenderParams, source: str,
+          description: str = "") -> DopplerScene:
     """Checks shared by the XML and dict loaders."""
     sensors = static.sensors()
     if len(sensors) != 1:
@@ -52,4 +54,7 @@ def build(mi, static, bodies, params: RenderParams, source: str) -> DopplerScene
     if not static.emitters():
         raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
     spp = int(sensors[0].sampler().sample_count())
-    return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source)
+    import hashlib
+
+    fingerprint = hashlib.sha256(description.encode()).hexdigest() if description else ""
+    return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint)

@@ -295,15 +295,19 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
             except ParameterError as e:
                 raise SceneError(str(e)) from None
 
-    static = _load_string(mi, ET.tostring(doc.root, encoding="unicode"), source, base_dir)
+    static_text = ET.tostring(doc.root, encoding="unicode")
+    static = _load_string(mi, static_text, source, base_dir)
+    description = [static_text]
     bodies = []
     from .bodies import MovingBody
 
     for kf, shapes in body_groups:
         elems = [s for s, _ in shapes]
-        body_scene = _load_string(mi, _body_document(doc.root, elems), source, base_dir)
+        body_text = _body_document(doc.root, elems)
+        body_scene = _load_string(mi, body_text, source, base_dir)
+        description += [body_text, repr(kf)]
         bodies.append(MovingBody(body_scene, Motion(kf), tuple(n for _, n in shapes)))
-    return build(mi, static, bodies, params, source)
+    return build(mi, static, bodies, params, source, "\n".join(description))
 
 
 def load_file(path, overrides: dict | None = None):
