@@ -17,6 +17,7 @@ What this loader adds to Mitsuba's own:
 from __future__ import annotations
 
 import copy
+import math
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -100,6 +101,31 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
                 return values[m.group(1)]
 
             el.set(key, re.sub(r"\$(\w+)", repl, v))
+
+
+NUMERIC_TAGS = ("float", "integer", "rgb", "point", "vector", "matrix", "translate", "scale",
+                "rotate", "lookat", "spectrum")
+NUMERIC_ATTRIBUTES = ("value", "x", "y", "z", "angle", "origin", "target", "up")
+
+
+def _check_finite(doc: _Doc) -> None:
+    """A NaN or infinite number in the scene is an error naming its line."""
+    for el in doc.root.iter():
+        if el.tag not in NUMERIC_TAGS:
+            continue
+        for key in NUMERIC_ATTRIBUTES:
+            text = el.get(key)
+            if text is None:
+                continue
+            for token in re.split(r"[,\s]+", text.strip()):
+                try:
+                    number = float(token)
+                except ValueError:
+                    continue  # not a number: Mitsuba names the problem
+                if not math.isfinite(number):
+                    name = el.get("name", el.tag)
+                    raise SceneError(f"{doc.where(el)}: non-finite value {token!r} in "
+                                     f"<{el.tag}> {name!r}")
 
 
 def _properties(doc: _Doc, elem, allowed_children=()) -> dict:
@@ -282,6 +308,7 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
     _substitute(doc, {k: v for k, v in (overrides or {}).items()})
+    _check_finite(doc)
     integ = _integrator_params(doc)
     sampler_params, _ = _sensor(doc)
     body_groups = _split_bodies(doc)
