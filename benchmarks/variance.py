@@ -39,7 +39,7 @@ def main():
     p.add_argument("--res", type=int)
     p.add_argument("--spp", type=int)
     p.add_argument("--ref-factor", type=int, default=64, help="reference spp = factor x spp")
-    p.add_argument("--hetero", type=float, nargs="+", default=[0.0, 0.5, 1.0])
+    p.add_argument("--hetero", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
     p.add_argument("--variant", default="llvm_ad_rgb")
     args = p.parse_args()
     res = args.res or (64 if args.quick else 128)
@@ -74,6 +74,10 @@ def main():
                     results[(h, method, depth, strat)] = (rmse, sec)
                     print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5} "
                           f"{rmse:10.3e} {sec:8.2f}", flush=True)
+        img, sec = render(h, "auto", FULL, True, spp, 1)
+        rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
+        results[(h, "auto")] = (rmse, sec)
+        print(f"{'auto':>18} {'':>5} {'':>5} {rmse:10.3e} {sec:8.2f}", flush=True)
 
     print("\nRMSE ratio naive / each (uniform, independent, no stratification = 1):")
     header = " ".join(f"h={h:<8g}" for h in args.hetero)
@@ -86,6 +90,12 @@ def main():
                     for h in args.hetero)
                 print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5}  {row}")
 
+    auto_ratios = {h: results[(h, "uniform", 0, False)][0] / results[(h, "auto")][0]
+                   for h in args.hetero}
+    print("auto (time_sampling_method='auto'): " + ", ".join(
+        f"h={h:g}: {r:.2f}" for h, r in auto_ratios.items()))
+    print(f"worst RMSE ratio over hetero_frequency {min(args.hetero):g}.."
+          f"{max(args.hetero):g} (auto over uniform): {min(auto_ratios.values()):.2f}")
     h = 1.0 if 1.0 in args.hetero else args.hetero[-1]
     naive_rmse, naive_t = results[(h, "uniform", 0, False)]
     best_rmse, best_t = results[(h, "antithetic", FULL, True)]

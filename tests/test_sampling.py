@@ -103,3 +103,27 @@ def test_mirror_needs_pairs():
     with pytest.raises(dopplertof.ParameterError, match="needs time_correlate_number=2"):
         dopplertof.RenderParams(time_sampling_method="antithetic_mirror",
                                 time_correlate_number=4).validated()
+
+
+def test_film_positions_are_a_scrambled_02_sequence():
+    import mitsuba as mi
+
+    idx = np.arange(64)
+    pts = sampling.sobol_2d(mi, mi.UInt32(idx), mi.UInt32(0x1234567), mi.UInt32(0x89ABCDE))
+    x, y = np.asarray(pts.x), np.asarray(pts.y)
+    assert x.min() >= 0 and x.max() < 1 and y.min() >= 0 and y.max() < 1
+    for cols, rows in ((64, 1), (8, 8), (1, 64), (16, 4)):  # every elementary interval
+        cells = np.floor(x * cols).astype(int) * rows + np.floor(y * rows).astype(int)
+        assert sorted(cells) == list(range(64))
+
+
+def test_auto_sampling_rule():
+    auto = sampling.auto_sampling
+    assert auto(1.0)["time_sampling_method"] == "antithetic"
+    assert auto(1.0)["antithetic_shift"] == 0.5 and auto(2.0)["antithetic_shift"] == 0.25
+    for h in (0.0, 0.3, 0.5, 1.5):
+        assert auto(h) == dict(time_sampling_method="uniform", path_correlation_depth=0,
+                               use_stratified_sampling_for_each_interval=True)
+    p = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
+                                time=0.001).resolved(0.0)
+    assert p.time_sampling_method == "antithetic" and p.path_correlation_depth == 1 << 16

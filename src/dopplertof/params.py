@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import METHODS
+from .sampling import METHOD_NAMES, auto_sampling
 
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
@@ -101,9 +101,9 @@ class RenderParams:
             fail(f"wave_function_type {self.wave_function_type!r} pairs a trapezoid sensor with "
                  "a delta illumination and has no full-waveform form; set "
                  "low_frequency_component_only=true")
-        if self.time_sampling_method not in METHODS:
+        if self.time_sampling_method not in METHOD_NAMES:
             fail(f"unknown time_sampling_method {self.time_sampling_method!r}: expected one of "
-                 f"{', '.join(METHODS)}")
+                 f"{', '.join(METHOD_NAMES)}")
         if self.max_depth < -1 or self.max_depth == 0:
             fail(f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}")
         if self.rr_depth < 1:
@@ -119,6 +119,13 @@ class RenderParams:
         return self
 
     # ---- Derived quantities ----
+
+    def resolved(self, shutter: float) -> "RenderParams":
+        """The parameters with ``time_sampling_method="auto"`` replaced by its choice."""
+        if self.time_sampling_method != "auto":
+            return self
+        h = self.modulation(shutter).hetero_frequency
+        return replace(self, **auto_sampling(h))
 
     def exposure(self, shutter: float) -> float:
         """Exposure T: ``time`` when given, else the sensor's shutter interval, else 0.0015."""

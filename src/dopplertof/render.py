@@ -111,6 +111,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     if params is not None:
         p = params if isinstance(params, RenderParams) else RenderParams.from_mapping(
             dict(params), where="render parameters", base=p)
+    p = p.resolved(scene.shutter_interval)
     spp = scene.spp if spp is None else int(spp)
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
