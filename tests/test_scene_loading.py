@@ -103,7 +103,7 @@ def test_animated_emitter_is_an_error():
     ('<string name="wave_function_type" value="sawtooth"/>', "unknown wave_function_type"),
     ('<string name="time_sampling_method" value="random"/>', "unknown time_sampling_method"),
     ('<float name="time" value="-0.001"/>', "must be > 0"),
-    ('<float name="w_g" value="nan"/>', "must be finite"),
+    ('<float name="w_g" value="nan"/>', "non-finite value 'nan'"),
     ('<integer name="max_dpeth" value="3"/>', "unknown parameter 'max_dpeth'"),
     ('<integer name="max_depth" value="three"/>', "must be an integer"),
 ])

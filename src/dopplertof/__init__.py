@@ -57,5 +57,21 @@ def load_dict(scene_dict: dict):
     return scene.load_dict(scene_dict)
 
 
-__all__ = ["load_file", "load_string", "load_dict", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",
+def capture(scene, spp=None, seed=0, **kwargs):
+    """One D-ToF camera frame: every capture, velocity and depth reconstruction and the
+    exact truth (see :func:`dopplertof.camera.capture`). ``scene`` is a DopplerScene or
+    the path of an XML scene. Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
+    ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
+    import os
+
+    from .camera import capture as _capture
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_file(scene)
+    else:
+        _ensure_variant()
+    return _capture(scene, spp, seed, **kwargs)
+
+
+__all__ = ["load_file", "load_string", "load_dict", "capture", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",
            "RenderParams", "ParameterError", "BackendError", "Animation", "SceneError"]

@@ -1,0 +1,24 @@
+"""The D-ToF camera: captures, velocity and depth reconstruction, sensor noise, truth.
+
+    import dopplertof
+    scene = dopplertof.load_file("scene.xml")
+    result = dopplertof.capture(scene, spp=1024, seed=0)
+    result.velocity, result.velocity_gt, result.depth, result.summary
+    result.write("out/")
+
+See docs/camera.md for the conventions and formulas.
+"""
+
+from .capture import (CaptureError, CaptureResult, CaptureSpec, Reconstruction, capture,
+                      error_stats, format_summary, plan_captures)
+from .ground_truth import GroundTruth, ground_truth, light_colocation
+from .noise import NoiseError, NoiseModel, apply_noise
+from .output import OutputFolderError, prepare_folder
+from .reconstruct import CaptureModel, ReconstructionError
+
+__all__ = [
+    "capture", "CaptureResult", "CaptureSpec", "CaptureError", "Reconstruction",
+    "plan_captures", "format_summary", "error_stats", "GroundTruth", "ground_truth",
+    "light_colocation", "NoiseModel", "NoiseError", "apply_noise", "CaptureModel",
+    "ReconstructionError", "OutputFolderError", "prepare_folder",
+]

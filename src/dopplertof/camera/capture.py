@@ -1,0 +1,487 @@
+"""One frame of a D-ToF camera: its captures, what it reports, and the exact truth.
+
+:func:`capture` renders, for one scene and exposure,
+
+* four homodyne captures at sensor offsets 0, 1/4, 1/2, 3/4 (depth; the first two
+  also serve velocity), and two heterodyne captures at offsets 0 and 1/4 with h beat
+  periods per exposure (velocity);
+* optionally four more homodyne captures at a second modulation frequency (depth
+  unwrapping);
+* a radiance capture: the same path tracer with a constant modulation weight (a 1 Hz
+  sinusoid, whose phase over any path is below 1e-6 rad), i.e. the time-averaged
+  radiance over the exposure with global illumination, for context and for the
+  unmodulated light that the noise model needs;
+
+then reconstructs radial velocity and depth (:mod:`.reconstruct`), optionally after
+sensor noise (:mod:`.noise`), and compares them with the truth from the analytic
+motion (:mod:`.ground_truth`).
+
+The sensor is monochrome: a capture is the mean of the rendered channels (H, W).
+All captures are simulated over the same exposure interval (as if recorded by
+parallel pixels) and, by default, with the same seed: common random numbers, so that
+Monte Carlo noise largely cancels in the heterodyne/homodyne ratio. Physical noise is
+the noise model's business.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time as _time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..modulation import SPEED_OF_LIGHT
+from ..params import RenderParams
+from . import reconstruct as rec
+from .ground_truth import GroundTruth, ground_truth, light_colocation
+from .noise import NoiseModel, apply_noise
+
+#: illumination frequency of the radiance capture, MHz (1 Hz)
+RADIANCE_FREQUENCY_MHZ = 1e-6
+
+#: default heterodyne beat periods per exposure when the scene gives none
+DEFAULT_HETERO_FREQUENCY = 1.0
+
+
+CALIBRATION_NOTES = {
+    "none": "exact inversion of E/H; a change of brightness during the exposure is "
+            "ignored (its first-order term cancels for sinusoids)",
+    "inverse-square": "single-path model with brightness (d_mid / d(t))^2 (colocated point "
+                      "light) solved per pixel with the reconstructed phase and depth; "
+                      "needs the true distance: unwrap depth beyond the wrap distance",
+}
+
+
+class CaptureError(ValueError):
+    """Capture settings that cannot work; the message names the problem."""
+
+
+@dataclass(frozen=True)
+class CaptureSpec:
+    """One exposure of the camera."""
+
+    name: str  #: file stem, e.g. "homodyne_0.25" or "homodyne_25MHz_0.5"
+    kind: str  #: "homodyne", "heterodyne" or "radiance"
+    frequency_mhz: float  #: illumination frequency f_g
+    hetero_frequency: float  #: h, beat periods per exposure
+    hetero_offset: float  #: sensor offset o (psi = 2 pi o)
+
+    def params(self, base: RenderParams) -> RenderParams:
+        changes = dict(w_g=self.frequency_mhz, w_s=None, hetero_frequency=self.hetero_frequency,
+                       hetero_offset=self.hetero_offset)
+        if self.kind == "radiance":
+            # weight g1 * 0.5 cos(omega_g L / c) = cos(< 1e-6 rad) = 1 - O(1e-12)
+            changes.update(g_1=2.0, wave_function_type="sinusoidal",
+                           low_frequency_component_only=True)
+        return replace(base, **changes).validated(f"capture {self.name}")
+
+
+def _offset_name(offset: float) -> str:
+    return f"{offset:g}"
+
+
+def plan_captures(frequency_mhz: float, hetero_frequency: float,
+                  unwrap_frequency_mhz: float | None = None) -> list:
+    """The captures of one frame, in render order."""
+    specs = [CaptureSpec(f"homodyne_{_offset_name(o)}", "homodyne", frequency_mhz, 0.0, o)
+             for o in rec.DEPTH_OFFSETS]
+    specs += [CaptureSpec(f"heterodyne_{_offset_name(o)}", "heterodyne", frequency_mhz,
+                          hetero_frequency, o) for o in rec.VELOCITY_OFFSETS]
+    if unwrap_frequency_mhz is not None:
+        tag = f"{unwrap_frequency_mhz:g}MHz"
+        specs += [CaptureSpec(f"homodyne_{tag}_{_offset_name(o)}", "homodyne",
+                              unwrap_frequency_mhz, 0.0, o) for o in rec.DEPTH_OFFSETS]
+    specs.append(CaptureSpec("radiance", "radiance", RADIANCE_FREQUENCY_MHZ, 0.0, 0.0))
+    return specs
+
+
+@dataclass
+class Reconstruction:
+    """What the camera reports from one set of captures."""
+
+    velocity: np.ndarray  #: (H, W) m/s, > 0 receding, NaN where it cannot tell
+    velocity_reasons: np.ndarray  #: (H, W) int codes, see reconstruct.INVALID_REASONS
+    depth: np.ndarray  #: (H, W) m along the ray (wrapped unless unwrapped)
+    depth_reasons: np.ndarray
+    amplitude: np.ndarray  #: (H, W) homodyne amplitude at f_g
+
+
+@dataclass
+class CaptureResult:
+    captures: dict  #: name -> (H, W) float32, what the camera records (noisy if noise is on)
+    rendered: dict  #: name -> (H, W) float32, the noise-free renders (mean of channels)
+    radiance: np.ndarray  #: (H, W, C) float32, time-averaged radiance
+    reconstruction: Reconstruction  #: from ``captures``
+    noise_free: Reconstruction | None  #: from ``rendered`` when noise is on
+    truth: GroundTruth
+    summary: dict = field(default_factory=dict)
+
+    @property
+    def velocity(self):
+        return self.reconstruction.velocity
+
+    @property
+    def depth(self):
+        return self.reconstruction.depth
+
+    @property
+    def velocity_gt(self):
+        return self.truth.velocity
+
+    @property
+    def depth_gt(self):
+        return self.truth.depth
+
+    def write(self, folder) -> list:
+        """Write every array (.npy), its preview (.png), the side-by-side figure and
+        summary.json into ``folder`` (created if missing); returns the paths."""
+        from .output import write_result
+
+        return write_result(self, folder)
+
+
+# ---- Settings ----------------------------------------------------------------------
+
+def _resolve_hetero_frequency(base: RenderParams, exposure: float, requested) -> float:
+    if requested is not None:
+        h = float(requested)
+    elif base.hetero_frequency not in (None, 0.0):
+        h = float(base.hetero_frequency)
+    elif base.w_s is not None and base.w_s != base.w_g:
+        h = (base.w_s - base.w_g) * 1e6 * exposure
+    else:
+        h = DEFAULT_HETERO_FREQUENCY
+    return h
+
+
+def _check_unwrap(unwrap_frequency, w_g):
+    if unwrap_frequency is None:
+        return None
+    try:
+        f = float(unwrap_frequency)
+    except (TypeError, ValueError):
+        raise CaptureError(f"unwrap frequency must be a number of MHz, got {unwrap_frequency!r}"
+                           ) from None
+    if not (math.isfinite(f) and f > 0):
+        raise CaptureError(f"unwrap frequency must be > 0 MHz, got {unwrap_frequency!r}")
+    if abs(f - w_g) * 1e6 < 1.0:
+        raise CaptureError(f"unwrap frequency {f:g} MHz equals the modulation frequency w_g: "
+                           "choose a different one")
+    return f
+
+
+def _check_spp_seed(base, spp, seed):
+    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise CaptureError(f"spp must be a positive integer, got {spp!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise CaptureError(f"seed must be a non-negative integer, got {seed!r}")
+    if spp % base.time_correlate_number:
+        raise CaptureError(f"spp {spp} is not a multiple of the group size "
+                           f"time_correlate_number={base.time_correlate_number}")
+
+
+# ---- The pipeline --------------------------------------------------------------------
+
+def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
+            hetero_frequency: float | None = None, unwrap_frequency: float | None = None,
+            noise: NoiseModel | bool | None = None, min_signal_fraction: float | None = None,
+            velocity_calibration: str = "auto", common_random_numbers: bool = True,
+            progress: bool | None = None, on_capture=None) -> CaptureResult:
+    """Render every capture of one D-ToF frame, reconstruct velocity and depth, and
+    compare them with the exact truth.
+
+    scene: a DopplerScene. spp: samples per pixel per capture (default: the scene's).
+    params: integrator parameter overrides (dict), applied before the per-capture ones.
+    hetero_frequency: beat periods per exposure of the heterodyne captures (a non-zero
+    integer; default the scene's, else 1). unwrap_frequency: a second modulation
+    frequency in MHz for depth unwrapping. noise: a NoiseModel (True: the default one).
+    min_signal_fraction: pixels whose homodyne signal is below this fraction of the
+    image's 99th percentile are NaN (default 0.01). velocity_calibration: "none" (exact
+    E/H inversion), "inverse-square" (also the brightness change of a surface under a
+    colocated point light; uses each pixel's depth) or "auto" (inverse-square for
+    non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
+    for every capture (default) rather than seed + capture index. on_capture: called
+    as on_capture(spec, seconds) after each render.
+    """
+    from ..render import render_result
+
+    started = _time.perf_counter()
+    base = scene.params
+    if params:
+        base = (params if isinstance(params, RenderParams) else
+                RenderParams.from_mapping(dict(params), where="capture parameters", base=base))
+    spp = scene.spp if spp is None else spp
+    _check_spp_seed(base, spp, seed)
+    exposure = base.exposure(scene.shutter_interval)
+    h = _resolve_hetero_frequency(base, exposure, hetero_frequency)
+    model = rec.CaptureModel(2 * math.pi * base.w_g * 1e6, exposure, h, base.wave_function_type)
+    unwrap = _check_unwrap(unwrap_frequency, base.w_g)
+    calibration = rec.resolve_calibration(velocity_calibration, model.waveform)
+    if noise is True:
+        noise = NoiseModel()
+    elif noise is False:
+        noise = None
+    if noise is not None and not isinstance(noise, NoiseModel):
+        raise CaptureError(f"noise must be a NoiseModel, True or None, got {noise!r}")
+    if min_signal_fraction is not None:
+        try:
+            min_signal_fraction = float(min_signal_fraction)
+        except (TypeError, ValueError):
+            min_signal_fraction = math.nan
+        if not 0 <= min_signal_fraction < 1:
+            raise CaptureError("min_signal_fraction must be a number in [0, 1), got "
+                               f"{min_signal_fraction}")
+
+    specs = plan_captures(base.w_g, h, unwrap)
+    rendered, records, radiance = {}, [], None
+    for index, spec in enumerate(specs):
+        capture_seed = int(seed) if common_random_numbers else int(seed) + index
+        result = render_result(scene, spp=int(spp), seed=capture_seed, params=spec.params(base),
+                               progress=progress)
+        image = result.image
+        if spec.kind == "radiance":
+            radiance = image
+        else:
+            rendered[spec.name] = image.mean(axis=-1, dtype=np.float64).astype(np.float32)
+        seconds = result.metadata["render_seconds"]
+        records.append({
+            "order": index, "name": spec.name, "file": f"{spec.name}.npy", "kind": spec.kind,
+            "w_g_MHz": spec.frequency_mhz, "hetero_frequency": spec.hetero_frequency,
+            "hetero_offset": spec.hetero_offset, "seed": capture_seed, "spp": int(spp),
+            "render_seconds": round(seconds, 3),
+            "nonfinite_samples_dropped": result.metadata["nonfinite_samples_dropped"],
+        })
+        if on_capture is not None:
+            on_capture(spec, seconds)
+
+    truth = ground_truth(scene, base)
+    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
+    clean = _reconstruct(rendered, model, unwrap, min_signal_fraction, calibration)
+    noise_info, saturated, captures, noise_free = None, None, rendered, None
+    if noise is not None:
+        captures, saturated, noise = apply_noise(rendered, unmodulated, exposure, noise)
+        noise_free = clean
+        reconstruction = _reconstruct(captures, model, unwrap, min_signal_fraction,
+                                      calibration, saturated)
+        noise_info = noise.describe()
+        noise_info["saturated_pixels"] = int(saturated.sum())
+        noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(exposure)
+    else:
+        reconstruction = clean
+
+    summary = _summary(scene, base, spp, seed, model, unwrap, calibration, records,
+                       reconstruction, noise_free, truth, noise_info, min_signal_fraction,
+                       common_random_numbers, _time.perf_counter() - started)
+    return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
+                         summary)
+
+
+def _homodyne_set(captures, prefix):
+    return {o: captures[f"{prefix}_{_offset_name(o)}"] for o in rec.DEPTH_OFFSETS}
+
+
+def _reconstruct(captures, model, unwrap, min_signal_fraction, calibration, saturated=None):
+    homodyne = _homodyne_set(captures, "homodyne")
+    heterodyne = {o: captures[f"heterodyne_{_offset_name(o)}"] for o in rec.VELOCITY_OFFSETS}
+    depth, phase, amplitude, d_reasons = rec.homodyne_depth(homodyne, model,
+                                                            min_signal_fraction)
+    if unwrap is not None:
+        model2 = replace(model, omega_g=2 * math.pi * unwrap * 1e6)
+        depth2, _, _, d2_reasons = rec.homodyne_depth(
+            _homodyne_set(captures, f"homodyne_{unwrap:g}MHz"), model2, min_signal_fraction)
+        d_reasons = np.maximum(d_reasons, d2_reasons)
+        depth = rec.unwrap_two_frequencies(depth, model.frequency_hz, depth2, unwrap * 1e6)
+        depth = np.where(d_reasons == rec.VALID, depth, np.nan)
+    velocity, v_reasons = rec.reconstruct_velocity(homodyne, heterodyne, model,
+                                                   min_signal_fraction, calibration,
+                                                   phase, depth)
+    if saturated is not None:
+        v_reasons = np.where(saturated, rec.SATURATED, v_reasons)
+        d_reasons = np.where(saturated, rec.SATURATED, d_reasons)
+        velocity = np.where(saturated, np.nan, velocity)
+        depth = np.where(saturated, np.nan, depth)
+    return Reconstruction(velocity, v_reasons, depth, d_reasons, amplitude)
+
+
+# ---- Summary ---------------------------------------------------------------------------
+
+def error_stats(estimate, truth, modulo: float | None = None) -> dict:
+    """Median, 95th percentile and mean of the absolute error and the mean signed error
+    over pixels where both are finite; errors folded to [-modulo/2, modulo/2) if given."""
+    estimate = np.asarray(estimate, np.float64)
+    truth = np.asarray(truth, np.float64)
+    valid = np.isfinite(estimate) & np.isfinite(truth)
+    err = estimate[valid] - truth[valid]
+    if modulo:
+        err = np.mod(err + 0.5 * modulo, modulo) - 0.5 * modulo
+    if not err.size:
+        return {"pixels": 0, "median_abs": None, "p95_abs": None, "mean_abs": None,
+                "mean_signed": None}
+    a = np.abs(err)
+    return {"pixels": int(valid.sum()), "median_abs": float(np.median(a)),
+            "p95_abs": float(np.percentile(a, 95)), "mean_abs": float(a.mean()),
+            "mean_signed": float(err.mean())}
+
+
+def _reason_counts(reasons):
+    counts = {}
+    for code, text in rec.INVALID_REASONS.items():
+        n = int(np.sum(reasons == code))
+        if n:
+            counts[text.split(" (")[0].split(":")[0]] = n
+    return counts
+
+
+def _errors(recon: Reconstruction, truth: GroundTruth, depth_modulo):
+    return {
+        "velocity_m_s": error_stats(recon.velocity, truth.velocity),
+        "depth_m": error_stats(recon.depth, truth.depth, depth_modulo),
+    }
+
+
+def _bodies(scene, recon: Reconstruction, truth: GroundTruth):
+    out = []
+    for k, body in enumerate(scene.bodies):
+        on = truth.body == k
+        measured = recon.velocity[on & np.isfinite(recon.velocity)]
+        out.append({
+            "name": ", ".join(body.names), "pixels": int(on.sum()),
+            "velocity_gt_median_m_s": float(np.median(truth.velocity[on])) if on.any() else None,
+            "velocity_median_m_s": float(np.median(measured)) if measured.size else None,
+            "velocity_abs_error_median_m_s": error_stats(
+                recon.velocity[on], truth.velocity[on])["median_abs"],
+        })
+    return out
+
+
+def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon, noise_free,
+             truth, noise_info, min_signal_fraction, common_random_numbers, seconds):
+    from ..backend import require_variant
+
+    height, width = truth.depth.shape
+    wrap = model.wrap_distance
+    depth_modulo = None if unwrap is not None else wrap
+    fraction = (rec.DEFAULT_MIN_SIGNAL_FRACTION if min_signal_fraction is None
+                else float(min_signal_fraction))
+    summary = {
+        "scene": scene.source,
+        "variant": require_variant().variant(),
+        "resolution": [width, height],
+        "spp_per_capture": int(spp),
+        "seed": int(seed),
+        "common_random_numbers": bool(common_random_numbers),
+        "units": {
+            "captures": "time-averaged correlation (1/T) * integral over the exposure, signed, "
+                        "scene radiance units, mean of the rendered channels (monochrome "
+                        "sensor); multiply by exposure_s for the integrated value",
+            "radiance": "time-averaged radiance over the exposure (scene units, RGB)",
+            "velocity": "m/s, radial: rate of change of the distance along the pixel's ray; "
+                        "> 0 receding (distance grows), < 0 approaching",
+            "depth": "m, distance from the camera centre along the pixel-centre ray",
+            "frequencies": "MHz", "times": "s", "angular frequencies": "rad/s",
+        },
+        "modulation": {
+            "w_g_MHz": base.w_g, "omega_g_rad_s": model.omega_g,
+            "exposure_s": model.exposure, "hetero_frequency": model.hetero_frequency,
+            "omega_d_rad_s": model.omega_d, "waveform": model.waveform,
+            "g_0": base.g_0, "g_1": base.g_1,
+            "low_frequency_component_only": base.low_frequency_component_only,
+        },
+        "render_params": {k: getattr(base, k) for k in RenderParams.names()},
+        "captures": records,
+        "velocity": {
+            "file": "velocity.npy",
+            "method": "r = sum H_i E_i / sum H_i^2 over the offsets 0 and 0.25 (least "
+                      "squares); E/H = Delta_omega / (omega_d + Delta_omega) for a single "
+                      "path of constant brightness, every waveform, integer "
+                      "hetero_frequency; v = c Delta_omega / (2 omega_g)",
+            "calibration": calibration,
+            "calibration_note": CALIBRATION_NOTES[calibration],
+            "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
+            "nan_when": {text.split(" (")[0].split(":")[0]: text
+                         for text in rec.INVALID_REASONS.values()},
+            "nan_pixels": _reason_counts(recon.velocity_reasons),
+            "min_signal_fraction": fraction,
+            "ground_truth": "velocity_gt.npy: (u . n) / (d . n) at mid-exposure from the "
+                            "analytic motion; velocity_point.npy: u . d",
+            "ground_truth_time_s": truth.time,
+        },
+        "depth": {
+            "file": "depth.npy",
+            "method": "phi = atan2(H(0.75) - H(0.25), H(0) - H(0.5)) (calibrated for "
+                      "non-sinusoidal waveforms), depth = c phi / (2 omega_g): half the "
+                      "path length, the distance for a colocated light",
+            "wrap_distance_m": wrap,
+            "unwrap_frequency_MHz": unwrap,
+            "unambiguous_range_m": (rec.unambiguous_range(model.frequency_hz, unwrap * 1e6)
+                                    if unwrap is not None else wrap),
+            "nan_pixels": _reason_counts(recon.depth_reasons),
+            "error_modulo_m": depth_modulo,
+            "ground_truth": "depth_gt.npy: distance to the first hit along the pixel-centre "
+                            "ray at mid-exposure",
+        },
+        "light": light_colocation(scene),
+        "noise": noise_info,
+        "errors": _errors(recon, truth, depth_modulo),
+        "bodies": _bodies(scene, recon, truth),
+        "speed_of_light_m_s": SPEED_OF_LIGHT,
+        "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),
+                    "total": round(seconds, 3)},
+    }
+    if noise_free is not None:
+        summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
+        summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
+    return summary
+
+
+def format_summary(summary: dict, folder: str | None = None) -> str:
+    """A few readable lines of a capture summary."""
+    mod = summary["modulation"]
+    w, h = summary["resolution"]
+    depth = summary["depth"]
+    lines = [
+        f"{os.path.basename(summary['scene'])}: {w}x{h}, {summary['spp_per_capture']} spp x "
+        f"{len(summary['captures'])} captures, {summary['seconds']['total']:.1f} s"
+        + (f" -> {folder}" if folder else ""),
+        f"  modulation: {mod['w_g_MHz']:g} MHz {mod['waveform']}, exposure "
+        f"{mod['exposure_s'] * 1e3:g} ms, heterodyne {mod['hetero_frequency']:g} beat "
+        f"period(s)/exposure; depth wraps at {depth['wrap_distance_m']:.3f} m"
+        + (f", unwrapped with {depth['unwrap_frequency_MHz']:g} MHz up to "
+           f"{depth['unambiguous_range_m']:.1f} m" if depth["unwrap_frequency_MHz"] else ""),
+    ]
+    if summary["noise"]:
+        n = summary["noise"]
+        lines.append(f"  noise: QE {n['quantum_efficiency']:g}, read {n['read_noise_electrons']:g}"
+                     f" e-, full well {n['full_well_electrons']:g} e-, {n['bits']} bits at "
+                     f"{n['gain_electrons_per_DN']:g} e-/DN, {n['photons_per_unit']:.3g} "
+                     f"photons/s per unit, {n['saturated_pixels']} saturated pixels")
+
+    def error_lines(errors, label):
+        v, d = errors["velocity_m_s"], errors["depth_m"]
+        out = []
+        if v["pixels"]:
+            out.append(f"  velocity error{label}: median {v['median_abs']:.3g} m/s, 95th "
+                       f"percentile {v['p95_abs']:.3g} m/s over {v['pixels']} pixels")
+        else:
+            out.append(f"  velocity error{label}: no valid pixels")
+        if d["pixels"]:
+            mod_note = (f" (modulo {depth['error_modulo_m']:.3f} m)"
+                        if depth["error_modulo_m"] else "")
+            out.append(f"  depth error{label}: median {d['median_abs']:.3g} m, 95th percentile "
+                       f"{d['p95_abs']:.3g} m{mod_note}")
+        return out
+
+    lines += error_lines(summary["errors"], "")
+    if "errors_without_noise" in summary:
+        lines += error_lines(summary["errors_without_noise"], " without noise")
+    nan = summary["velocity"]["nan_pixels"]
+    if nan:
+        lines.append("  velocity NaN: " + ", ".join(f"{n} px {why}" for why, n in nan.items()))
+    for body in summary["bodies"]:
+        if body["pixels"] and body["velocity_median_m_s"] is not None:
+            lines.append(f"  {body['name']}: truth {body['velocity_gt_median_m_s']:+.2f} m/s, "
+                         f"measured {body['velocity_median_m_s']:+.2f} m/s (median over "
+                         f"{body['pixels']} pixels)")
+    return "\n".join(lines)

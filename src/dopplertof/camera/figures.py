@@ -1,0 +1,149 @@
+"""PNG previews of capture products: one map per array, and the side-by-side figure.
+
+Every file is written atomically (:func:`dopplertof.io.atomic_path`). NaN pixels
+(nothing seen, or a signal too weak to reconstruct) are drawn in grey.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..io import atomic_path
+
+NAN_COLOUR = "#b0b0b0"
+
+
+def _jsonable(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return str(x)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def symmetric_limit(*arrays, percentile: float = 99.0) -> float:
+    """A symmetric colour range covering ``percentile`` of |values| of all arrays."""
+    values = np.concatenate([np.abs(np.asarray(a, np.float64)).ravel() for a in arrays])
+    values = values[np.isfinite(values)]
+    limit = float(np.percentile(values, percentile)) if values.size else 0.0
+    if limit <= 0:
+        limit = float(values.max()) if values.size and values.max() > 0 else 1.0
+    return limit
+
+
+def truth_limit(truth, fallback) -> float:
+    """Colour range of a velocity map: 1.25 x the truth's largest speed (99.5th
+    percentile), so that reconstruction outliers saturate instead of washing out the
+    truth; the reconstruction's range where everything is static."""
+    limit = symmetric_limit(truth, percentile=99.5)
+    finite = np.asarray(truth, np.float64)
+    if not np.any(np.abs(finite[np.isfinite(finite)]) > 0):
+        return symmetric_limit(fallback)
+    return 1.25 * limit
+
+
+def radiance_scalar(radiance: np.ndarray) -> np.ndarray:
+    r = np.asarray(radiance, np.float64)
+    return r.mean(axis=-1) if r.ndim == 3 else r
+
+
+def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
+    import matplotlib
+
+    colours = matplotlib.colormaps[cmap].with_extremes(bad=NAN_COLOUR)
+    masked = np.ma.masked_invalid(np.asarray(data, np.float64))
+    if norm is not None:
+        im = ax.imshow(masked, cmap=colours, norm=norm, interpolation="nearest")
+    else:
+        im = ax.imshow(masked, cmap=colours, vmin=vmin, vmax=vmax, interpolation="nearest")
+    ax.set_title(title, fontsize=10)
+    ax.set_axis_off()
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    bar.set_label(label, fontsize=9)
+    bar.ax.tick_params(labelsize=8)
+    return im
+
+
+def _radiance_norm(data):
+    import matplotlib.colors as colors
+
+    finite = data[np.isfinite(data)]
+    top = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+    return colors.PowerNorm(gamma=0.5, vmin=0.0, vmax=top if top > 0 else 1.0)
+
+
+def _save(fig, path, metadata):
+    plt = _pyplot()
+    info = {"Software": "dopplertof"}
+    if metadata:
+        info["Description"] = json.dumps(metadata, default=_jsonable)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", metadata=info)
+    plt.close(fig)
+
+
+def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=None,
+              vmax=None, symmetric: bool = False, note: str | None = None,
+              metadata: dict | None = None) -> None:
+    """One scalar map with a colour bar; ``symmetric`` centres the range on zero."""
+    plt = _pyplot()
+    data = np.asarray(data, np.float64)
+    if symmetric:
+        limit = symmetric_limit(data) if vmax is None else vmax
+        vmin, vmax = -limit, limit
+    elif vmin is None or vmax is None:
+        finite = data[np.isfinite(data)]
+        vmin = float(np.percentile(finite, 0.5)) if vmin is None and finite.size else vmin
+        vmax = float(np.percentile(finite, 99.5)) if vmax is None and finite.size else vmax
+    h, w = data.shape
+    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
+    _draw(ax, fig, data, title, label, cmap, vmin, vmax)
+    if note:
+        fig.text(0.5, 0.01, note, ha="center", va="bottom", fontsize=8, color="#444444")
+    fig.tight_layout(rect=(0, 0.03 if note else 0, 1, 1))
+    _save(fig, path, metadata)
+
+
+def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
+    plt = _pyplot()
+    data = radiance_scalar(radiance)
+    h, w = data.shape
+    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.8), dpi=120)
+    _draw(ax, fig, data, title, "radiance (scene units, mean of RGB; gamma 0.5)", "gray",
+          norm=_radiance_norm(data))
+    fig.tight_layout()
+    _save(fig, path, metadata)
+
+
+def write_comparison(path, radiance, velocity, velocity_gt, title: str,
+                     metadata: dict | None = None) -> None:
+    """Side by side: radiance | reconstructed velocity | ground truth | error."""
+    plt = _pyplot()
+    rad = radiance_scalar(radiance)
+    velocity = np.asarray(velocity, np.float64)
+    truth = np.asarray(velocity_gt, np.float64)
+    error = velocity - truth
+    h, w = rad.shape
+    fig, axes = plt.subplots(1, 4, figsize=(20, 3.9 * h / w + 1.0), dpi=110)
+    limit = truth_limit(truth, velocity)
+    err_limit = symmetric_limit(error)
+    _draw(axes[0], fig, rad, "radiance", "scene units, mean of RGB (gamma 0.5)", "gray",
+          norm=_radiance_norm(rad))
+    _draw(axes[1], fig, velocity, "reconstructed radial velocity", "m/s (+ receding)",
+          "RdBu_r", -limit, limit)
+    _draw(axes[2], fig, truth, "ground truth (mid-exposure)", "m/s (+ receding)", "RdBu_r",
+          -limit, limit)
+    _draw(axes[3], fig, error, "error (reconstructed - truth)", "m/s", "PuOr_r",
+          -err_limit, err_limit)
+    fig.suptitle(title + "   (grey: NaN, no reliable signal)", fontsize=11)
+    fig.tight_layout()
+    _save(fig, path, metadata)

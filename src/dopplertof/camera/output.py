@@ -1,0 +1,100 @@
+"""Files of a capture: arrays (.npy), previews (.png), the comparison figure, summary.json.
+
+All writes are atomic (:mod:`dopplertof.io`).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .. import io
+from . import figures
+
+
+class OutputFolderError(ValueError):
+    """An output folder that cannot be used."""
+
+
+def prepare_folder(folder, create: bool = False) -> str:
+    """Check (before any work) that ``folder`` can receive the outputs: an existing
+    writable folder, or a new one whose parent exists (created when ``create``)."""
+    folder = os.fspath(folder)
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise OutputFolderError(f"output path exists and is not a folder: {folder}")
+    target = folder if os.path.isdir(folder) else os.path.dirname(os.path.abspath(folder))
+    if not os.path.isdir(target):
+        raise OutputFolderError(f"parent of the output folder does not exist: {target}")
+    if not os.access(target, os.W_OK):
+        raise OutputFolderError(f"output folder is not writable: {target}")
+    if create:
+        os.makedirs(folder, exist_ok=True)
+    return folder
+
+
+def write_result(result, folder) -> list:
+    folder = prepare_folder(folder, create=True)
+    summary = result.summary
+    written = []
+
+    def path(name):
+        p = os.path.join(folder, name)
+        written.append(p)
+        return p
+
+    noisy = " (with sensor noise)" if summary.get("noise") else ""
+    for record in summary["captures"]:
+        name = record["name"]
+        if record["kind"] == "radiance":
+            continue
+        image = result.captures[name]
+        io.write_npy(path(f"{name}.npy"), image)
+        title = (f"{record['kind']} capture, offset {record['hetero_offset']:g}, "
+                 f"h={record['hetero_frequency']:g}, {record['w_g_MHz']:g} MHz{noisy}")
+        io.write_png(path(f"{name}.png"), image, title=title,
+                     label="time-averaged correlation (scene units)", metadata=record)
+
+    io.write_npy(path("radiance.npy"), result.radiance)
+    figures.write_radiance(path("radiance.png"), result.radiance,
+                           "radiance, time-averaged over the exposure")
+
+    recon, truth = result.reconstruction, result.truth
+    v_limit = figures.truth_limit(truth.velocity, recon.velocity)
+    velocity_maps = (
+        ("velocity", recon.velocity, f"reconstructed radial velocity{noisy}"),
+        ("velocity_gt", truth.velocity, "ground truth radial velocity (u.n)/(d.n), mid-exposure"),
+        ("velocity_point", truth.velocity_point, "hit-point velocity along the ray u.d"),
+    )
+    for name, data, title in velocity_maps:
+        io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
+        figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
+                          cmap="RdBu_r", vmax=v_limit, symmetric=True,
+                          note="grey: NaN (nothing hit or signal too weak)")
+    error = recon.velocity - truth.velocity
+    figures.write_map(path("velocity_error.png"), error, "velocity error (reconstructed - truth)",
+                      "m/s", cmap="PuOr_r", symmetric=True,
+                      note="grey: NaN (nothing hit or signal too weak)")
+
+    depth_info = summary["depth"]
+    wrap_note = (f"wraps every {depth_info['wrap_distance_m']:.3f} m"
+                 if depth_info["unwrap_frequency_MHz"] is None else
+                 f"unwrapped with {depth_info['unwrap_frequency_MHz']:g} MHz")
+    # one colour scale for both maps when they are comparable (unwrapped depth)
+    shared = (recon.depth, truth.depth) if depth_info["unwrap_frequency_MHz"] else ()
+    finite = np.concatenate([a[np.isfinite(a)] for a in shared] or [np.zeros(0)])
+    d_lo = float(np.percentile(finite, 0.5)) if finite.size else None
+    d_hi = float(np.percentile(finite, 99.5)) if finite.size else None
+    for name, data, title, note in (
+            ("depth", recon.depth, f"reconstructed depth{noisy}", wrap_note),
+            ("depth_gt", truth.depth, "ground truth depth, mid-exposure", "not wrapped")):
+        io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
+        figures.write_map(path(f"{name}.png"), data, title,
+                          "m from the camera centre along the ray", cmap="viridis",
+                          vmin=d_lo, vmax=d_hi, note=f"{note}; grey: NaN")
+
+    figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
+                             truth.velocity, f"{os.path.basename(summary['scene'])}: "
+                             f"{summary['spp_per_capture']} spp per capture{noisy}")
+    io.write_json(path("summary.json"), summary)
+    return written
