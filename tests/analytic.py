@@ -24,15 +24,21 @@ FOV = 4.0  # degrees: one pixel covering [-s, s]^2 on the z=1 plane, s = tan(fov
 
 
 def plane_scene(z0: float, velocity: float, exposure: float = 0.0015, spp: int = 4096,
-                integrator: dict | None = None, res: int = 1) -> dict:
-    """The moving-plane scene as a dopplertof dict scene."""
+                integrator: dict | None = None, res: int = 1, camera_velocity: float = 0.0,
+                light_velocity: float | None = None) -> dict:
+    """The moving-plane scene as a dopplertof dict scene.
+
+    ``camera_velocity`` moves the camera along +z, with the light on it unless
+    ``light_velocity`` moves the light along z on its own.
+    """
     import mitsuba as mi
 
     import dopplertof
 
     T = mi.ScalarTransform4f
     plane = lambda z: T().translate([0, 0, z]).rotate([0, 1, 0], 180).scale(50)  # noqa: E731
-    return {
+    camera = lambda z: T().look_at(origin=[0, 0, z], target=[0, 0, z + 1], up=[0, 1, 0])  # noqa: E731
+    scene = {
         "type": "scene",
         "integrator": {"type": "dopplertof", "max_depth": 2, **(integrator or {})},
         "sensor": {
@@ -50,11 +56,23 @@ def plane_scene(z0: float, velocity: float, exposure: float = 0.0015, spp: int =
                   "to_world": dopplertof.Animation([(0.0, plane(z0)),
                                                     (exposure, plane(z0 + velocity * exposure))])},
     }
+    if camera_velocity:
+        scene["sensor"]["to_world"] = dopplertof.Animation(
+            [(0.0, camera(0.0)), (exposure, camera(camera_velocity * exposure))])
+    if light_velocity is not None:
+        scene["light"] = {"type": "point", "intensity": {"type": "rgb", "value": INTENSITY},
+                          "to_world": dopplertof.Animation(
+                              [(0.0, T()), (exposure, T().translate([0, 0, light_velocity
+                                                                     * exposure]))])}
+    elif camera_velocity:
+        scene["light"] = {"type": "point", "intensity": {"type": "rgb", "value": INTENSITY},
+                          "to_world": dopplertof.Animation.follow_sensor()}
+    return scene
 
 
 def reference(z0: float, velocity: float, *, exposure=0.0015, w_g=30.0, hetero_frequency=0.0,
               hetero_offset=0.0, waveform="sinusoidal", g0=0.5, g1=0.5, low_pass=True,
-              n_space=12, n_time=96) -> float:
+              n_space=12, n_time=96, camera_velocity=0.0, light_velocity=None) -> float:
     """The exact pixel value by Gauss-Legendre quadrature (tensor rule)."""
     s = math.tan(math.radians(FOV) / 2)
     xs, ws = np.polynomial.legendre.leggauss(n_space)
@@ -76,9 +94,14 @@ def reference(z0: float, velocity: float, *, exposure=0.0015, w_g=30.0, hetero_f
         times = (np.arange(n) + 0.5) * exposure / n
         wts = np.full(n, 1.0 / n)
     for t, wt in zip(times, wts):
-        z = z0 + velocity * t
-        radiance = RHO * INTENSITY * dz**3 / (math.pi * z * z)
-        L = 2 * z / dz
+        cam = camera_velocity * t
+        light = cam if light_velocity is None else light_velocity * t
+        r_cam = (z0 + velocity * t - cam) / dz
+        px, py, pz = A * dz * r_cam, B * dz * r_cam, z0 + velocity * t
+        r_light = np.sqrt(px**2 + py**2 + (pz - light) ** 2)
+        cos_light = (pz - light) / r_light
+        radiance = RHO * INTENSITY * cos_light / (math.pi * r_light**2)
+        L = r_cam + r_light
         if low_pass:
             m = g1 * correlation(waveform, omega_d * t + psi + omega_g * L / SPEED_OF_LIGHT)
         else:

@@ -76,10 +76,18 @@ SCENE_CASES = [
     ("animated-emitter", ('<rgb name="intensity" value="10"/></emitter>',
                           '<rgb name="intensity" value="10"/><animation name="to_world">'
                           '<transform time="0"/><transform time="1"/></animation></emitter>'),
-     "emitter is not supported yet"),
-    ("animated-sensor", ('<float name="shutter_close" value="0.0015"/>',
-                         '<animation name="to_world"><transform time="0"/>'
-                         '<transform time="1"/></animation>'), "sensor"),
+     "remove its 'position'"),
+    ("animated-directional-light", ('<bsdf type="diffuse" id="white"/>',
+                                    '<bsdf type="diffuse" id="white"/><emitter type="directional">'
+                                    '<animation name="to_world"><transform time="0"/>'
+                                    '<transform time="1"/></animation></emitter>'),
+     "only point and spot lights can move"),
+    ("sensor-follows", ('<float name="shutter_close" value="0.0015"/>',
+                        '<animation name="to_world" follow="sensor"/>'), "'follow' is for lights"),
+    ("sensor-animation-and-transform", ('<float name="shutter_close" value="0.0015"/>',
+                                        '<animation name="to_world"><transform time="0"/>'
+                                        '<transform time="1"/></animation>'),
+     "must not also have"),
     ("missing-mesh", ('<bsdf type="diffuse" id="white"/>',
                       '<bsdf type="diffuse" id="white"/><shape type="obj">'
                       '<string name="filename" value="nowhere.obj"/></shape>'), "nowhere.obj"),

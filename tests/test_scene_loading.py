@@ -95,7 +95,7 @@ def test_animated_emitter_is_an_error():
         '<rgb name="intensity" value="10"/></emitter>',
         '<rgb name="intensity" value="10"/><animation name="to_world"><transform time="0"/>'
         '<transform time="1"/></animation></emitter>')
-    with pytest.raises(SceneError, match="emitter is not supported yet"):
+    with pytest.raises(SceneError, match="takes its position from the <animation>"):
         dopplertof.scene.load_string(text)
 
 

@@ -15,7 +15,10 @@ on a body whose relative motion is Rel(t):
   rotating bodies too. It differs from u . d (also returned) when a surface slides
   along itself.
 
-Pixels that hit nothing are NaN. Static surfaces move at 0.
+With a moving camera (an <animation> on the sensor) the ray is the pixel's ray at
+mid-exposure and velocities are relative to the camera: see :func:`ground_truth`.
+
+Pixels that hit nothing are NaN. Static surfaces seen by a static camera move at 0.
 """
 
 from __future__ import annotations
@@ -80,6 +83,11 @@ def ground_truth(scene, params=None) -> GroundTruth:
     position = mi.Point2f((px + 0.5 + offset[0]) / size[0], (py + 0.5 + offset[1]) / size[1])
     time = dr.full(mi.Float, mid, width * height)
     ray, _ = sensor.sample_ray(time, 0.5, position, mi.Point2f(0.5, 0.5))
+    camera = scene.sensor_motion
+    if camera is not None:  # the camera's pose at mid-exposure
+        from ..integrators.dtof_path import _moved_ray
+
+        ray = _moved_ray(mi, camera.relative(time)[0], ray)
     frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
 
@@ -97,18 +105,30 @@ def ground_truth(scene, params=None) -> GroundTruth:
     body = np.asarray(body, dtype=np.int64)
     hit = body > -2
     origin = camera_origin(scene)
+    exposure = end - start
+    if camera is not None:
+        origin = (camera.relative_matrix(mid) @ np.append(origin, 1.0))[:3]
 
     depth = np.where(hit, np.linalg.norm(p - origin, axis=-1), np.nan)
     u = np.zeros_like(p)
-    exposure = end - start
     for k, moving in enumerate(scene.bodies):
         on = body == k
         if on.any():
             u[on] = body_velocity(moving.motion, p[on], mid, exposure)
+    # A moving camera: relative to it, with its origin moving at u_o and the pixel's ray
+    # turning at d' = W d, the distance s along the ray changes at
+    # (n . (u - u_o) - s n . d') / (n . d)  (the terms of a turning normal cancel at the hit).
+    u_origin = np.zeros(3)
+    d_rate = np.zeros_like(d)
+    if camera is not None:
+        u_origin = body_velocity(camera, origin[None], mid, exposure)[0]
+        d_rate = body_velocity(camera, origin + d, mid, exposure) - u_origin
+    s_along = np.where(hit, depth, 0.0)[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        radial = np.sum(u * n, axis=-1) / np.sum(d * n, axis=-1)
+        radial = (np.sum((u - u_origin) * n, axis=-1) - np.sum(s_along * d_rate * n, axis=-1)) \
+            / np.sum(d * n, axis=-1)
     radial = np.where(hit, radial + 0.0, np.nan)  # + 0.0: no -0 on static surfaces
-    point = np.where(hit, np.sum(u * d, axis=-1) + 0.0, np.nan)
+    point = np.where(hit, np.sum((u - u_origin) * d, axis=-1) + 0.0, np.nan)
 
     shape2 = (height, width)
     return GroundTruth(depth.reshape(shape2), radial.reshape(shape2), point.reshape(shape2),

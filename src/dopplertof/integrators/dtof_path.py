@@ -17,7 +17,9 @@ import drjit as dr
 
 from .. import sampling
 from ..modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation_by_index, wave
+from ..scene import lights
 from ..scene.bodies import BodyFrames, intersect, occluded
+from ..scene.motion import transform_point, transform_vector
 
 
 class PassLayout:
@@ -74,6 +76,12 @@ class ModulationWeight:
         light = self.g0 + self.g1 * wave(self.waveform, self.omega_g * t
                                          - self.k_length * path_length, dr)
         return self.to_float32(sensor * light)
+
+
+def _moved_ray(mi, T, ray):
+    o = transform_point(T, ray.o)
+    d = dr.normalize(mi.Vector3f(*transform_vector(T, ray.d)))
+    return mi.Ray3f(mi.Point3f(*o), d, ray.maxt, ray.time, ray.wavelengths)
 
 
 class FilmSampler:
@@ -145,6 +153,11 @@ def trace_pass(mi, setup, layout: PassLayout):
     ray, ray_weight = sensor.sample_ray(time, 0.5, pos, u_aperture)
     # Path length from the lens point, not from the near clip plane.
     camera_offset = setup.near_clip / dr.dot(ray.d, setup.camera_forward)
+    # A moving camera: the ray of the rest pose, moved to the lane's time.
+    ray = (_moved_ray(mi, scene.sensor_motion.relative(time)[0], ray)
+           if scene.sensor_motion is not None else ray)
+    light_frames = (lights.LightFrames(mi, scene.light_motions, time)
+                    if scene.light_motions else None)
 
     # Per-lane body transforms at the lanes' times, once per path (none: static scene)
     frames = (BodyFrames(mi, scene.bodies, time, setup.shutter_open,
@@ -190,7 +203,10 @@ def trace_pass(mi, setup, layout: PassLayout):
         # ---- Next-event estimation ----
         active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
         u_em = streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER))
-        ds, em_weight = static.sample_emitter_direction(si, u_em, False, active_em)
+        ds, em_weight = (
+            lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
+            if light_frames is not None
+            else static.sample_emitter_direction(si, u_em, False, active_em))
         active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
         shadow_ray = si.spawn_ray_to(ds.p)
         active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)

@@ -22,7 +22,9 @@ import numpy as np
 from ..params import ParameterError, RenderParams
 from .motion import Keyframes, Motion, MotionError
 from .scene import SceneError, build
-from .xml import CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS
+from .xml import CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS
+
+SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
 
 @dataclass(frozen=True)
@@ -31,10 +33,17 @@ class Animation:
 
     keyframes: tuple
     interpolation: str = "rigid"
+    follow: str | None = None
 
-    def __init__(self, keyframes, interpolation: str = "rigid"):
+    def __init__(self, keyframes, interpolation: str = "rigid", follow: str | None = None):
         object.__setattr__(self, "keyframes", tuple(keyframes))
         object.__setattr__(self, "interpolation", interpolation)
+        object.__setattr__(self, "follow", follow)
+
+    @classmethod
+    def follow_sensor(cls) -> "Animation":
+        """For a point or spot light: move rigidly with the camera (a light on the camera)."""
+        return cls((), follow="sensor")
 
     def to_keyframes(self, where: str) -> Keyframes:
         times, mats = [], []
@@ -84,6 +93,7 @@ def load_dict(scene: dict):
     params = RenderParams()
     integrator_values, sampler_values = {}, {}
     groups: dict[Keyframes, list] = {}
+    sensor_kf, light_kfs = None, []
     for key, value in scene.items():
         if not isinstance(value, dict):
             static[key] = value
@@ -95,27 +105,51 @@ def load_dict(scene: dict):
         if kind in DTOF_INTEGRATORS:
             integrator_values = {k: v for k, v in value.items() if k != "type"}
             continue
-        if isinstance(value.get("to_world"), Animation):
+        anim = value.get("to_world")
+        if isinstance(anim, Animation) and kind in SENSOR_TYPES + MOVABLE_EMITTERS:
             where = f"<dict>[{key!r}]"
+            if kind in SENSOR_TYPES:
+                if anim.follow:
+                    raise SceneError(f"{where}: 'follow' is for lights, not the sensor")
+                sensor_kf = anim.to_keyframes(where)
+                value = dict(value, to_world=mi.ScalarTransform4f(sensor_kf.matrix_array()[0]))
+            else:
+                if "position" in value:
+                    raise SceneError(f"{where}: a moving light takes its position from the "
+                                     "Animation: remove its 'position'")
+                value = dict(value)
+                if anim.follow == "sensor":
+                    light_kfs.append((key, "sensor"))
+                    value.pop("to_world")  # placed at the camera below
+                elif anim.follow is not None:
+                    raise SceneError(f"{where}: follow={anim.follow!r}: only 'sensor'")
+                else:
+                    kf = anim.to_keyframes(where)
+                    light_kfs.append((key, kf))
+                    value["to_world"] = mi.ScalarTransform4f(kf.matrix_array()[0])
+            static[key] = _correlated_sampler_replaced(key, value, sampler_values)
+            continue
+        if isinstance(anim, Animation):
+            where = f"<dict>[{key!r}]"
+            if kind in ("directional", "area", "envmap", "constant"):
+                raise SceneError(f"{where}: only point and spot lights can move")
             if any(isinstance(v, dict) and v.get("type") == "area" for v in value.values()):
                 raise SceneError(f"{where}: moving area emitters are not supported yet")
             kf = value["to_world"].to_keyframes(where)
             body_shape = dict(value, to_world=mi.ScalarTransform4f(kf.matrix_array()[0]))
             groups.setdefault(kf, []).append((key, body_shape))
             continue
-        sampler = value.get("sampler")
-        if isinstance(sampler, dict) and sampler.get("type") == "correlated":
-            unknown = set(sampler) - set(CORRELATED_SAMPLER_PARAMS) - {"type", "sample_count",
-                                                                        "seed"}
-            if unknown:
-                raise SceneError(f"<dict>[{key!r}]: unknown parameter {sorted(unknown)[0]!r} of "
-                                 "the correlated sampler")
-            sampler_values = {k: v for k, v in sampler.items() if k in CORRELATED_SAMPLER_PARAMS}
-            plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
-            value = dict(value, sampler=dict(plain, type="independent"))
+        value = _correlated_sampler_replaced(key, value, sampler_values)
         if any(isinstance(v, Animation) for v in value.values()):
             raise SceneError(f"<dict>[{key!r}]: only 'to_world' may be an Animation")
         static[key] = value
+
+    # A light that follows the camera sits at the camera's rest pose.
+    sensor_key = next((k for k, v in static.items() if isinstance(v, dict)
+                       and v.get("type") in SENSOR_TYPES), None)
+    for key, kind in light_kfs:
+        if kind == "sensor" and sensor_key is not None and "to_world" in static[sensor_key]:
+            static[key] = dict(static[key], to_world=static[sensor_key]["to_world"])
 
     for values, where in ((sampler_values, "correlated sampler"),
                           (integrator_values, "integrator")):
@@ -150,4 +184,20 @@ def load_dict(scene: dict):
         bodies.append(MovingBody(load(body, f"body {[k for k, _ in shapes]}"), Motion(kf),
                                  tuple(k for k, _ in shapes)))
     return build(mi, static_scene, bodies, params, "<dict>",
-                 repr(static) + repr(list(groups.items())))
+                 repr(static) + repr(list(groups.items())) + repr((sensor_kf, light_kfs)),
+                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs)
+
+
+def _correlated_sampler_replaced(key, value: dict, sampler_values: dict) -> dict:
+    """The published correlated sampler becomes Mitsuba's independent one; its
+    parameters go to ``sampler_values``."""
+    sampler = value.get("sampler")
+    if not (isinstance(sampler, dict) and sampler.get("type") == "correlated"):
+        return value
+    unknown = set(sampler) - set(CORRELATED_SAMPLER_PARAMS) - {"type", "sample_count", "seed"}
+    if unknown:
+        raise SceneError(f"<dict>[{key!r}]: unknown parameter {sorted(unknown)[0]!r} of "
+                         "the correlated sampler")
+    sampler_values.update({k: v for k, v in sampler.items() if k in CORRELATED_SAMPLER_PARAMS})
+    plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
+    return dict(value, sampler=dict(plain, type="independent"))

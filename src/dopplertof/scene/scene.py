@@ -20,6 +20,8 @@ class DopplerScene:
     variant: str  #: the Mitsuba variant it was loaded with
     source: str = "<dict>"
     fingerprint: str = ""  #: hash of the resolved scene description (checkpoints compare it)
+    sensor_motion: object = None  #: Motion of the camera (None: static)
+    light_motions: tuple = ()  #: (index in static.emitters(), Motion) of moving lights
 
     @property
     def sensor(self):
@@ -40,8 +42,14 @@ class DopplerScene:
 
 
 def build(mi, static, bodies, params: RenderParams, source: str,
-          description: str = "") -> DopplerScene:
-    """Checks shared by the XML and dict loaders."""
+          description: str = "", sensor_keyframes=None, light_keyframes=()) -> DopplerScene:
+    """Checks shared by the XML and dict loaders; camera and light motions.
+
+    ``light_keyframes`` is ``[(emitter id, Keyframes or "sensor"), ...]``; "sensor"
+    moves the light rigidly with the camera.
+    """
+    from .motion import Motion
+
     sensors = static.sensors()
     if len(sensors) != 1:
         raise SceneError(f"{source}: a D-ToF scene needs exactly one sensor, found {len(sensors)}")
@@ -54,7 +62,17 @@ def build(mi, static, bodies, params: RenderParams, source: str,
     if not static.emitters():
         raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
     spp = int(sensors[0].sampler().sample_count())
+    sensor_motion = Motion(sensor_keyframes) if sensor_keyframes is not None else None
+    ids = [e.id() for e in static.emitters()]
+    light_motions = []
+    for ident, kf in light_keyframes:
+        if ident not in ids:
+            raise SceneError(f"{source}: moving light {ident!r} not found in the loaded scene")
+        motion = sensor_motion if kf == "sensor" else Motion(kf)
+        light_motions.append((ids.index(ident), motion))
+
     import hashlib
 
     fingerprint = hashlib.sha256(description.encode()).hexdigest() if description else ""
-    return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint)
+    return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
+                        sensor_motion, tuple(light_motions))

@@ -169,9 +169,6 @@ def _sensor(doc: _Doc) -> tuple[dict, ET.Element | None]:
     if not sensors:
         raise SceneError(f"{doc.source}: the scene has no <sensor>")
     sensor = sensors[0]
-    if sensor.find("animation") is not None:
-        raise SceneError(f"{doc.where(sensor.find('animation'))}: an <animation> on the sensor "
-                         "(camera motion) is not supported yet")
     sampler = sensor.find("sampler")
     if sampler is None or sampler.get("type") != "correlated":
         return {}, sensor
@@ -232,13 +229,79 @@ def _referenced_ids(elements) -> set:
     return {el.get("id") for e in elements for el in e.iter("ref") if el.get("id")}
 
 
+MOVABLE_EMITTERS = ("point", "spot")
+
+
+def _rest_pose(doc: _Doc, elem, anim, what: str) -> Keyframes:
+    """Replace ``anim`` by a to_world transform at the first keyframe; the keyframes."""
+    if any(t.get("name") == "to_world" for t in elem.findall("transform")):
+        raise SceneError(f"{doc.where(anim)}: a {what} with an <animation> must not also have "
+                         "a <transform name=\"to_world\">")
+    kf = _keyframes(doc, elem, anim)
+    elem.remove(anim)
+    elem.insert(0, _matrix_element(kf.matrix_array()[0]))
+    return kf
+
+
+def _split_observers(doc: _Doc):
+    """Sensor and light motion: (sensor Keyframes or None, [(emitter id, Keyframes | "sensor")]).
+
+    A moving point or spot light gives its keyframes, or ``follow="sensor"`` on its
+    <animation> to move rigidly with the camera (a light on the camera)."""
+    root = doc.root
+    sensor = root.find("sensor")
+    sensor_kf = None
+    anims = sensor.findall("animation") if sensor is not None else []
+    if len(anims) > 1:
+        raise SceneError(f"{doc.where(anims[1])}: the sensor has more than one <animation>")
+    if anims:
+        if anims[0].get("follow"):
+            raise SceneError(f"{doc.where(anims[0])}: 'follow' is for lights, not the sensor")
+        sensor_kf = _rest_pose(doc, sensor, anims[0], "sensor")
+    lights = []
+    for k, el in enumerate(root.findall("emitter")):
+        anims = el.findall("animation")
+        if not anims:
+            continue
+        anim = anims[0]
+        if len(anims) > 1:
+            raise SceneError(f"{doc.where(anims[1])}: an emitter has more than one <animation>")
+        if el.get("type") not in MOVABLE_EMITTERS:
+            raise SceneError(f"{doc.where(anim)}: only point and spot lights can move, "
+                             f"not type {el.get('type')!r}")
+        if any(c.get("name") == "position" for c in el):
+            raise SceneError(f"{doc.where(anim)}: a moving light takes its position from the "
+                             "<animation> keyframes: remove its 'position'")
+        ident = el.get("id") or f"__dopplertof_light_{k}"
+        el.set("id", ident)
+        follow = anim.get("follow")
+        if follow is not None:
+            if follow != "sensor":
+                raise SceneError(f"{doc.where(anim)}: follow={follow!r}: only "
+                                 "follow=\"sensor\" is supported")
+            if len(anim):
+                raise SceneError(f"{doc.where(anim)}: an <animation follow=\"sensor\"> takes "
+                                 "no keyframes")
+            el.remove(anim)
+            if sensor is not None and el.find("transform") is None:
+                # no placement of its own: at the camera's rest pose
+                placed = [t for t in sensor.findall("transform") if t.get("name") == "to_world"]
+                if placed:
+                    el.insert(0, copy.deepcopy(placed[0]))
+            if sensor_kf is not None:
+                lights.append((ident, "sensor"))
+            continue
+        lights.append((ident, _rest_pose(doc, el, anim, "light")))
+    return sensor_kf, lights
+
+
 def _split_bodies(doc: _Doc):
     """Remove animated shapes from the tree; return [(Keyframes, [shape elements])]."""
     root = doc.root
     for el in root.iter("emitter"):
         if el.find("animation") is not None:
-            raise SceneError(f"{doc.where(el.find('animation'))}: an <animation> on an emitter "
-                             "is not supported yet")
+            raise SceneError(f"{doc.where(el.find('animation'))}: only top-level point and spot "
+                             "lights can move")
     groups: dict[Keyframes, list] = {}
     for shape in list(root.findall("shape")):
         anims = shape.findall("animation")
@@ -311,6 +374,7 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
     _check_finite(doc)
     integ = _integrator_params(doc)
     sampler_params, _ = _sensor(doc)
+    sensor_kf, light_kfs = _split_observers(doc)
     body_groups = _split_bodies(doc)
 
     params = RenderParams()
@@ -334,7 +398,9 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
         body_scene = _load_string(mi, body_text, source, base_dir)
         description += [body_text, repr(kf)]
         bodies.append(MovingBody(body_scene, Motion(kf), tuple(n for _, n in shapes)))
-    return build(mi, static, bodies, params, source, "\n".join(description))
+    description += [repr(sensor_kf), repr(light_kfs)]
+    return build(mi, static, bodies, params, source, "\n".join(description),
+                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs)
 
 
 def load_file(path, overrides: dict | None = None):
