@@ -120,6 +120,13 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     bar.set_label(label)
     fig.tight_layout()
+    save_figure(fig, path, metadata)
+
+
+def save_figure(fig, path, metadata: dict | None = None) -> None:
+    """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description."""
+    import matplotlib.pyplot as plt
+
     info = {"Software": "dopplertof"}
     if metadata:
         info["Description"] = json.dumps(metadata, default=_json_default)

@@ -6,19 +6,11 @@ Every file is written atomically (:func:`dopplertof.io.atomic_path`). NaN pixels
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
-from ..io import atomic_path
+from ..io import save_figure
 
 NAN_COLOUR = "#b0b0b0"
-
-
-def _jsonable(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return str(x)
 
 
 def _pyplot():
@@ -81,16 +73,6 @@ def _radiance_norm(data):
     return colors.PowerNorm(gamma=0.5, vmin=0.0, vmax=top if top > 0 else 1.0)
 
 
-def _save(fig, path, metadata):
-    plt = _pyplot()
-    info = {"Software": "dopplertof"}
-    if metadata:
-        info["Description"] = json.dumps(metadata, default=_jsonable)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", metadata=info)
-    plt.close(fig)
-
-
 def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=None,
               vmax=None, symmetric: bool = False, note: str | None = None,
               metadata: dict | None = None) -> None:
@@ -110,7 +92,7 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
     if note:
         fig.text(0.5, 0.01, note, ha="center", va="bottom", fontsize=8, color="#444444")
     fig.tight_layout(rect=(0, 0.03 if note else 0, 1, 1))
-    _save(fig, path, metadata)
+    save_figure(fig, path, metadata)
 
 
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
@@ -121,7 +103,7 @@ def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> 
     _draw(ax, fig, data, title, "radiance (scene units, mean of RGB; gamma 0.5)", "gray",
           norm=_radiance_norm(data))
     fig.tight_layout()
-    _save(fig, path, metadata)
+    save_figure(fig, path, metadata)
 
 
 def write_comparison(path, radiance, velocity, velocity_gt, title: str,
@@ -146,4 +128,4 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
           -err_limit, err_limit)
     fig.suptitle(title + "   (grey: NaN, no reliable signal)", fontsize=11)
     fig.tight_layout()
-    _save(fig, path, metadata)
+    save_figure(fig, path, metadata)
