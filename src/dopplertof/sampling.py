@@ -118,13 +118,16 @@ class CorrelatedStreams:
     def get_1d(self, stage, dim):
         return self.mi.sample_tea_float32(self.key(stage), dim, _NUMBER_ROUNDS)
 
-    def film_2d(self, group, sample):
+    def film_2d(self, group, index_in_group, groups_per_pixel: int):
         """Film position: a scrambled (0,2)-sequence over the pixel's groups when the
-        camera ray is shared (stage 0 correlated), else over the pixel's samples."""
+        camera ray is shared (stage 0 correlated); else over the pixel's samples, taken
+        index-major (i * G + g) so that the sequence's leading digits, which set the coarse
+        film position, follow the group and not the index in the group, which the
+        stratified method ties to the time."""
         import drjit as dr
 
         shared = self.correlation_depth > 0
-        index = dr.select(shared, group, sample)
+        index = dr.select(shared, group, index_in_group * groups_per_pixel + group)
         shift_x, shift_y = self.mi.sample_tea_32(self.base, 0x5F0B0,
                                                  _KEY_ROUNDS)
         return sobol_2d(self.mi, index, shift_x, shift_y)

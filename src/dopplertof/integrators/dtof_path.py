@@ -144,7 +144,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     film_size = film.size()
     px = mi.Float(layout.pixel % crop_size[0])
     py = mi.Float(layout.pixel // crop_size[0])
-    u_film = streams.film_2d(layout.group, layout.sample)
+    u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
     pos = mi.Point2f(
         (px + 0.5 + setup.film_sampler.offset(mi, u_film.x) + crop_offset[0]) / film_size[0],
         (py + 0.5 + setup.film_sampler.offset(mi, u_film.y) + crop_offset[1]) / film_size[1],
