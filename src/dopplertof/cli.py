@@ -92,6 +92,9 @@ def _parser() -> argparse.ArgumentParser:
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
     f.add_argument("-o", "--output", default="figures", help="output folder")
     f.add_argument("--quick", action="store_true", help="small settings")
+    from .experiments.cli import add_subcommands
+
+    add_subcommands(sub)  # sweep, report, animate (each sets its own func)
     return p
 
 
@@ -177,8 +180,9 @@ def main(argv=None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     try:
-        return {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
-                "figures": _cmd_figures}[args.command](args)
+        commands = {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
+                    "figures": _cmd_figures}
+        return commands[args.command](args) if args.command in commands else args.func(args)
     except KeyboardInterrupt:
         print("dopplertof: interrupted", file=sys.stderr)
         return 130

@@ -1,0 +1,328 @@
+"""Animations: a keyframed scene seen as a sequence of camera frames, one task per frame.
+
+Frame k is an exposure of length T (the scene's, from ``time`` or its shutter) that
+starts at ``start + k * frame_period`` (by default ``start`` is the scene's
+``shutter_open`` and the period is T: back-to-back exposures). Each frame runs the
+camera pipeline (:func:`dopplertof.camera.capture`: homodyne and heterodyne captures,
+radiance, velocity and depth reconstruction, exact truth) and writes into
+``frames/frame_0000/`` and so on; the driver then writes ``velocity.gif`` (radiance,
+reconstructed and true radial velocity, side by side, one colour scale for the whole
+animation) and ``animation.json`` beside the frame folders.
+
+The renderer takes the exposure start from the sensor's ``shutter_open``; a frame's
+scene is therefore loaded from the scene text with the sensor's ``shutter_open`` and
+``shutter_close`` set to the frame's window, and the exposure passed as ``time`` so
+that every frame has exactly the same T.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .cluster import DEFAULT_RETRIES, dask_client, run_tasks
+from .config import ConfigError, check_render_settings, load_scene_facts
+from .tasks import (PARAMS_JSON, begin_task, file_sha256, finish_task, is_complete,
+                    package_versions, prepare_worker, remove_partial_files, spec_hash,
+                    worker_identity, RENDER_LOCK)
+
+ANIMATION_JSON = "animation.json"
+VELOCITY_GIF = "velocity.gif"
+
+#: arrays every frame folder holds (the captures' own .npy files come with them)
+FRAME_ARRAYS = ("velocity.npy", "velocity_gt.npy", "depth.npy", "depth_gt.npy", "radiance.npy")
+FRAME_FILES = FRAME_ARRAYS + ("velocity.exr", "summary.json", PARAMS_JSON)
+
+
+@dataclass(frozen=True)
+class FrameTask:
+    """One frame: an exposure window of the animation, rendered by the camera pipeline."""
+
+    index: int
+    name: str  #: frame_0000
+    folder: str  #: absolute
+    scene: str
+    scene_sha256: str
+    defines: dict
+    variant: str
+    params: dict  #: render parameters (with ``time`` = T)
+    spp: int
+    seed: int
+    shutter_open: float  #: exposure start (s, scene clock)
+    shutter_close: float
+    previews: bool = False  #: also write the pipeline's PNG previews
+    threads: int | None = None
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return FRAME_FILES
+
+    @property
+    def hash(self) -> str:
+        return spec_hash({"kind": "frame", "scene_sha256": self.scene_sha256,
+                          "defines": self.defines, "variant": self.variant,
+                          "params": self.params, "spp": self.spp, "seed": self.seed,
+                          "shutter_open": self.shutter_open,
+                          "shutter_close": self.shutter_close, "previews": self.previews})
+
+
+@dataclass
+class AnimationSummary:
+    frames: int
+    skipped: int
+    done: int
+    failed: list = field(default_factory=list)
+    seconds: float = 0.0
+    output: str = ""
+    video: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+
+# ---- Scene with a given exposure window -------------------------------------------------
+
+def scene_text_with_shutter(text: str, shutter_open: float, shutter_close: float,
+                            source: str) -> str:
+    """The scene XML with its sensor's shutter set to [shutter_open, shutter_close]."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise ConfigError(f"{source}: malformed XML: {e}") from None
+    sensors = [el for el in root if el.tag == "sensor"]
+    if len(sensors) != 1:
+        raise ConfigError(f"{source}: an animation needs exactly one <sensor> at the top "
+                          f"level of the scene, found {len(sensors)}")
+    sensor = sensors[0]
+    for name, value in (("shutter_open", shutter_open), ("shutter_close", shutter_close)):
+        element = next((c for c in sensor if c.get("name") == name), None)
+        if element is None:
+            element = ET.SubElement(sensor, "float", name=name)
+        element.tag = "float"
+        element.set("value", repr(float(value)))
+    return ET.tostring(root, encoding="unicode")
+
+
+def load_frame_scene(path: str, defines: dict, shutter_open: float, shutter_close: float):
+    from ..scene import load_string
+
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    text = scene_text_with_shutter(text, shutter_open, shutter_close, path)
+    return load_string(text, dict(defines), source=path,
+                       base_dir=os.path.dirname(os.path.abspath(path)))
+
+
+# ---- The frame task ---------------------------------------------------------------------
+
+def run_frame_task(task: FrameTask) -> dict:
+    """Render and reconstruct one frame into its folder (runs on a worker)."""
+    from .. import io
+    from ..camera import capture
+
+    started = time.perf_counter()
+    begin_task(task.folder)
+    with RENDER_LOCK:
+        prepare_worker(task.variant, task.threads)
+        if file_sha256(task.scene) != task.scene_sha256:
+            raise RuntimeError(f"{task.scene} changed since the animation was planned; rerun")
+        scene = load_frame_scene(task.scene, task.defines, task.shutter_open,
+                                 task.shutter_close)
+        result = capture(scene, spp=task.spp, seed=task.seed, params=dict(task.params),
+                         progress=False)
+    if task.previews:
+        result.write(task.folder)
+    else:
+        for name, image in result.captures.items():
+            io.write_npy(os.path.join(task.folder, f"{name}.npy"), image)
+        arrays = {"velocity": result.velocity, "velocity_gt": result.velocity_gt,
+                  "depth": result.depth, "depth_gt": result.depth_gt}
+        for name, array in arrays.items():
+            io.write_npy(os.path.join(task.folder, f"{name}.npy"),
+                         np.asarray(array, dtype=np.float32))
+        io.write_npy(os.path.join(task.folder, "radiance.npy"), result.radiance)
+        io.write_json(os.path.join(task.folder, "summary.json"), result.summary)
+    io.write_exr(os.path.join(task.folder, "velocity.exr"),
+                 np.asarray(result.velocity, dtype=np.float32),
+                 {"quantity": "radial velocity, m/s, > 0 receding",
+                  "exposure_start_s": task.shutter_open})
+    seconds = time.perf_counter() - started
+    io.write_json(os.path.join(task.folder, PARAMS_JSON), {
+        "frame": task.index, "exposure_start_s": task.shutter_open,
+        "exposure_end_s": task.shutter_close, "params": task.params, "spp": task.spp,
+        "seed": task.seed, "scene": task.scene, "scene_sha256": task.scene_sha256,
+        "defines": task.defines, "variant": task.variant, "task_seconds": seconds,
+        "versions": package_versions(), "worker": worker_identity(), "spec_hash": task.hash,
+    })
+    finish_task(task.folder, task.hash, task.outputs, seconds)
+    return {"task": task.name, "seconds": seconds}
+
+
+# ---- Planning and running -----------------------------------------------------------------
+
+def plan_animation(scene, output, frames: int, *, frame_period: float | None = None,
+                   start: float | None = None, spp: int | None = None, seed: int = 0,
+                   defines: dict | None = None, params: dict | None = None,
+                   variant: str | None = None, previews: bool = False) -> list[FrameTask]:
+    """Every frame task, checked (scene, parameters, times) before anything runs."""
+    from ..backend import DEFAULT_VARIANT
+    from ..params import RenderParams
+
+    scene = os.path.abspath(os.fspath(scene))
+    if not os.path.isfile(scene):
+        raise ConfigError(f"scene file not found: {scene}")
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+        raise ConfigError(f"--frames must be a positive integer, got {frames!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"--seed must be a non-negative integer, got {seed!r}")
+    variant = variant or DEFAULT_VARIANT
+    defines = {k: str(v) for k, v in (defines or {}).items()}
+    facts = load_scene_facts(scene, defines, variant)
+    spp = facts.spp if spp is None else spp
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+        raise ConfigError(f"--spp must be a positive integer, got {spp!r}")
+    resolved = check_render_settings(dict(params or {}), spp, facts, "animation parameters")
+    exposure = resolved.exposure(facts.shutter_interval)
+    period = exposure if frame_period is None else float(frame_period)
+    if not (math.isfinite(period) and period > 0):
+        raise ConfigError(f"--frame-period must be > 0 seconds, got {frame_period!r}")
+    first = facts.shutter_open if start is None else float(start)
+    if not math.isfinite(first):
+        raise ConfigError(f"--start must be a finite time in seconds, got {start!r}")
+    given = {k: getattr(resolved, k) for k in RenderParams.names()
+             if k in (params or {})}
+    given["time"] = exposure
+    output = os.path.abspath(os.fspath(output))
+    tasks = []
+    for k in range(frames):
+        opens = first + k * period
+        name = f"frame_{k:04d}"
+        tasks.append(FrameTask(index=k, name=name, folder=os.path.join(output, name),
+                               scene=scene, scene_sha256=facts.sha256, defines=defines,
+                               variant=variant, params=given, spp=spp, seed=seed,
+                               shutter_open=opens, shutter_close=opens + exposure,
+                               previews=previews))
+    return tasks
+
+
+def run_animation(scene, output, frames: int, *, frame_period: float | None = None,
+                  start: float | None = None, spp: int | None = None, seed: int = 0,
+                  defines: dict | None = None, params: dict | None = None,
+                  variant: str | None = None, previews: bool = False, fps: float = 10.0,
+                  scheduler: str | None = None, workers: int | None = None, client=None,
+                  retries: int = DEFAULT_RETRIES, progress=None) -> AnimationSummary:
+    """Render every frame not already complete, then write the velocity GIF."""
+    from .. import io
+    from .sweep import check_output_folder
+
+    started = time.perf_counter()
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise ConfigError(f"--fps must be > 0, got {fps!r}")
+    output = check_output_folder(os.fspath(output))
+    tasks = plan_animation(scene, output, frames, frame_period=frame_period, start=start,
+                           spp=spp, seed=seed, defines=defines, params=params,
+                           variant=variant, previews=previews)
+    os.makedirs(output, exist_ok=True)
+    pending = []
+    for task in tasks:
+        if is_complete(task.folder, task.hash, task.outputs):
+            continue
+        if os.path.isdir(task.folder):
+            remove_partial_files(task.folder)
+        pending.append(task)
+    summary = AnimationSummary(frames=len(tasks), skipped=len(tasks) - len(pending), done=0,
+                               output=output)
+    if pending:
+        with dask_client(scheduler, workers, client) as (dask, threads):
+            if threads:
+                pending = [replace(t, threads=threads) for t in pending]
+            outcome = run_tasks(dask, run_frame_task, pending, retries=retries,
+                                progress=progress, description="frames",
+                                already_done=summary.skipped)
+        summary.done = len(outcome.done)
+        summary.failed = outcome.failed
+    if summary.ok:
+        summary.video = write_velocity_gif(tasks, os.path.join(output, VELOCITY_GIF), fps)
+    summary.seconds = time.perf_counter() - started
+    io.write_json(os.path.join(output, ANIMATION_JSON), {
+        "scene": tasks[0].scene, "frames": len(tasks), "fps": fps,
+        "exposure_s": tasks[0].params["time"],
+        "frame_period_s": (tasks[1].shutter_open - tasks[0].shutter_open
+                           if len(tasks) > 1 else frame_period),
+        "exposure_starts_s": [t.shutter_open for t in tasks],
+        "spp": tasks[0].spp, "seed": tasks[0].seed, "params": tasks[0].params,
+        "video": os.path.basename(summary.video) if summary.video else None,
+        "last_run": {"done": summary.done, "skipped": summary.skipped,
+                     "failed": [{"task": n, "error": e} for n, e in summary.failed],
+                     "seconds": round(summary.seconds, 3)},
+    })
+    return summary
+
+
+# ---- The video ------------------------------------------------------------------------------
+
+def _velocity_limit(frames_gt, frames_rec) -> float:
+    for stack in (frames_gt, frames_rec):
+        values = np.abs(np.concatenate([f.ravel() for f in stack]))
+        values = values[np.isfinite(values) & (values > 0)]
+        if values.size:
+            return 1.25 * float(np.percentile(values, 99.5))
+    return 1.0
+
+
+def write_velocity_gif(tasks, path: str, fps: float) -> str:
+    """Radiance, reconstructed and true radial velocity per frame, as an animated GIF."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from .. import io
+
+    load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
+    velocity = [load(t, "velocity.npy") for t in tasks]
+    truth = [load(t, "velocity_gt.npy") for t in tasks]
+    radiance = [np.asarray(load(t, "radiance.npy"), np.float64) for t in tasks]
+    radiance = [r.mean(axis=-1) if r.ndim == 3 else r for r in radiance]
+    vlim = _velocity_limit(truth, velocity)
+    rmax = max(float(np.percentile(r[np.isfinite(r)], 99.5)) if np.isfinite(r).any() else 0.0
+               for r in radiance) or 1.0
+    images = []
+    for task, rad, vel, gt in zip(tasks, radiance, velocity, truth):
+        fig = Figure(figsize=(9.6, 3.4), dpi=90, layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(1, 3)
+        shown = axes[0].imshow(np.clip(rad / rmax, 0, 1) ** (1 / 2.2), cmap="gray",
+                               vmin=0, vmax=1, interpolation="nearest")
+        axes[0].set_title("radiance (gamma 2.2)", fontsize=9)
+        for ax, data, title in ((axes[1], vel, "reconstructed radial velocity"),
+                                (axes[2], gt, "true radial velocity")):
+            cmap = _velocity_cmap()
+            shown = ax.imshow(np.ma.masked_invalid(data), cmap=cmap, vmin=-vlim, vmax=vlim,
+                              interpolation="nearest")
+            ax.set_title(title, fontsize=9)
+        for ax in axes:
+            ax.set_axis_off()
+        bar = fig.colorbar(shown, ax=list(axes[1:]), shrink=0.85)
+        bar.set_label("m/s (+ receding, − approaching; grey: none)", fontsize=8)
+        fig.suptitle(f"frame {task.index}: exposure {task.shutter_open * 1e3:.4g}–"
+                     f"{task.shutter_close * 1e3:.4g} ms", fontsize=10)
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[..., :3].copy()))
+    duration = max(20, int(round(1000.0 / fps)))
+    with io.atomic_path(path) as tmp:
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
+                       duration=duration, loop=0)
+    return path
+
+
+def _velocity_cmap():
+    import matplotlib
+
+    return matplotlib.colormaps["RdBu_r"].with_extremes(bad="#b0b0b0")

@@ -1,0 +1,219 @@
+"""Command-line subcommands ``sweep``, ``report`` and ``animate``.
+
+``add_subcommands(subparsers)`` adds them to the main parser; each sets ``func``, which
+takes the parsed arguments and returns an exit code: 0 success, 1 when some tasks
+failed (the others completed). Bad input raises an exception with a one-line message
+before anything runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _seconds(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds (a number), got {text!r}") from None
+
+
+def _seed_list(text: str) -> tuple:
+    try:
+        seeds = tuple(int(s) for s in text.split(",") if s.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated seeds such as 0,1,2, got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"expected seeds >= 0, got {text!r}")
+    return seeds
+
+
+def _pairs(items, flag: str) -> dict:
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"{flag} expects name=value, got {item!r}")
+        out[name.strip()] = value
+    return out
+
+
+def _cluster_options(p) -> None:
+    g = p.add_argument_group("cluster")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of a running Dask scheduler, e.g. tcp://host:8786 "
+                        "(default: start a LocalCluster)")
+    g.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="LocalCluster worker processes (default: CPU count, at most 8)")
+    g.add_argument("--retries", type=_non_negative_int, default=2,
+                   help="retries of a failing task before it is reported (default 2)")
+    g.add_argument("--variant", help="Mitsuba variant of every worker (default llvm_ad_rgb)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+
+
+def add_subcommands(subparsers) -> None:
+    from .presets import PRESETS
+
+    s = subparsers.add_parser(
+        "sweep", help="render a grid of configurations on Dask (TOML file or --preset)",
+        description="Render every point of a sweep grid as one Dask task. A rerun skips "
+                    "what is complete.")
+    s.add_argument("config", nargs="?", help="sweep configuration (.toml)")
+    s.add_argument("-o", "--output", required=True, help="results folder")
+    s.add_argument("--preset", choices=PRESETS, help="one of the paper's experiments")
+    s.add_argument("--scene", help="scene file of a --preset")
+    s.add_argument("--spp", type=_positive_int, help="samples per pixel of a --preset")
+    s.add_argument("--reference-spp", type=_positive_int,
+                   help="samples per pixel of a --preset's references (default 4096)")
+    s.add_argument("--seeds", type=_seed_list, default=(0,),
+                   help="seeds of a --preset, comma-separated (default 0)")
+    s.add_argument("--quick", action="store_true",
+                   help="a --preset with a few values per axis")
+    s.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="set a <default> value of the scene (repeatable)")
+    s.add_argument("--dry-run", action="store_true",
+                   help="check the configuration and list the tasks; render nothing")
+    _cluster_options(s)
+    s.set_defaults(func=cmd_sweep)
+
+    r = subparsers.add_parser("report", help="figures and a Markdown summary of a sweep",
+                              description="Read a sweep results folder; write figures, "
+                                          "metrics.csv and summary.md.")
+    r.add_argument("results", help="results folder of `dopplertof sweep`")
+    r.add_argument("-o", "--output", required=True, help="report folder")
+    r.set_defaults(func=cmd_report)
+
+    a = subparsers.add_parser(
+        "animate", help="render a keyframed scene as a sequence of camera frames on Dask",
+        description="Frame k exposes [start + k * period, start + k * period + T]; each "
+                    "frame runs the camera pipeline; velocity.gif is written beside them.")
+    a.add_argument("scene", help="Mitsuba 3 XML scene with <animation> keyframes")
+    a.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
+    a.add_argument("-o", "--output", required=True, help="frames folder")
+    a.add_argument("--frame-period", type=_seconds, metavar="SECONDS",
+                   help="time between exposure starts (default: the exposure T)")
+    a.add_argument("--start", type=_seconds, metavar="SECONDS",
+                   help="exposure start of frame 0 (default: the sensor's shutter_open)")
+    a.add_argument("--spp", type=_positive_int, help="samples per pixel per capture")
+    a.add_argument("--seed", type=_non_negative_int, default=0,
+                   help="seed of every frame (default 0: noise coherent across frames)")
+    a.add_argument("--fps", type=float, default=10.0, help="frames per second of the GIF")
+    a.add_argument("--previews", action="store_true",
+                   help="also write every frame's PNG previews")
+    a.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="set a <default> value of the scene (repeatable)")
+    a.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
+                   help="override an integrator parameter (repeatable)")
+    _cluster_options(a)
+    a.set_defaults(func=cmd_animate)
+
+
+def _progress(args):
+    return False if args.quiet else None
+
+
+def _sweep_config(args):
+    from .config import ConfigError, load_config
+    from .presets import preset_config
+
+    defines = _pairs(args.defines, "-D")
+    if args.preset:
+        if args.config:
+            raise ConfigError("give a configuration file or --preset, not both")
+        return preset_config(args.preset, args.scene, spp=args.spp,
+                             reference_spp=args.reference_spp, defines=defines,
+                             seeds=args.seeds, quick=args.quick, variant=args.variant)
+    if not args.config:
+        raise ConfigError("give a sweep configuration (.toml) or --preset NAME --scene SCENE")
+    misplaced = [flag for flag, value in (("--scene", args.scene), ("--spp", args.spp),
+                                          ("--reference-spp", args.reference_spp),
+                                          ("--quick", args.quick or None),
+                                          ("--seeds", None if args.seeds == (0,) else 1))
+                 if value is not None]
+    if misplaced:
+        raise ConfigError(f"{misplaced[0]} applies to --preset; set it in the configuration "
+                          f"file {args.config} instead")
+    config = load_config(args.config)
+    if defines or args.variant:
+        from dataclasses import replace
+
+        config = replace(config, defines={**config.defines, **defines},
+                         variant=args.variant or config.variant)
+    return config
+
+
+def cmd_sweep(args) -> int:
+    from .sweep import check_output_folder, pending_count, run_sweep
+
+    config = _sweep_config(args)
+    if args.dry_run:
+        check_output_folder(args.output)
+        tasks, pending = pending_count(config, args.output)
+        print(f"sweep {config.name}: {len(tasks)} tasks "
+              f"(references: {sum(t.kind == 'reference' for t in tasks)}), "
+              f"{len(pending)} to run, {len(tasks) - len(pending)} complete")
+        for task in pending[:20]:
+            print(f"  {task.kind}: {task.name}")
+        if len(pending) > 20:
+            print(f"  ... and {len(pending) - 20} more")
+        return 0
+    summary = run_sweep(config, args.output, scheduler=args.scheduler, workers=args.workers,
+                        retries=args.retries, progress=_progress(args))
+    if not args.quiet:
+        print(f"sweep {config.name}: {summary.total} tasks: {summary.done} done now, "
+              f"{summary.skipped} already complete, {len(summary.failed)} failed "
+              f"({summary.seconds:.1f} s) -> {summary.output}")
+    for name, error in summary.failed:
+        print(f"dopplertof: task failed: {name}: {error}", file=sys.stderr)
+    return 0 if summary.ok else 1
+
+
+def cmd_report(args) -> int:
+    from .report import write_report
+
+    report = write_report(args.results, args.output)
+    print(f"report: {len(report.files)} files -> {report.output} ({report.runs} runs, "
+          f"{report.with_errors} with errors against a reference, {len(report.missing)} "
+          f"incomplete tasks)")
+    return 0
+
+
+def cmd_animate(args) -> int:
+    from .animate import run_animation
+
+    summary = run_animation(args.scene, args.output, args.frames,
+                            frame_period=args.frame_period, start=args.start, spp=args.spp,
+                            seed=args.seed, defines=_pairs(args.defines, "-D"),
+                            params=_pairs(args.params, "-P"), variant=args.variant,
+                            previews=args.previews, fps=args.fps, scheduler=args.scheduler,
+                            workers=args.workers, retries=args.retries,
+                            progress=_progress(args))
+    if not args.quiet:
+        print(f"animate: {summary.frames} frames: {summary.done} done now, {summary.skipped} "
+              f"already complete, {len(summary.failed)} failed ({summary.seconds:.1f} s)"
+              + (f" -> {summary.video}" if summary.video else f" -> {summary.output}"))
+    for name, error in summary.failed:
+        print(f"dopplertof: frame failed: {name}: {error}", file=sys.stderr)
+    return 0 if summary.ok else 1

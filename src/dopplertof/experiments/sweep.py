@@ -1,0 +1,163 @@
+"""Sweeps: plan every grid point (and its reference) as a task, run what is not done.
+
+Results folder::
+
+    results/
+      sweep.json                   the configuration and the task list (read by the report)
+      summary.json                 what the last run did: done, skipped, failed (with errors)
+      runs/<name>/                 one folder per grid point, name = its grid values
+        image.npy image.exr params.json complete.json
+      reference/<name>/            one per distinct measurement (what errors are measured against)
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+
+from .cluster import DEFAULT_RETRIES, dask_client, run_tasks
+from .config import (ConfigError, SweepConfig, check_render_settings, load_scene_facts,
+                     measurement_key, point_name, split_point)
+from .tasks import RenderTask, is_complete, remove_partial_files, run_render_task
+
+SWEEP_JSON = "sweep.json"
+SUMMARY_JSON = "summary.json"
+RUNS_DIR = "runs"
+REFERENCE_DIR = "reference"
+
+
+@dataclass
+class SweepSummary:
+    total: int
+    skipped: int  #: complete before this run
+    done: int  #: completed by this run
+    failed: list = field(default_factory=list)  #: (task name, error)
+    seconds: float = 0.0
+    output: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+    def to_json(self) -> dict:
+        return {"total": self.total, "skipped": self.skipped, "done": self.done,
+                "failed": [{"task": n, "error": e} for n, e in self.failed],
+                "seconds": round(self.seconds, 3), "output": self.output}
+
+
+def plan_sweep(config: SweepConfig, output: str) -> list[RenderTask]:
+    """Every task of the sweep, checked against the scene; raises ConfigError first."""
+    from ..backend import DEFAULT_VARIANT
+
+    output = os.path.abspath(output)
+    variant = config.variant or DEFAULT_VARIANT
+    facts = load_scene_facts(config.scene, config.defines, variant)
+    varying_measurement = [k for k in config.grid if k in measurement_key(config.grid)]
+    references: dict[str, RenderTask] = {}
+    tasks = []
+    for point in config.points():
+        name = point_name(point)
+        params, spp, seed = split_point(config, point)
+        spp = facts.spp if spp is None else spp
+        check_render_settings(params, spp, facts, f"{config.source}: grid point {name}")
+        reference_folder = None
+        if config.reference is not None:
+            ref_name = point_name({k: point[k] for k in varying_measurement})
+            if ref_name not in references:
+                ref_params = {**measurement_key(params), **config.reference.params}
+                check_render_settings(ref_params, config.reference.spp, facts,
+                                      f"{config.source}: reference {ref_name}")
+                references[ref_name] = RenderTask(
+                    kind="reference", name=ref_name,
+                    folder=os.path.join(output, REFERENCE_DIR, ref_name), scene=config.scene,
+                    scene_sha256=facts.sha256, defines=config.defines, variant=variant,
+                    params=ref_params, spp=config.reference.spp, seed=config.reference.seed,
+                    grid_point={k: point[k] for k in varying_measurement})
+            reference_folder = os.path.join(REFERENCE_DIR, ref_name)
+        tasks.append(RenderTask(
+            kind="run", name=name, folder=os.path.join(output, RUNS_DIR, name),
+            scene=config.scene, scene_sha256=facts.sha256, defines=config.defines,
+            variant=variant, params=params, spp=spp, seed=seed, grid_point=point,
+            reference=reference_folder))
+    # references first: the report needs them for every error
+    return list(references.values()) + tasks
+
+
+def check_output_folder(output: str) -> str:
+    output = os.path.abspath(output)
+    if os.path.exists(output) and not os.path.isdir(output):
+        raise ConfigError(f"output path exists and is not a folder: {output}")
+    parent = os.path.dirname(output)
+    if not os.path.isdir(parent):
+        raise ConfigError(f"the parent of the output folder does not exist: {parent}")
+    return output
+
+
+def pending_tasks(tasks, clean: bool = True) -> list:
+    """Tasks without a valid completion marker; with ``clean``, the temporary files an
+    interrupted write left in their folders are removed."""
+    pending = []
+    for task in tasks:
+        if is_complete(task.folder, task.hash, task.outputs):
+            continue
+        if clean and os.path.isdir(task.folder):
+            remove_partial_files(task.folder)
+        pending.append(task)
+    return pending
+
+
+def pending_count(config: SweepConfig, output) -> tuple[list, list]:
+    """(every task, the tasks a run would start): checks everything, writes nothing."""
+    tasks = plan_sweep(config, check_output_folder(os.fspath(output)))
+    return tasks, pending_tasks(tasks, clean=False)
+
+
+def write_sweep_json(config: SweepConfig, tasks, output: str) -> None:
+    from .. import io
+
+    io.write_json(os.path.join(output, SWEEP_JSON), {
+        "config": config.to_json(),
+        "tasks": [{"kind": t.kind, "name": t.name,
+                   "folder": os.path.relpath(t.folder, output), "grid_point": t.grid_point,
+                   "reference": t.reference, "spp": t.spp, "seed": t.seed}
+                  for t in tasks],
+    })
+
+
+def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
+              workers: int | None = None, client=None, retries: int = DEFAULT_RETRIES,
+              progress=None) -> SweepSummary:
+    """Run every task of ``config`` not already complete in ``output``.
+
+    Nothing starts before the whole configuration is checked (against the scene
+    too). No cluster is started when everything is complete.
+    """
+    from .. import io
+
+    started = time.perf_counter()
+    output = check_output_folder(os.fspath(output))
+    tasks = plan_sweep(config, output)
+    os.makedirs(output, exist_ok=True)
+    write_sweep_json(config, tasks, output)
+    pending = pending_tasks(tasks)
+    summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
+                           output=output)
+    if pending:
+        with dask_client(scheduler, workers, client) as (dask, threads):
+            if threads:
+                pending = [_with_threads(t, threads) for t in pending]
+            outcome = run_tasks(dask, run_render_task, pending, retries=retries,
+                                progress=progress, description="sweep",
+                                already_done=summary.skipped)
+        summary.done = len(outcome.done)
+        summary.failed = outcome.failed
+    summary.seconds = time.perf_counter() - started
+    io.write_json(os.path.join(output, SUMMARY_JSON), summary.to_json())
+    return summary
+
+
+def _with_threads(task: RenderTask, threads: int) -> RenderTask:
+    from dataclasses import replace
+
+    return replace(task, threads=threads)

@@ -1,0 +1,361 @@
+"""Sweeps, animations and reports on Dask distributed (tiny images, 2 worker processes)."""
+
+import argparse
+import glob
+import json
+import os
+import signal
+import threading
+import time
+import types
+
+import numpy as np
+import pytest
+
+from dopplertof.demo import demo_scene_path
+from dopplertof.experiments import (ConfigError, ReportError, config_from_mapping,
+                                    load_config, plan_sweep, preset_config, run_animation,
+                                    run_sweep, write_report)
+from dopplertof.experiments.cli import add_subcommands
+from dopplertof.experiments.cluster import run_tasks
+from dopplertof.experiments.tasks import COMPLETE_MARKER
+
+SCENE = demo_scene_path()
+RUN_FILES = {"image.npy", "image.exr", "params.json", COMPLETE_MARKER}
+
+
+def tiny_config(**changes):
+    """2 methods x 2 correlation depths on an 8x8 heterodyne Cornell box + a reference."""
+    data = {
+        "name": "tiny-test",
+        "scene": SCENE,
+        "defines": {"res": 8, "max_depth": 3},
+        "fixed": {"spp": 8, "seed": 0, "hetero_frequency": 1.0},
+        "grid": {"time_sampling_method": ["uniform", "antithetic"],
+                 "path_correlation_depth": [0, "full"]},
+        "reference": {"spp": 64},
+    }
+    data.update(changes)
+    data = {k: v for k, v in data.items() if v is not None}  # None: leave the table out
+    return config_from_mapping(data, source="test.toml")
+
+
+class UnusableClient:
+    """Stands in for a Dask client that must not be touched."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"the Dask client was used ({name}) although nothing should run")
+
+
+def partial_files(root):
+    return glob.glob(os.path.join(glob.escape(str(root)), "**", ".*.tmp*"), recursive=True)
+
+
+def snapshot(root):
+    return {p: os.stat(p).st_mtime_ns
+            for p in glob.glob(os.path.join(glob.escape(str(root)), "**", "*"), recursive=True)
+            if os.path.isfile(p) and not p.endswith("summary.json")}
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+    import logging
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    with Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+# ---- Configuration: rejected before anything runs --------------------------------------
+
+@pytest.mark.parametrize("changes, message", [
+    ({"grid": {}}, "the grid is empty"),
+    ({"grid": {"hetero_offset": []}}, "grid.hetero_offset is an empty list"),
+    ({"grid": {"hetero_frequencyy": [0, 1]}}, "unknown parameter 'hetero_frequencyy'"),
+    ({"fixed": {"colour": "red"}}, "unknown parameter 'colour'"),
+    ({"grid": {"hetero_offset": 0.5}}, "must be a list of values"),
+    ({"grid": {"path_correlation_depth": [1, "deep"]}}, "must be an integer"),
+    ({"grid": {"time_sampling_method": ["uniform", "sobol"]}}, "unknown time_sampling_method"),
+    ({"grid": {"hetero_offset": [0.25, 0.25]}}, "repeats the value 0.25"),
+    ({"grid": {"spp": [8, 16]}, "fixed": {"spp": 8}}, "both fixed and in the grid"),
+    ({"reference": {"spp": 64, "seed": 0}}, "also a seed of the runs"),
+    ({"reference": {"spp": 64, "hetero_frequency": 0}}, "changes the expected image"),
+    ({"reference": {"seed": 5}}, "give the reference's spp"),
+    ({"scene": "missing.xml"}, "scene file not found"),
+    ({"outputs": "x"}, "unknown key 'outputs'"),
+])
+def test_bad_config_is_rejected_with_the_reason(changes, message):
+    with pytest.raises(ConfigError) as err:
+        tiny_config(**changes)
+    text = str(err.value)
+    assert message in text and "\n" not in text
+
+
+def test_bad_config_is_rejected_before_any_task_starts(tmp_path):
+    out = tmp_path / "results"
+    # valid on its own, refused against the scene: 3 spp cannot form pairs (K = 2)
+    config = tiny_config(fixed={"hetero_frequency": 1.0}, grid={"spp": [8, 3]})
+    with pytest.raises(ConfigError, match="spp 3 is not a multiple"):
+        run_sweep(config, out, client=UnusableClient(), progress=False)
+    assert not out.exists()
+    # through the command line: a TOML naming an unknown parameter
+    toml = tmp_path / "bad.toml"
+    toml.write_text(f'scene = "{SCENE}"\n[grid]\nhetero_frequncy = [0, 1]\n')
+    args = parse(["sweep", str(toml), "-o", str(out), "--workers", "2", "--quiet"])
+    with pytest.raises(ConfigError, match="unknown parameter 'hetero_frequncy'"):
+        args.func(args)
+    assert not out.exists()
+
+
+def parse(argv):
+    parser = argparse.ArgumentParser(prog="dopplertof")
+    add_subcommands(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def test_cli_refuses_mixed_inputs(tmp_path):
+    out = str(tmp_path / "r")
+    for argv, message in (
+            (["sweep", "--preset", "time-sampling", "-o", out], "needs --scene"),
+            (["sweep", "-o", out], "give a sweep configuration"),
+            (["sweep", "examples/sweep_tiny.toml", "--spp", "8", "-o", out], "--spp applies"),
+    ):
+        args = parse(argv)
+        with pytest.raises(ConfigError, match=message):
+            args.func(args)
+    assert not os.path.exists(out)
+
+
+def test_shipped_example_is_valid():
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    config = load_config(os.path.join(here, "examples", "sweep_tiny.toml"))
+    assert len(config.points()) >= 4 and config.reference is not None
+    assert os.path.isfile(config.scene)
+
+
+def test_presets_reproduce_the_paper_grids(tmp_path):
+    ts = preset_config("time-sampling", SCENE)
+    assert len(ts.points()) == 4 * 4 * 11 * 11
+    tasks = plan_sweep(ts, tmp_path / "ts")
+    runs = [t for t in tasks if t.kind == "run"]
+    refs = [t for t in tasks if t.kind == "reference"]
+    assert len(runs) == 1936 and len(refs) == 121  # one reference per (frequency, offset)
+    assert len({t.folder for t in tasks}) == len(tasks)
+    assert {r.reference for r in runs} == {os.path.relpath(r.folder, tmp_path / "ts")
+                                           for r in refs}
+    assert all(r.seed != runs[0].seed for r in refs)
+    shift = preset_config("antithetic-shift", SCENE, quick=True)
+    assert set(shift.grid["antithetic_shift"]) == {0.0, 0.25, 0.5, 0.75, 1.0}
+    nfs = preset_config("no-further-stratification", SCENE)
+    assert nfs.grid["use_stratified_sampling_for_each_interval"] == (True, False)
+    ref = preset_config("reference", SCENE, spp=64)
+    assert ref.reference is None and len(ref.points()) == 4 and ref.fixed["spp"] == 64
+    assert not (tmp_path / "ts").exists()  # planning writes nothing
+
+
+# ---- Running -----------------------------------------------------------------------------
+
+def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client):
+    out = tmp_path / "results"
+    summary = run_sweep(tiny_config(), out, client=client, progress=False)
+    assert summary.ok and summary.done == 5 and summary.skipped == 0
+
+    names = sorted(os.listdir(out / "runs"))
+    assert names == sorted(f"time_sampling_method={m}__path_correlation_depth={d}"
+                           for m in ("uniform", "antithetic") for d in ("0", "full"))
+    import mitsuba as mi
+
+    for folder in [out / "runs" / n for n in names] + [out / "reference" / "default"]:
+        assert set(os.listdir(folder)) == RUN_FILES
+        image = np.load(folder / "image.npy")
+        assert image.shape == (8, 8, 3) and np.isfinite(image).all()
+        exr = np.array(mi.Bitmap(str(folder / "image.exr")))
+        np.testing.assert_array_equal(exr, image)
+        record = json.loads((folder / "params.json").read_text())
+        assert record["versions"]["mitsuba"] and record["versions"]["distributed"]
+        assert record["task_seconds"] > 0 and record["seed"] == (0 if record["kind"] == "run"
+                                                                 else 1_000_003)
+        assert record["params"]["hetero_frequency"] == 1.0
+        if record["kind"] == "run":
+            assert record["params"]["time_sampling_method"] == record["grid_point"][
+                "time_sampling_method"]
+            assert record["reference"] == os.path.join("reference", "default")
+    assert not partial_files(out)
+    assert json.loads((out / "summary.json").read_text())["done"] == 5
+
+    before = snapshot(out)
+    again = run_sweep(tiny_config(), out, client=UnusableClient(), progress=False)
+    assert again.done == 0 and again.skipped == 5 and again.ok
+    after = snapshot(out)
+    assert {p: t for p, t in after.items() if not p.endswith("sweep.json")} == \
+        {p: t for p, t in before.items() if not p.endswith("sweep.json")}
+
+    # an interrupted task (no marker, a truncated array, a temporary file left by a
+    # killed write) and a task whose marker describes other settings are redone
+    broken = out / "runs" / names[0]
+    (broken / COMPLETE_MARKER).unlink()
+    (broken / "image.npy").write_bytes(b"truncated")
+    (broken / ".image.k3j2.tmp.npy").write_bytes(b"partial")
+    stale = out / "runs" / names[1]
+    marker = json.loads((stale / COMPLETE_MARKER).read_text())
+    marker["spec_hash"] = "0" * 64
+    (stale / COMPLETE_MARKER).write_text(json.dumps(marker))
+    repaired = run_sweep(tiny_config(), out, client=client, progress=False)
+    assert repaired.done == 2 and repaired.skipped == 3 and repaired.ok
+    assert np.load(broken / "image.npy").shape == (8, 8, 3)
+    assert not partial_files(out)
+
+    # a different fixed setting makes every point stale (folder names hold only grid values)
+    changed = tiny_config(fixed={"spp": 16, "seed": 0, "hetero_frequency": 1.0})
+    assert len(plan_sweep(changed, out)) == 5
+    from dopplertof.experiments.sweep import pending_tasks
+    assert len(pending_tasks(plan_sweep(changed, out), clean=False)) == 4
+
+    report = write_report(out, tmp_path / "report")
+    written = {os.path.basename(f) for f in report.files}
+    assert {"relative_mse_by_method.png", "images.png", "metrics.csv", "summary.md"} <= written
+    for f in report.files:
+        assert os.path.getsize(f) > 0
+    md = (tmp_path / "report" / "summary.md").read_text()
+    assert "| antithetic | full |" in md and "relative MSE" in md
+    rows = (tmp_path / "report" / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 1 + 4
+    # antithetic time with the whole path shared beats uniform time with independent
+    # paths on a heterodyne image (DESIGN section 2), even at 8 spp
+    metrics = {r.split(",")[0]: float(r.split(",")[5]) for r in rows[1:]}
+    best = metrics["time_sampling_method=antithetic__path_correlation_depth=full"]
+    worst = metrics["time_sampling_method=uniform__path_correlation_depth=0"]
+    assert best < worst / 4
+
+
+def test_report_refuses_a_folder_without_results(tmp_path):
+    with pytest.raises(ReportError, match="not a sweep results folder"):
+        write_report(tmp_path, tmp_path / "report")
+
+
+def test_failing_task_is_retried_then_reported_without_stopping_the_others(tmp_path, client):
+    out = tmp_path / "results"
+    config = tiny_config(grid={"hetero_offset": [0.0, 0.25]}, reference=None)
+    blocked = out / "runs" / "hetero_offset=0.25"
+    blocked.parent.mkdir(parents=True)
+    blocked.write_text("a file where the task's folder should be")
+    summary = run_sweep(config, out, client=client, retries=1, progress=False)
+    assert summary.done == 1 and [name for name, _ in summary.failed] == ["hetero_offset=0.25"]
+    error = summary.failed[0][1]
+    assert "Error" in error and "\n" not in error
+    assert set(os.listdir(out / "runs" / "hetero_offset=0")) == RUN_FILES
+    recorded = json.loads((out / "summary.json").read_text())
+    assert recorded["failed"][0]["task"] == "hetero_offset=0.25"
+
+
+def test_retries_rerun_a_raising_task(tmp_path, client):
+    attempts = tmp_path / "attempts"
+    attempts.mkdir()
+
+    def flaky(task):  # fails on its first two attempts (pickled by value)
+        import os
+        import uuid
+
+        open(os.path.join(task.attempts, uuid.uuid4().hex), "w").close()
+        if len(os.listdir(task.attempts)) < 3:
+            raise RuntimeError("transient failure")
+        return task.name
+
+    task = types.SimpleNamespace(name="flaky", hash="0" * 16, attempts=str(attempts))
+    outcome = run_tasks(client, flaky, [task], retries=2, progress=False)
+    assert outcome.done == ["flaky"] and not outcome.failed
+    assert len(os.listdir(attempts)) == 3
+
+    for f in os.listdir(attempts):
+        os.unlink(attempts / f)
+    outcome = run_tasks(client, flaky, [types.SimpleNamespace(
+        name="flaky2", hash="1" * 16, attempts=str(attempts))], retries=1, progress=False)
+    assert outcome.failed == [("flaky2", "RuntimeError: transient failure")]
+    assert len(os.listdir(attempts)) == 2
+
+
+def test_killed_worker_loses_nothing(tmp_path):
+    """SIGKILL the worker process that is rendering a point: Dask reruns the point on a
+    live worker, the sweep completes, no partial file is left, a rerun has nothing to do."""
+    from distributed import Client, LocalCluster
+    import logging
+
+    out = tmp_path / "results"
+    # renders long enough (about a second each) to be caught in the middle
+    config = tiny_config(defines={"res": 16, "max_depth": 3},
+                         fixed={"spp": 2048, "hetero_frequency": 1.0},
+                         grid={"seed": [0, 1, 2, 3]}, reference=None)
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.CRITICAL)
+    try:
+        with Client(cluster) as c:
+            pids = c.run(os.getpid)
+            result = {}
+            sweep = threading.Thread(target=lambda: result.update(
+                summary=run_sweep(config, out, client=c, progress=False)))
+            sweep.start()
+            victim = None
+            deadline = time.monotonic() + 90
+            while victim is None and time.monotonic() < deadline and sweep.is_alive():
+                for worker, keys in c.processing().items():
+                    for key in keys:
+                        name = key.split("dopplertof-", 1)[1].rsplit("-", 1)[0]
+                        folder = out / "runs" / name
+                        if folder.is_dir() and not (folder / COMPLETE_MARKER).exists():
+                            victim = (worker, name)
+                            break
+                    if victim:
+                        break
+                time.sleep(0.05)
+            assert victim is not None, "no task was seen running"
+            killed_pid = pids[victim[0]]
+            os.kill(killed_pid, signal.SIGKILL)
+            sweep.join(timeout=180)
+            assert not sweep.is_alive()
+    finally:
+        cluster.close()
+
+    summary = result["summary"]
+    assert summary.ok and summary.done == 4
+    record = json.loads((out / "runs" / victim[1] / "params.json").read_text())
+    assert record["worker"]["pid"] != killed_pid  # it was redone elsewhere
+    for name in os.listdir(out / "runs"):
+        assert set(os.listdir(out / "runs" / name)) == RUN_FILES
+    assert not partial_files(out)
+    again = run_sweep(config, out, client=UnusableClient(), progress=False)
+    assert again.done == 0 and again.skipped == 4
+
+
+# ---- Animation -----------------------------------------------------------------------------
+
+def test_animation_frames_shift_the_exposure(tmp_path):
+    """The demo's boxes move during [0, 1.5 ms] and hold still afterwards: frame 0
+    (exposure 0-1.5 ms) sees them move, frame 2 (3-4.5 ms) sees a still scene."""
+    from PIL import Image
+
+    out = tmp_path / "frames"
+    summary = run_animation(SCENE, out, 3, defines={"res": 8, "max_depth": 3}, spp=8,
+                            workers=2, progress=False)
+    assert summary.ok and summary.done == 3
+    starts = []
+    for k in range(3):
+        folder = out / f"frame_{k:04d}"
+        assert (folder / COMPLETE_MARKER).is_file()
+        for name in ("velocity.npy", "velocity_gt.npy", "velocity.exr", "heterodyne_0.npy",
+                     "homodyne_0.25.npy", "radiance.npy", "depth.npy", "summary.json"):
+            assert (folder / name).is_file(), name
+        starts.append(json.loads((folder / "params.json").read_text())["exposure_start_s"])
+    np.testing.assert_allclose(starts, [0.0, 0.0015, 0.003], atol=1e-9)
+    moving = np.load(out / "frame_0000" / "velocity_gt.npy")
+    still = np.load(out / "frame_0002" / "velocity_gt.npy")
+    assert np.nanmax(np.abs(moving)) > 5  # 10 m/s boxes
+    assert np.nanmax(np.abs(still)) == 0
+    gif = Image.open(out / "velocity.gif")
+    assert gif.n_frames == 3
+    assert not partial_files(out)
+    again = run_animation(SCENE, out, 3, defines={"res": 8, "max_depth": 3}, spp=8,
+                          client=UnusableClient(), progress=False)
+    assert again.done == 0 and again.skipped == 3 and again.video
