@@ -168,7 +168,7 @@ def test_public_api_writes_every_file(tmp_path):
     assert summary["spp_per_capture"] == 16 and summary["seed"] == 2
     assert summary["units"]["velocity"].startswith("m/s")
     assert summary["modulation"]["w_g_MHz"] == 30.0
-    assert summary["render_params"]["time_sampling_method"] == "antithetic"
+    assert summary["render_params"]["time_sampling_method"] == "auto"
     assert [c["order"] for c in summary["captures"]] == list(range(7))
     assert summary["light"]["colocated"] is True
     assert set(summary["errors"]) == {"velocity_m_s", "depth_m"}

@@ -49,7 +49,7 @@ class RenderParams:
     rr_depth: int = 5  #: depth at which Russian roulette starts
     hide_emitters: bool = False
     # ---- Time-path sampling ----
-    time_sampling_method: str = "antithetic"
+    time_sampling_method: str = "auto"
     antithetic_shift: float | None = None  #: default 0.5 (shifted) or 0 (mirrored)
     path_correlation_depth: int = FULL_CORRELATION  #: stages sharing random numbers
     time_correlate_number: int = 2  #: K, samples per correlated group
