@@ -1,8 +1,9 @@
 """Render a D-ToF image: passes of bounded memory, deterministic accumulation, progress.
 
 The samples of every pixel are cut into fixed *chunks* (8 groups of K samples each).
-A pass renders a whole number of chunks for all pixels; each chunk is summed in
-float64 on its own and the chunk sums are added in chunk order. A sample's random
+A pass renders a whole number of chunks for all pixels; each chunk is summed on its
+own in the kernel (a sequential block reduction) and the chunk sums are added in
+float64 in chunk order. A sample's random
 numbers depend only on (seed, pixel, sample index, dimension), so the image is bitwise
 the same whatever the pass size.
 """
@@ -147,27 +148,39 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     import drjit as dr
 
     try:
-        for first_chunk in range(next_chunk, n_chunks, pass_chunks):
-            chunks = range(first_chunk, min(n_chunks, first_chunk + pass_chunks))
+        # The last chunk may be short: it gets a pass of its own, so that every pass
+        # sums chunks of one size.
+        full_chunks = spp // chunk
+        plan = [(c0, min(full_chunks, c0 + pass_chunks)) for c0 in
+                range(next_chunk, full_chunks, pass_chunks)]
+        if full_chunks < n_chunks and next_chunk <= full_chunks:
+            plan.append((full_chunks, n_chunks))
+        for first_chunk, end_chunk in plan:
             s0 = first_chunk * chunk
-            s1 = min(spp, chunks[-1] * chunk + chunk)
+            s1 = min(spp, end_chunk * chunk)
             samples = s1 - s0
+            chunk_size = min(chunk, samples)
             layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0),
                                 setup.group_size)
             value = trace_pass(mi, setup, layout)
-            dr.eval(value)
-            lanes = np.stack([np.asarray(value[c]) for c in range(_channels(value))], axis=-1)
-            lanes = lanes.reshape(n_pixels, samples, -1)
-            bad = ~np.all(np.isfinite(lanes), axis=-1)
-            if bad.any():
-                nonfinite += int(bad.sum())
-                lanes[bad] = 0.0
-            for j in range(len(chunks)):
-                part = lanes[:, j * chunk:(j + 1) * chunk].sum(axis=1, dtype=np.float64)
-                total = total + part
+            dr.eval(value)  # one path tracing kernel for all channels
+            # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
+            channels = [value[c] for c in range(_channels(value))]
+            finite = dr.isfinite(channels[0])
+            for v in channels[1:]:
+                finite &= dr.isfinite(v)
+            dropped = dr.count(~finite)
+            sums = [dr.block_sum(dr.select(finite, v, 0.0), chunk_size, mode="evaluated")
+                    for v in channels]
+            dr.eval(dropped, sums)
+            nonfinite += int(dropped[0])
+            parts = np.stack([np.asarray(v) for v in sums], axis=-1).reshape(
+                n_pixels, samples // chunk_size, -1)
+            for j in range(parts.shape[1]):  # chunk order: the image ignores pass sizes
+                total = total + parts[:, j].astype(np.float64)
             bar.update(samples)
             if checkpoint is not None:
-                _save_checkpoint(checkpoint, key, total, nonfinite, chunks[-1] + 1)
+                _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk)
     finally:
         bar.close()
 

@@ -33,10 +33,26 @@ BOUNCE_BSDF_LOBE = 2
 BOUNCE_BSDF_DIR = 3
 BOUNCE_RR = 5
 
-# TEA rounds: 8 to derive keys, 6 per number (4 shows correlations between
-# consecutive dimensions).
+# TEA rounds: 8 to derive a lane's stream keys (once per path) and 6 for its time
+# numbers; the many numbers along a path use the cheaper integer hash below.
 _KEY_ROUNDS = 8
 _NUMBER_ROUNDS = 6
+
+
+def _mix32(x):
+    """A 32-bit integer hash with full avalanche (multiply-xorshift, two rounds)."""
+    x = x ^ (x >> 16)
+    x = x * 0x7FEB352D
+    x = x ^ (x >> 15)
+    x = x * 0x846CA68B
+    return x ^ (x >> 16)
+
+
+def hashed_uniform(mi, key, dim):
+    """Uniform number in [0, 1) for a stream key and a dimension: two hash rounds, the
+    dimension spread first so that consecutive dimensions are unrelated."""
+    x = _mix32(key ^ _mix32(dim * 0x9E3779B9 + 0x7F4A7C15))
+    return mi.Float(x >> 8) * (1.0 / (1 << 24))  # 24 bits: exact and below 1
 
 #: largest sample count per pixel the 32-bit stream keys allow
 MAX_SPP = 1 << 30
@@ -117,7 +133,7 @@ class CorrelatedStreams:
         return dr.select(stage < self.correlation_depth, self.key_group, self.key_own)
 
     def get_1d(self, stage, dim):
-        return self.mi.sample_tea_float32(self.key(stage), dim, _NUMBER_ROUNDS)
+        return hashed_uniform(self.mi, self.key(stage), self.mi.UInt32(dim))
 
     def film_2d(self, group, index_in_group, groups_per_pixel: int):
         """Film position: a scrambled (0,2)-sequence over the pixel's groups when the
@@ -135,10 +151,9 @@ class CorrelatedStreams:
 
     def get_2d(self, stage, dim):
         key = self.key(stage)
-        return self.mi.Point2f(
-            self.mi.sample_tea_float32(key, dim, _NUMBER_ROUNDS),
-            self.mi.sample_tea_float32(key, dim + 1, _NUMBER_ROUNDS),
-        )
+        dim = self.mi.UInt32(dim)
+        return self.mi.Point2f(hashed_uniform(self.mi, key, dim),
+                               hashed_uniform(self.mi, key, dim + 1))
 
 
 def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: int,
