@@ -12,7 +12,7 @@ from dopplertof.params import ParameterError, RenderParams
 from dopplertof.scene import SceneError
 from dopplertof.scene.motion import Keyframes, MotionError
 
-FUZZ = settings(max_examples=60, deadline=None,
+FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow])
 
