@@ -55,3 +55,13 @@ def test_zero_motion_bodies_equal_the_static_scene():
     assert np.abs(b).max() > 0.01
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
     assert len(moving.bodies) == 2
+
+
+def test_sample_count_not_a_multiple_of_the_chunk():
+    """20 spp = one chunk of 16 and a short chunk of 4, rendered in one or two passes."""
+    scene = small_scene()
+    a = dopplertof.render(scene, spp=20, seed=8)
+    b = dopplertof.render(scene, spp=20, seed=8, pass_chunks=1)
+    assert np.array_equal(a, b) and np.all(np.isfinite(a))
+    # and the short chunk really is rendered: 20 spp differs from its first 16 samples
+    assert not np.array_equal(a, dopplertof.render(scene, spp=16, seed=8))
