@@ -1,6 +1,5 @@
 """The command line: outputs, exit codes, one-line errors, untouched files on failure."""
 
-import os
 import subprocess
 import sys
 
