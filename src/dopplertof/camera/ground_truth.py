@@ -85,9 +85,9 @@ def ground_truth(scene, params=None) -> GroundTruth:
     ray, _ = sensor.sample_ray(time, 0.5, position, mi.Point2f(0.5, 0.5))
     camera = scene.sensor_motion
     if camera is not None:  # the camera's pose at mid-exposure
-        from ..integrators.dtof_path import _moved_ray
+        from ..scene.bodies import transformed_ray
 
-        ray = _moved_ray(mi, camera.relative(time)[0], ray)
+        ray = transformed_ray(mi, camera.relative(time)[0], ray, ray.maxt, normalize=True)
     frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
 

@@ -18,8 +18,7 @@ import drjit as dr
 from .. import sampling
 from ..modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation_by_index, wave
 from ..scene import lights
-from ..scene.bodies import BodyFrames, intersect, occluded
-from ..scene.motion import transform_point, transform_vector
+from ..scene.bodies import BodyFrames, intersect, occluded, transformed_ray
 
 
 class PassLayout:
@@ -76,12 +75,6 @@ class ModulationWeight:
         light = self.g0 + self.g1 * wave(self.waveform, self.omega_g * t
                                          - self.k_length * path_length, dr)
         return self.to_float32(sensor * light)
-
-
-def _moved_ray(mi, T, ray):
-    o = transform_point(T, ray.o)
-    d = dr.normalize(mi.Vector3f(*transform_vector(T, ray.d)))
-    return mi.Ray3f(mi.Point3f(*o), d, ray.maxt, ray.time, ray.wavelengths)
 
 
 class FilmSampler:
@@ -154,7 +147,8 @@ def trace_pass(mi, setup, layout: PassLayout):
     # Path length from the lens point, not from the near clip plane.
     camera_offset = setup.near_clip / dr.dot(ray.d, setup.camera_forward)
     # A moving camera: the ray of the rest pose, moved to the lane's time.
-    ray = (_moved_ray(mi, scene.sensor_motion.relative(time)[0], ray)
+    ray = (transformed_ray(mi, scene.sensor_motion.relative(time)[0], ray, ray.maxt,
+                           normalize=True)
            if scene.sensor_motion is not None else ray)
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)

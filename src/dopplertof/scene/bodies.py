@@ -60,11 +60,11 @@ class BodyFrames:
             self.to_local.append(inv)
 
 
-def _vec(mi, cls, v):
+def vec3(mi, cls, v):
     return cls(v[0], v[1], v[2])
 
 
-def _select_transform(mi, dr, masks, transforms):
+def select_transform(mi, dr, masks, transforms):
     """Per lane, the transform of the body whose mask is set (identity elsewhere)."""
     Float = mi.Float
     any_linear = any(T[0] is not None for T in transforms)
@@ -95,13 +95,17 @@ def _box_distances(dr, frames, ray, active, upto):
 
 
 def _transform_by_index(mi, dr, index, transforms):
-    return _select_transform(mi, dr, [index == k for k in range(len(transforms))], transforms)
+    return select_transform(mi, dr, [index == k for k in range(len(transforms))], transforms)
 
 
-def _local_ray(mi, T, ray, maxt):
-    return mi.Ray3f(_vec(mi, mi.Point3f, transform_point(T, ray.o)),
-                    _vec(mi, mi.Vector3f, transform_vector(T, ray.d)), maxt, ray.time,
-                    ray.wavelengths)
+def transformed_ray(mi, T, ray, maxt, normalize: bool = False):
+    """``ray`` moved by the transform ``T`` (A or None, b). Without ``normalize`` the
+    direction keeps its scale, so that ray parameters t stay the same in both frames."""
+    import drjit as dr
+
+    d = vec3(mi, mi.Vector3f, transform_vector(T, ray.d))
+    return mi.Ray3f(vec3(mi, mi.Point3f, transform_point(T, ray.o)),
+                    dr.normalize(d) if normalize else d, maxt, ray.time, ray.wavelengths)
 
 
 def _body_hits_each(mi, dr, frames, ray, active, pi, best_t):
@@ -111,7 +115,7 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t):
         box_hit, box_near, box_far = box.ray_intersect(ray)
         test = active & box_hit & (box_near < best_t) & (box_far >= 0)
         pib = body.scene.ray_intersect_preliminary(
-            _local_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), False, test)
+            transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), False, test)
         closer = test & pib.is_valid() & (pib.t < best_t)
         pi = dr.select(closer, pib, pi)
         best_t = dr.select(closer, pib.t, best_t)
@@ -144,7 +148,7 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
         k, d = nearest_untested(tested)
         go = active & (d < best_t)
         tested = dr.select(go, tested | (mi.UInt32(1) << k), tested)
-        local = _local_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray,
+        local = transformed_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray,
                            dr.minimum(ray.maxt, best_t))
         pib = dr.switch(k, targets, local, active=go)
         closer = go & pib.is_valid() & (pib.t < best_t)
@@ -170,25 +174,25 @@ def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
     hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
     pi, winner = hits(mi, dr, frames, ray, active, pi, best_t)
     won = [winner == k for k in range(n)]
-    to_local = _select_transform(mi, dr, won, frames.to_local)
-    hit_ray = _local_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
+    to_local = select_transform(mi, dr, won, frames.to_local)
+    hit_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
     si = pi.compute_surface_interaction(hit_ray, mi.RayFlags.All, active)
 
     # ---- Back to world space (identity for static hits) ----
-    to_world = _select_transform(mi, dr, won, frames.to_world)
+    to_world = select_transform(mi, dr, won, frames.to_world)
     on_body = winner < n
-    p = _vec(mi, mi.Point3f, transform_point(to_world, si.p))
-    n = dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_local, si.n)))
-    sn = dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
-    ss = _vec(mi, mi.Vector3f, transform_vector(to_world, si.sh_frame.s))
+    p = vec3(mi, mi.Point3f, transform_point(to_world, si.p))
+    n = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.n)))
+    sn = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
+    ss = vec3(mi, mi.Vector3f, transform_vector(to_world, si.sh_frame.s))
     ss = dr.normalize(ss - sn * dr.dot(ss, sn))  # Gram-Schmidt: exact frames under shear too
     frame = mi.Frame3f(ss, dr.cross(sn, ss), sn)
     si.p = dr.select(on_body, p, si.p)
     si.n = dr.select(on_body, n, si.n)
     si.sh_frame = dr.select(on_body, frame, si.sh_frame)
-    si.dp_du = dr.select(on_body, _vec(mi, mi.Vector3f, transform_vector(to_world, si.dp_du)),
+    si.dp_du = dr.select(on_body, vec3(mi, mi.Vector3f, transform_vector(to_world, si.dp_du)),
                          si.dp_du)
-    si.dp_dv = dr.select(on_body, _vec(mi, mi.Vector3f, transform_vector(to_world, si.dp_dv)),
+    si.dp_dv = dr.select(on_body, vec3(mi, mi.Vector3f, transform_vector(to_world, si.dp_dv)),
                          si.dp_dv)
     # The hit parameter t is the same in both frames (affine maps keep ray parameters);
     # the incident direction is recomputed from the world ray.
@@ -208,7 +212,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
         for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
             box_hit, box_near, box_far = box.ray_intersect(ray)
             test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
-            blocked |= body.scene.ray_test(_local_ray(mi, inv, ray, ray.maxt), test)
+            blocked |= body.scene.ray_test(transformed_ray(mi, inv, ray, ray.maxt), test)
         return blocked
 
     # ---- Dispatch: visit only the bodies whose swept boxes the segment crosses ----
@@ -227,7 +231,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
         k = dr.tzcnt(pending)
         pending = dr.select(go, pending & ~(mi.UInt32(1) << k), pending)
         k = dr.minimum(k, n - 1)
-        local = _local_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray, ray.maxt)
+        local = transformed_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray, ray.maxt)
         return pending, blocked | dr.switch(k, targets, local, active=go)
 
     _, blocked = dr.while_loop((pending, blocked), more, visit, label="dopplertof_shadow",

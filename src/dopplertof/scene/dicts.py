@@ -72,6 +72,11 @@ def _matrix(T, where) -> np.ndarray:
     return M
 
 
+def _rest_transform(mi, kf: Keyframes):
+    """The transform of the first keyframe: where the object is loaded."""
+    return mi.ScalarTransform4f(kf.matrix_array()[0])
+
+
 def _refs(value) -> set:
     out = set()
     if isinstance(value, dict):
@@ -112,7 +117,7 @@ def load_dict(scene: dict):
                 if anim.follow:
                     raise SceneError(f"{where}: 'follow' is for lights, not the sensor")
                 sensor_kf = anim.to_keyframes(where)
-                value = dict(value, to_world=mi.ScalarTransform4f(sensor_kf.matrix_array()[0]))
+                value = dict(value, to_world=_rest_transform(mi, sensor_kf))
             else:
                 if "position" in value:
                     raise SceneError(f"{where}: a moving light takes its position from the "
@@ -126,7 +131,7 @@ def load_dict(scene: dict):
                 else:
                     kf = anim.to_keyframes(where)
                     light_kfs.append((key, kf))
-                    value["to_world"] = mi.ScalarTransform4f(kf.matrix_array()[0])
+                    value["to_world"] = _rest_transform(mi, kf)
             static[key] = _correlated_sampler_replaced(key, value, sampler_values)
             continue
         if isinstance(anim, Animation):
@@ -136,7 +141,7 @@ def load_dict(scene: dict):
             if any(isinstance(v, dict) and v.get("type") == "area" for v in value.values()):
                 raise SceneError(f"{where}: moving area emitters are not supported yet")
             kf = value["to_world"].to_keyframes(where)
-            body_shape = dict(value, to_world=mi.ScalarTransform4f(kf.matrix_array()[0]))
+            body_shape = dict(value, to_world=_rest_transform(mi, kf))
             groups.setdefault(kf, []).append((key, body_shape))
             continue
         value = _correlated_sampler_replaced(key, value, sampler_values)

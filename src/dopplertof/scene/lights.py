@@ -10,7 +10,7 @@ the contribution stay valid. Static lights go through the same code with the ide
 
 from __future__ import annotations
 
-from .bodies import _select_transform, _vec
+from .bodies import select_transform, vec3
 from .motion import transform_normal, transform_point, transform_vector
 
 
@@ -33,18 +33,18 @@ def sample_emitter_direction(mi, scene, frames: LightFrames, si, sample, active)
     index, selection_weight, sample_x = scene.sample_emitter(sample.x, active)
     emitter = dr.gather(mi.EmitterPtr, scene.emitters_dr(), index, active)
     masks = [index == k for k in frames.indices]
-    to_world = _select_transform(mi, dr, masks, frames.to_world)
-    to_local = _select_transform(mi, dr, masks, frames.to_local)
+    to_world = select_transform(mi, dr, masks, frames.to_world)
+    to_local = select_transform(mi, dr, masks, frames.to_local)
 
     # ---- The shading point, seen from the light's rest pose ----
     ref = mi.Interaction3f(si.t, si.time, si.wavelengths,
-                           _vec(mi, mi.Point3f, transform_point(to_local, si.p)),
-                           dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_world, si.n))))
+                           vec3(mi, mi.Point3f, transform_point(to_local, si.p)),
+                           dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_world, si.n))))
     ds, weight = emitter.sample_direction(ref, mi.Point2f(sample_x, sample.y), active)
 
     # ---- Back to the world at the lane's time ----
-    ds.p = _vec(mi, mi.Point3f, transform_point(to_world, ds.p))
-    ds.d = dr.normalize(_vec(mi, mi.Vector3f, transform_vector(to_world, ds.d)))
-    ds.n = dr.normalize(_vec(mi, mi.Normal3f, transform_normal(to_local, ds.n)))
+    ds.p = vec3(mi, mi.Point3f, transform_point(to_world, ds.p))
+    ds.d = dr.normalize(vec3(mi, mi.Vector3f, transform_vector(to_world, ds.d)))
+    ds.n = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, ds.n)))
     ds.pdf *= scene.pdf_emitter(index, active)
     return ds, weight * selection_weight
