@@ -2,13 +2,17 @@
 
 For each hetero_frequency, every time-sampling method x path correlation depth
 (0, 1, 2, full) x full time stratification (on/off) is rendered at the same spp and
-compared with a high-spp reference (antithetic, full correlation, other seed). Prints
-the RMSE table, seconds per render, and last the headline ratio
+compared with a high-spp reference (antithetic, full correlation, other seed), and so
+are antithetic pairs under the motion mapping (``antithetic_mapping="motion"``) and
+``time_sampling_method="auto"``. Prints the RMSE table, seconds per render, the paper's
+headline ratio (naive = uniform time, independent paths, no stratification)
 
     RMSE ratio at hetero_frequency=1 (uniform/independent over antithetic/full): X
 
-(naive = uniform time, independent paths, no stratification), and the same ratio at
-equal time.
+with its equal-time value, and last the two lines of the beyond-the-paper sampling:
+
+    RMSE ratio at hetero_frequency=1 (uniform/independent over best): X
+    worst RMSE ratio over hetero_frequency 0..1 (auto over uniform): Y
 
     .venv/bin/python benchmarks/variance.py            # 128x128, 1024 spp, ref x64
     .venv/bin/python benchmarks/variance.py --quick    # 64x64, 256 spp, ref x64
@@ -27,6 +31,7 @@ SCENE = os.path.join(HERE, "..", "tests", "fixtures", "cornell_box_moving.xml")
 FULL = 1 << 16
 METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
 DEPTHS = (0, 1, 2, FULL)
+MAPPED_METHODS = ("antithetic", "antithetic_mirror")
 
 
 def depth_name(d):
@@ -52,10 +57,11 @@ def main():
     print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, "
           f"reference {spp * args.ref_factor} spp (antithetic, full correlation)", flush=True)
 
-    def render(h, method, depth, strat, n, seed):
+    def render(h, method, depth, strat, n, seed, mapping=None):
         params = dict(hetero_frequency=h, time_sampling_method=method,
                       path_correlation_depth=depth,
-                      use_stratified_sampling_for_each_interval=strat)
+                      use_stratified_sampling_for_each_interval=strat,
+                      antithetic_mapping=mapping)
         t = time.perf_counter()
         img = dopplertof.render(scene, spp=n, seed=seed, params=params, progress=False)
         return img.astype(np.float64), time.perf_counter() - t
@@ -74,6 +80,12 @@ def main():
                     results[(h, method, depth, strat)] = (rmse, sec)
                     print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5} "
                           f"{rmse:10.3e} {sec:8.2f}", flush=True)
+        for method in MAPPED_METHODS:
+            img, sec = render(h, method, FULL, True, spp, 1, mapping="motion")
+            rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
+            results[(h, method, "motion")] = (rmse, sec)
+            print(f"{method + '+motion':>18} {'full':>5} {'True':>5} {rmse:10.3e} {sec:8.2f}",
+                  flush=True)
         img, sec = render(h, "auto", FULL, True, spp, 1)
         rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
         results[(h, "auto")] = (rmse, sec)
@@ -89,21 +101,44 @@ def main():
                     f"{results[(h, 'uniform', 0, False)][0] / results[(h, method, depth, strat)][0]:<10.2f}"
                     for h in args.hetero)
                 print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5}  {row}")
+    for method in MAPPED_METHODS:
+        row = " ".join(
+            f"{results[(h, 'uniform', 0, False)][0] / results[(h, method, 'motion')][0]:<10.2f}"
+            for h in args.hetero)
+        print(f"{method + '+motion':>18} {'full':>5} {'True':>5}  {row}")
 
     auto_ratios = {h: results[(h, "uniform", 0, False)][0] / results[(h, "auto")][0]
                    for h in args.hetero}
     print("auto (time_sampling_method='auto'): " + ", ".join(
         f"h={h:g}: {r:.2f}" for h, r in auto_ratios.items()))
-    print(f"worst RMSE ratio over hetero_frequency {min(args.hetero):g}.."
-          f"{max(args.hetero):g} (auto over uniform): {min(auto_ratios.values()):.2f}")
     h = 1.0 if 1.0 in args.hetero else args.hetero[-1]
     naive_rmse, naive_t = results[(h, "uniform", 0, False)]
-    best_rmse, best_t = results[(h, "antithetic", FULL, True)]
-    ratio = naive_rmse / best_rmse
-    equal_time = ratio * np.sqrt(naive_t / best_t)
-    print(f"RMSE ratio at hetero_frequency={h:g} at equal time: {equal_time:.1f}")
+    paper_rmse, paper_t = results[(h, "antithetic", FULL, True)]
+    ratio = naive_rmse / paper_rmse
+    print(f"RMSE ratio at hetero_frequency={h:g} at equal time: "
+          f"{ratio * np.sqrt(naive_t / paper_t):.1f}")
     print(f"RMSE ratio at hetero_frequency={h:g} (uniform/independent over "
           f"antithetic/full): {ratio:.1f}")
+    at_h = {k: v for k, v in results.items() if k[0] == h}
+    best_key = min(at_h, key=lambda k: at_h[k][0])
+    best_rmse, best_t = at_h[best_key]
+    best = naive_rmse / best_rmse
+    print(f"best at hetero_frequency={h:g}: {config_name(best_key)}, "
+          f"{best_t / naive_t:.2f}x the naive time, equal-time ratio "
+          f"{best * np.sqrt(naive_t / best_t):.1f}")
+    print(f"RMSE ratio at hetero_frequency={h:g} (uniform/independent over best): {best:.1f}")
+    print(f"worst RMSE ratio over hetero_frequency {min(args.hetero):g}.."
+          f"{max(args.hetero):g} (auto over uniform): {min(auto_ratios.values()):.2f}")
+
+
+def config_name(key):
+    if key[1] == "auto":
+        return "auto"
+    if key[-1] == "motion":
+        return f"{key[1]}, full correlation, stratified, motion mapping"
+    _, method, depth, strat = key
+    return (f"{method}, correlation depth {depth_name(depth)}, "
+            f"{'stratified' if strat else 'not stratified'}")
 
 
 if __name__ == "__main__":

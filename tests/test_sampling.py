@@ -123,7 +123,9 @@ def test_auto_sampling_rule():
     assert auto(1.0)["antithetic_shift"] == 0.5 and auto(2.0)["antithetic_shift"] == 0.25
     for h in (0.0, 0.3, 0.5, 1.5):
         assert auto(h) == dict(time_sampling_method="uniform", path_correlation_depth=0,
-                               use_stratified_sampling_for_each_interval=True)
+                               use_stratified_sampling_for_each_interval=True,
+                               antithetic_mapping="replay")
+    assert auto(1.0)["antithetic_mapping"] == "replay"  # measured: motion does not pay
     p = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
                                 time=0.001).resolved(0.0)
     assert p.time_sampling_method == "antithetic" and p.path_correlation_depth == 1 << 16

@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import METHOD_NAMES, auto_sampling
+from .sampling import ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
 
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
@@ -54,6 +54,10 @@ class RenderParams:
     path_correlation_depth: int = FULL_CORRELATION  #: stages sharing random numbers
     time_correlate_number: int = 2  #: K, samples per correlated group
     use_stratified_sampling_for_each_interval: bool = True
+    #: how an antithetic pair's partner is built: "replay" (the primal's random numbers
+    #: at the paired time; None means this) or "motion" (the primal's first hit point
+    #: followed on its body: integrators/antithetic_map.py)
+    antithetic_mapping: str | None = None
 
     # ---- Parsing ----
 
@@ -116,14 +120,32 @@ class RenderParams:
                 and self.time_correlate_number != 2):
             fail("time_sampling_method 'antithetic_mirror' pairs samples: it needs "
                  f"time_correlate_number=2, got {self.time_correlate_number}")
+        if self.antithetic_mapping not in (None,) + ANTITHETIC_MAPPINGS:
+            fail(f"unknown antithetic_mapping {self.antithetic_mapping!r}: expected one of "
+                 f"{', '.join(ANTITHETIC_MAPPINGS)}")
+        if self.antithetic_mapping == "motion":
+            method = self.time_sampling_method
+            if method not in ("antithetic", "antithetic_mirror"):
+                fail("antithetic_mapping 'motion' maps antithetic pairs: it needs "
+                     f"time_sampling_method antithetic or antithetic_mirror, got {method!r}")
+            if self.time_correlate_number != 2:
+                fail("antithetic_mapping 'motion' needs time_correlate_number=2, got "
+                     f"{self.time_correlate_number}")
+            if method == "antithetic" and self.antithetic_shift not in (None, 0.5):
+                fail("antithetic_mapping 'motion' needs pairs that map onto each other: "
+                     f"antithetic_shift 0.5, got {self.antithetic_shift}")
+            if self.path_correlation_depth < 1:
+                fail("antithetic_mapping 'motion' needs the pair to share its film position: "
+                     "path_correlation_depth >= 1, got 0")
         return self
 
     # ---- Derived quantities ----
 
     def resolved(self, shutter: float) -> "RenderParams":
-        """The parameters with ``time_sampling_method="auto"`` replaced by its choice."""
+        """The parameters with ``time_sampling_method="auto"`` replaced by its choice
+        (which never maps pairs by motion: measured, see docs/benchmarks.md)."""
         if self.time_sampling_method != "auto":
-            return self
+            return replace(self, antithetic_mapping=self.antithetic_mapping or "replay")
         h = self.modulation(shutter).hetero_frequency
         return replace(self, **auto_sampling(h))
 
@@ -184,7 +206,7 @@ _TYPES = {
     "wave_function_type": str, "low_frequency_component_only": bool, "max_depth": int,
     "rr_depth": int, "hide_emitters": bool, "time_sampling_method": str,
     "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
-    "use_stratified_sampling_for_each_interval": bool,
+    "use_stratified_sampling_for_each_interval": bool, "antithetic_mapping": str,
 }
 assert set(_TYPES) == set(RenderParams.names())
 

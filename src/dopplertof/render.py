@@ -53,14 +53,15 @@ class RenderSetup:
     stratify: bool
     shutter_open: float
     film_sampler: object
-    near_clip: float
-    camera_forward: object
+    camera: object  #: integrators.camera.Camera
+    projection: object  #: PinholeProjection when pairs use the motion mapping, else None
     hide_emitters: bool
 
 
 def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
     import drjit as dr
 
+    from .integrators.camera import Camera, PinholeProjection, is_pinhole
     from .integrators.dtof_path import FilmSampler, ModulationWeight
 
     sensor = scene.sensor
@@ -71,6 +72,13 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     forward = forward / np.linalg.norm(forward)
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
     weight = ModulationWeight(mi, mod)
+    projection = None
+    if params.antithetic_mapping == "motion":
+        if not is_pinhole(sensor):
+            raise ValueError(
+                "antithetic_mapping='motion' needs a pinhole perspective sensor, got "
+                f"{sensor.class_name()}")
+        projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
     return RenderSetup(
         scene=scene, params=params, modulation=mod, weight=weight,
         seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
@@ -80,7 +88,9 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
         group_size=K, groups_per_pixel=spp // K,
         stratify=params.use_stratified_sampling_for_each_interval,
         shutter_open=scene.shutter_open, film_sampler=FilmSampler(sensor.film()),
-        near_clip=near_clip, camera_forward=mi.Vector3f(*map(float, forward)),
+        camera=Camera(mi, sensor, scene.sensor_motion, near_clip,
+                      mi.Vector3f(*map(float, forward))),
+        projection=projection,
         hide_emitters=params.hide_emitters,
     )
 

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
 
+#: how an antithetic pair's partner is built (integrators/antithetic_map.py)
+ANTITHETIC_MAPPINGS = ("replay", "motion")
+
 #: accepted time_sampling_method names: the methods and ``auto`` (see :func:`auto_sampling`)
 METHOD_NAMES = METHODS + ("auto",)
 
@@ -84,9 +87,10 @@ def auto_sampling(hetero_frequency: float) -> dict:
     if n >= 1 and abs(h - n) <= 0.3:
         return dict(time_sampling_method="antithetic", antithetic_shift=0.5 / n,
                     path_correlation_depth=1 << 16, time_correlate_number=2,
-                    use_stratified_sampling_for_each_interval=True)
+                    use_stratified_sampling_for_each_interval=True,
+                    antithetic_mapping="replay")
     return dict(time_sampling_method="uniform", path_correlation_depth=0,
-                use_stratified_sampling_for_each_interval=True)
+                use_stratified_sampling_for_each_interval=True, antithetic_mapping="replay")
 
 
 def sobol_2d(mi, index, shift_x, shift_y):

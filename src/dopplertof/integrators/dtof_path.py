@@ -18,7 +18,9 @@ import drjit as dr
 from .. import sampling
 from ..modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation_by_index, wave
 from ..scene import lights
-from ..scene.bodies import BodyFrames, intersect, occluded, transformed_ray
+from ..scene.bodies import (BodyFrames, intersect, nearest_hit, occluded,
+                             surface_interaction)
+from .antithetic_map import PairedCameraRays
 
 
 class PassLayout:
@@ -105,6 +107,51 @@ class FilmSampler:
         e = math.erf(self.radius * s)
         return dr.erfinv(dr.clip((2.0 * u - 1.0) * e, -0.9999999, 0.9999999)) / s
 
+    def weight(self, mi, offset):
+        """The filter at ``offset`` (pixels, Vector2f) up to a constant: the density of
+        :meth:`offset`, zero outside the filter's support."""
+        r = self.radius if self.kind != "BoxFilter" else 0.5
+        inside = (dr.abs(offset.x) < r) & (dr.abs(offset.y) < r)
+        if self.kind == "BoxFilter":
+            value = mi.Float(1.0)
+        elif self.kind == "TentFilter":
+            value = (1.0 - dr.abs(offset.x) / r) * (1.0 - dr.abs(offset.y) / r)
+        else:
+            sigma = self.radius / 4.0
+            value = dr.exp(-(dr.square(offset.x) + dr.square(offset.y)) / (2.0 * sigma * sigma))
+        return dr.select(inside, value, 0.0)
+
+
+def _camera_rays(mi, setup, layout, pos, center, time, partner_fraction, u_aperture):
+    """Each lane's camera ray, its weight, the path length to its origin, its first hit
+    when already traced (else None), and whether the lane renders at all."""
+    if setup.projection is None:
+        ray, weight, offset = setup.camera.ray(pos, time, u_aperture)
+        return ray, weight, offset, None, mi.Bool(True)
+    # ---- Motion-compensated antithetic pairs ----
+    mod = setup.modulation
+    partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
+    primal = layout.index == 0
+    film_size = setup.scene.sensor.film().size()
+    pair = PairedCameraRays(
+        mi, setup.scene, setup.camera, setup.projection, setup.film_sampler, pos, center,
+        film_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
+        layout.index, u_aperture, (setup.shutter_open, setup.shutter_open + mod.exposure))
+    return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
+            pair.scale != 0.0)
+
+
+def _intersect(mi, static, frames, ray, active, depth, first_hit):
+    """The path's next surface interaction; the first one from ``first_hit`` when the
+    camera rays were traced before the loop (the loop's first query then skips)."""
+    if first_hit is None:
+        return intersect(mi, static, frames, ray, active)
+    pi, winner = nearest_hit(mi, static, frames, ray, active & (depth > 0), skip_idle=True)
+    first = depth == 0
+    pi = dr.select(first, first_hit[0], pi)
+    winner = dr.select(first, first_hit[1], winner)
+    return surface_interaction(mi, static, frames, ray, pi, winner, active)
+
 
 @dr.syntax
 def trace_pass(mi, setup, layout: PassLayout):
@@ -122,12 +169,15 @@ def trace_pass(mi, setup, layout: PassLayout):
     )
 
     # ---- Time of each lane ----
-    t_frac = sampling.time_fraction(
-        mi, streams, layout.group, layout.index, group_size=setup.group_size,
-        groups_per_pixel=setup.groups_per_pixel, method=setup.method,
-        antithetic_shift=setup.antithetic_shift, stratify=setup.stratify,
-        double=not mod.low_pass,
-    )
+    def exposure_fraction(index):
+        return sampling.time_fraction(
+            mi, streams, layout.group, index, group_size=setup.group_size,
+            groups_per_pixel=setup.groups_per_pixel, method=setup.method,
+            antithetic_shift=setup.antithetic_shift, stratify=setup.stratify,
+            double=not mod.low_pass,
+        )
+
+    t_frac = exposure_fraction(layout.index)
     t_rel = t_frac * weight.F(mod.exposure)  # since exposure start, float64 in full mode
     time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
 
@@ -138,18 +188,15 @@ def trace_pass(mi, setup, layout: PassLayout):
     px = mi.Float(layout.pixel % crop_size[0])
     py = mi.Float(layout.pixel // crop_size[0])
     u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
-    pos = mi.Point2f(
-        (px + 0.5 + setup.film_sampler.offset(mi, u_film.x) + crop_offset[0]) / film_size[0],
-        (py + 0.5 + setup.film_sampler.offset(mi, u_film.y) + crop_offset[1]) / film_size[1],
-    )
+    center = mi.Point2f((px + 0.5 + crop_offset[0]) / film_size[0],
+                        (py + 0.5 + crop_offset[1]) / film_size[1])
+    pos = center + mi.Vector2f(setup.film_sampler.offset(mi, u_film.x) / film_size[0],
+                               setup.film_sampler.offset(mi, u_film.y) / film_size[1])
     u_aperture = streams.get_2d(0, sampling.DIM_APERTURE)
-    ray, ray_weight = sensor.sample_ray(time, 0.5, pos, u_aperture)
-    # Path length from the lens point, not from the near clip plane.
-    camera_offset = setup.near_clip / dr.dot(ray.d, setup.camera_forward)
-    # A moving camera: the ray of the rest pose, moved to the lane's time.
-    ray = (transformed_ray(mi, scene.sensor_motion.relative(time)[0], ray, ray.maxt,
-                           normalize=True)
-           if scene.sensor_motion is not None else ray)
+    partner_fraction = (exposure_fraction(1 - layout.index)
+                        if setup.projection is not None else None)
+    ray, ray_weight, camera_offset, first_hit, active = _camera_rays(
+        mi, setup, layout, pos, center, time, partner_fraction, u_aperture)
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)
 
@@ -162,7 +209,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     beta = mi.Spectrum(ray_weight)  # path throughput
     length = weight.F(camera_offset)  # path length from the camera to the ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
-    active = mi.Bool(True)
+    # (active: whether the path goes on; set by the camera rays)
     prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
     prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
     prev_bsdf_delta = mi.Bool(True)  # whether that sample was a delta lobe
@@ -176,7 +223,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     show_direct_emitters = not setup.hide_emitters
     while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
         stage = depth + 1  # sampling stage of this hit's decisions
-        si = intersect(mi, static, frames, ray, active)
+        si = _intersect(mi, static, frames, ray, active, depth, first_hit)
         valid = active & si.is_valid()
         length_hit = length + weight.F(dr.select(valid, si.t, 0.0))
 

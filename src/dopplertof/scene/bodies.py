@@ -160,44 +160,92 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
     return pi, winner
 
 
-def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
-    """Nearest surface interaction (world space) of world rays at their lanes' times."""
+def _static_preliminary(mi, dr, static_scene, ray, active, skip_idle: bool):
+    """Preliminary hit in the static scene. ``skip_idle`` puts the query in a loop of one
+    iteration, so that SIMD packets without an active lane skip the Embree call (a
+    masked query still costs one per packet)."""
+    if not skip_idle:
+        return static_scene.ray_intersect_preliminary(ray, False, active)
+
+    def pending(done, pi):
+        return active & ~done
+
+    def query(done, pi):
+        return mi.Bool(True), static_scene.ray_intersect_preliminary(ray, False, active & ~done)
+
+    _, pi = dr.while_loop((mi.Bool(False), dr.zeros(mi.PreliminaryIntersection3f)), pending,
+                          query, label="dopplertof_static", max_iterations=1)
+    return pi
+
+
+def nearest_hit(mi, static_scene, frames: BodyFrames | None, ray, active,
+                skip_idle: bool = False):
+    """Nearest preliminary hit of world rays at their lanes' times, and which scene it is
+    in: body index k, or ``len(bodies)`` for the static scene. The hit parameter t is
+    the world ray's (affine maps keep ray parameters)."""
+    import drjit as dr
+
+    n = len(frames.bodies) if frames is not None else 0
+    pi = _static_preliminary(mi, dr, static_scene, ray, active, skip_idle)
+    # A default (zero) intersection has t = 0: only active lanes with a hit are valid.
+    pi.t = dr.select(active & (pi.t != 0.0), pi.t, dr.inf)
+    if n == 0:
+        return pi, mi.UInt32(0)
+    best_t = dr.select(pi.is_valid(), pi.t, dr.inf)
+    hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
+    return hits(mi, dr, frames, ray, active, pi, best_t)
+
+
+def body_transforms(mi, frames: BodyFrames | None, winner):
+    """Per lane, (to_local, to_world) of the scene ``winner`` names (identity: static)."""
+    import drjit as dr
+
+    n = len(frames.bodies) if frames is not None else 0
+    if n == 0:
+        identity = (None, [mi.Float(0.0)] * 3)
+        return identity, identity
+    won = [winner == k for k in range(n)]
+    return (select_transform(mi, dr, won, frames.to_local),
+            select_transform(mi, dr, won, frames.to_world))
+
+
+def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, winner, active):
+    """The world-space surface interaction of a preliminary hit from :func:`nearest_hit`."""
     import drjit as dr
 
     if frames is None or not frames.bodies:
-        return static_scene.ray_intersect(ray, mi.RayFlags.All, False, active)
-
-    # ---- Cheap preliminary hits: static scene, then the bodies in their own frames ----
-    pi = static_scene.ray_intersect_preliminary(ray, False, active)
-    best_t = dr.select(pi.is_valid(), pi.t, dr.inf)
+        return pi.compute_surface_interaction(ray, mi.RayFlags.All, active)
     n = len(frames.bodies)
-    hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
-    pi, winner = hits(mi, dr, frames, ray, active, pi, best_t)
-    won = [winner == k for k in range(n)]
-    to_local = select_transform(mi, dr, won, frames.to_local)
+    to_local, to_world = body_transforms(mi, frames, winner)
     hit_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
     si = pi.compute_surface_interaction(hit_ray, mi.RayFlags.All, active)
 
     # ---- Back to world space (identity for static hits) ----
-    to_world = select_transform(mi, dr, won, frames.to_world)
     on_body = winner < n
     p = vec3(mi, mi.Point3f, transform_point(to_world, si.p))
-    n = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.n)))
+    nrm = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.n)))
     sn = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
     ss = vec3(mi, mi.Vector3f, transform_vector(to_world, si.sh_frame.s))
     ss = dr.normalize(ss - sn * dr.dot(ss, sn))  # Gram-Schmidt: exact frames under shear too
     frame = mi.Frame3f(ss, dr.cross(sn, ss), sn)
     si.p = dr.select(on_body, p, si.p)
-    si.n = dr.select(on_body, n, si.n)
+    si.n = dr.select(on_body, nrm, si.n)
     si.sh_frame = dr.select(on_body, frame, si.sh_frame)
     si.dp_du = dr.select(on_body, vec3(mi, mi.Vector3f, transform_vector(to_world, si.dp_du)),
                          si.dp_du)
     si.dp_dv = dr.select(on_body, vec3(mi, mi.Vector3f, transform_vector(to_world, si.dp_dv)),
                          si.dp_dv)
-    # The hit parameter t is the same in both frames (affine maps keep ray parameters);
-    # the incident direction is recomputed from the world ray.
+    # The incident direction is recomputed from the world ray.
     si.wi = dr.select(si.is_valid(), si.to_local(-ray.d), si.wi)
     return si
+
+
+def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
+    """Nearest surface interaction (world space) of world rays at their lanes' times."""
+    if frames is None or not frames.bodies:
+        return static_scene.ray_intersect(ray, mi.RayFlags.All, False, active)
+    pi, winner = nearest_hit(mi, static_scene, frames, ray, active)
+    return surface_interaction(mi, static_scene, frames, ray, pi, winner, active)
 
 
 def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):

@@ -1,0 +1,110 @@
+"""Camera rays at a lane's time, and (pinhole cameras) the way back: world point to film.
+
+Rays start at the lens point of the sensor's pose at the lane's time (a moving camera
+is its rest pose moved by its motion). Path lengths are measured from the lens point,
+not from the near clip plane where Mitsuba's perspective rays start.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene.bodies import transformed_ray
+from ..scene.motion import transform_point, transform_vector
+
+#: the sensor plugin whose rays all leave one point (the pinhole)
+PINHOLE_CLASS = "PerspectiveCamera"
+
+
+def is_pinhole(sensor) -> bool:
+    return sensor.class_name() == PINHOLE_CLASS
+
+
+class Camera:
+    """Camera rays of one sensor, possibly moving (``motion``: a scene Motion or None)."""
+
+    def __init__(self, mi, sensor, motion, near_clip: float, forward):
+        self.mi = mi
+        self.sensor = sensor
+        self.motion = motion
+        self.near_clip = near_clip
+        self.forward = forward  # mi.Vector3f, rest pose
+
+    def ray(self, pos, time, u_aperture):
+        """World ray through normalized film position ``pos`` at absolute ``time``,
+        its importance weight, and the path length from the lens point to its origin."""
+        import drjit as dr
+
+        ray, weight = self.sensor.sample_ray(time, 0.5, pos, u_aperture)
+        offset = self.near_clip / dr.dot(ray.d, self.forward)
+        if self.motion is not None:  # the ray of the rest pose, moved to the lane's time
+            ray = transformed_ray(self.mi, self.motion.relative(time)[0], ray, ray.maxt,
+                                  normalize=True)
+        return ray, weight, offset
+
+
+class PinholeProjection:
+    """World point at a time -> normalized film position, for a pinhole perspective sensor.
+
+    The film map is fitted to the sensor's own rays (so that it follows Mitsuba's fov,
+    aspect and crop conventions): in camera coordinates a ray through film position
+    (x, y) has direction proportional to ((x - b_x) / a_x, (y - b_y) / a_y, 1).
+    """
+
+    PROBES = ((0.5, 0.5), (0.9, 0.5), (0.5, 0.9), (0.2, 0.3))
+
+    def __init__(self, mi, sensor, motion, near_clip: float):
+        if not is_pinhole(sensor):
+            raise ValueError(f"sensor {sensor.class_name()} is not a pinhole perspective camera")
+        self.mi = mi
+        self.motion = motion
+        self.near_clip = near_clip
+        to_world = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
+        to_camera = np.linalg.inv(to_world)
+        pos = mi.Point2f([p[0] for p in self.PROBES], [p[1] for p in self.PROBES])
+        ray, _ = sensor.sample_ray(mi.Float(0.0), 0.5, pos, mi.Point2f(0.5, 0.5))
+        d = to_camera[:3, :3] @ np.array(ray.d, dtype=np.float64).reshape(3, -1)
+        slope = d[:2] / d[2]
+        film = np.array(self.PROBES, dtype=np.float64).T
+        a = (film[:, 1:3].diagonal() - film[:, 0]) / (slope[:, 1:3].diagonal() - slope[:, 0])
+        b = film[:, 0] - a * slope[:, 0]
+        if not np.allclose(a * slope[:, 3] + b, film[:, 3], atol=1e-4):
+            raise ValueError("the sensor's rays do not follow a pinhole film map")
+        self.a, self.b = a.tolist(), b.tolist()
+        self.to_camera = [to_camera[i].tolist() for i in range(3)]
+        self.center = to_world[:3, 3].tolist()
+        f = to_world[:3, 2] / np.linalg.norm(to_world[:3, 2])
+        self.forward = f.tolist()
+
+    def _rest(self, v, time, point: bool):
+        """World coordinates at ``time`` -> world coordinates of the camera's rest pose."""
+        if self.motion is None:
+            return v
+        inverse = self.motion.relative(time)[1]
+        return transform_point(inverse, v) if point else transform_vector(inverse, v)
+
+    def film_position(self, p, time):
+        """Normalized film position of world point ``p`` (list of 3) at ``time``, and
+        whether the point lies in front of the near clip plane."""
+        mi = self.mi
+        p = self._rest(p, time, True)
+        q = [sum(self.to_camera[i][k] * p[k] for k in range(3)) + self.to_camera[i][3]
+             for i in range(3)]
+        in_front = q[2] > self.near_clip
+        z = mi.Float(q[2])
+        return mi.Point2f(self.a[0] * q[0] / z + self.b[0],
+                          self.a[1] * q[1] / z + self.b[1]), in_front
+
+    def film_density(self, p, n, area_scale, time):
+        """Film area per unit surface area at world point ``p`` with (unnormalized)
+        world normal ``n`` at ``time``, up to a constant: |n . v| / (f . v)^3, v from the
+        lens point to p, times ``area_scale`` (world area per reference area)."""
+        import drjit as dr
+
+        p = self._rest(p, time, True)
+        n = self._rest(n, time, False)
+        v = [p[i] - self.center[i] for i in range(3)]
+        along = sum(self.forward[i] * v[i] for i in range(3))
+        facing = dr.abs(sum(n[i] * v[i] for i in range(3)))
+        return dr.abs(area_scale) * facing / (along * along * along)
+
