@@ -60,8 +60,9 @@ def main():
     def render(h, method, depth, strat, n, seed, mapping=None):
         params = dict(hetero_frequency=h, time_sampling_method=method,
                       path_correlation_depth=depth,
-                      use_stratified_sampling_for_each_interval=strat,
-                      antithetic_mapping=mapping)
+                      use_stratified_sampling_for_each_interval=strat)
+        if mapping is not None:
+            params["antithetic_mapping"] = mapping
         t = time.perf_counter()
         img = dopplertof.render(scene, spp=n, seed=seed, params=params, progress=False)
         return img.astype(np.float64), time.perf_counter() - t

@@ -117,6 +117,57 @@ def test_film_positions_are_a_scrambled_02_sequence():
         assert sorted(cells) == list(range(64))
 
 
+def elementary_cells(x, y, n, cols, rows):
+    return sorted(np.floor(x * cols).astype(int) * rows + np.floor(y * rows).astype(int))
+
+
+@pytest.mark.parametrize("depth", [0, 2])
+def test_first_hit_decisions_are_owen_scrambled_02_nets(depth):
+    """A pixel's 64 groups (64 x 2 samples): each first-hit decision set is a (0,6,2)-net
+    (its index shuffle and value scramble keep aligned blocks), shared within a group
+    when stage 1 is, and paired with the other decision at random, not by index."""
+    import mitsuba as mi
+
+    G, K = 64, 2
+    group = np.repeat(np.arange(G), K)
+    index = np.tile(np.arange(K), G)
+    s = streams(np.full(G * K, 3), group, group * K + index, depth=depth)
+    pts = [s.first_hit_2d(d, mi.UInt32(group), mi.UInt32(index), G) for d in (0, 1)]
+    (x0, y0), (x1, y1) = [(np.asarray(p.x), np.asarray(p.y)) for p in pts]
+    for x, y in ((x0, y0), (x1, y1)):
+        assert x.min() >= 0 and x.max() < 1 and y.min() >= 0 and y.max() < 1
+        for i in range(K):  # the samples of one index in the group: one net
+            xi, yi = x[index == i], y[index == i]
+            for cols, rows in ((64, 1), (8, 8), (1, 64), (16, 4)):
+                assert elementary_cells(xi, yi, 64, cols, rows) == list(range(64))
+        shared = np.allclose(x[index == 0], x[index == 1])
+        assert shared == (depth >= 2)
+    assert abs(np.corrcoef(x0, x1)[0, 1]) < 0.3  # decisions paired at random
+    other = streams(np.full(G * K, 3), group, group * K + index, seed=8, depth=depth)
+    assert not np.allclose(np.asarray(other.first_hit_2d(0, mi.UInt32(group),
+                                                         mi.UInt32(index), G).x), x0)
+
+
+def test_time_and_film_form_a_joint_sequence():
+    """Antithetic pairs with a shared camera ray: (film x, film y, time) of a pixel's
+    64 groups stratify film and time jointly (every (film x, time) cell of 8 x 8)."""
+    import mitsuba as mi
+
+    G = 64
+    group = np.arange(G)
+    s = streams(np.full(G, 5), group, group * 2, depth=1)
+    film = s.film_2d(mi.UInt32(group), mi.UInt32(np.zeros(G, int)), G)
+    t = np.asarray(sampling.time_fraction(
+        mi, s, mi.UInt32(group), mi.UInt32(np.zeros(G, int)), group_size=2,
+        groups_per_pixel=G, method=mi.UInt32(2), antithetic_shift=0.5, stratify=True,
+        double=False))
+    x = np.asarray(film.x)
+    # (1,3)-sequence: the (x, t) projection holds every 8 x 8 cell at most twice, and the
+    # cells of area 2/64 exactly twice
+    assert elementary_cells(x, t, 64, 4, 8) == sorted(list(range(32)) * 2)
+    assert sorted(np.floor(t * 64).astype(int)) == list(range(64))
+
+
 def test_auto_sampling_rule():
     auto = sampling.auto_sampling
     assert auto(1.0)["time_sampling_method"] == "antithetic"

@@ -24,7 +24,7 @@ METHOD_NAMES = METHODS + ("auto",)
 
 # ---- Dimension layout -------------------------------------------------------
 DIM_TIME = 0  #: the time sample
-DIM_STRATUM_ROTATION = 1  #: random rotation of the time strata across groups
+# (dimension 1 is free: full time stratification uses Sobol's third dimension)
 # (dimensions 2 and 3 are free: film positions come from CorrelatedStreams.film_2d)
 DIM_APERTURE = 4  #: lens position (2 numbers)
 DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here
@@ -93,21 +93,63 @@ def auto_sampling(hetero_frequency: float) -> dict:
                 use_stratified_sampling_for_each_interval=True, antithetic_mapping="replay")
 
 
+def _sobol_directions(m_initial, taps):
+    """The 32 direction numbers of one Sobol dimension: initial m_1..m_s and the
+    recurrence m_k = XOR over taps j of 2^j m_{k-j} (the primitive polynomial's terms,
+    including x^s), as 32-bit integers with the most significant bit first."""
+    m = list(m_initial)
+    s = len(m)
+    for k in range(s, 32):
+        value = m[k - s]
+        for j in taps:
+            value ^= m[k - j] << j
+        m.append(value)
+    return tuple(m[k] << (31 - k) for k in range(32))
+
+
+#: Sobol's 2nd dimension (polynomial x + 1) and 3rd (x^2 + x + 1, m = 1, 3)
+_SOBOL_DIRECTIONS = {1: _sobol_directions([1], [1]), 2: _sobol_directions([1, 3], [1, 2])}
+
+
+def sobol_component(mi, index, dim: int, shift):
+    """Component ``dim`` (0, 1, 2) of point ``index`` of Sobol's sequence, digitally
+    shifted by ``shift``, as a 32-bit integer. Every component alone is a (0,1)-sequence
+    (aligned runs of 2^k points stratify [0,1) in 2^k intervals), the first two form
+    a (0,2)-sequence and the three a (1,3)-sequence."""
+    import drjit as dr
+
+    if dim == 0:
+        return dr.brev(index) ^ shift
+    y = mi.UInt32(0)
+    for bit, v in enumerate(_SOBOL_DIRECTIONS[dim]):
+        y ^= dr.select(((index >> bit) & 1) != 0, mi.UInt32(v), 0)
+    return y ^ shift
+
+
+def _reverse_permute(mi, x, seed):
+    """A nested uniform (Owen) scramble of 32-bit values: a hash permutation in which
+    each bit depends only on the bits above it (Laine-Karras style, applied to the
+    bit-reversed value), so that every aligned run of a (t,s)-sequence stays one."""
+    import drjit as dr
+
+    x = dr.brev(x) + seed
+    x ^= x * 0x6C50B47C
+    x ^= x * 0xB82F1E52
+    x ^= x * 0xC7AFE638
+    x ^= x * 0x8D22F6E6
+    return dr.brev(x)
+
+
+def _unit(mi, bits):
+    return mi.Float(bits >> 8) * (1.0 / (1 << 24))  # 24 bits: exact and below 1
+
+
 def sobol_2d(mi, index, shift_x, shift_y):
     """Point ``index`` of the (0,2)-sequence in base 2 (Sobol's first two dimensions)
     with a random digital shift: every point is uniform on [0,1)^2, and aligned runs of
     2^k points stratify the square in every elementary interval of area 2^-k."""
-    import drjit as dr
-
-    x = dr.brev(index) ^ shift_x
-    y = mi.UInt32(0)
-    v = 1 << 31
-    for bit in range(32):
-        y ^= dr.select(((index >> bit) & 1) != 0, mi.UInt32(v), 0)
-        v ^= v >> 1
-    y ^= shift_y
-    # 24 bits: exact in float32 and strictly below 1
-    return mi.Point2f(mi.Float(x >> 8), mi.Float(y >> 8)) * (1.0 / (1 << 24))
+    return mi.Point2f(_unit(mi, sobol_component(mi, index, 0, shift_x)),
+                      _unit(mi, sobol_component(mi, index, 1, shift_y)))
 
 
 def bounce_dim(depth, offset: int):
@@ -139,19 +181,56 @@ class CorrelatedStreams:
     def get_1d(self, stage, dim):
         return hashed_uniform(self.mi, self.key(stage), self.mi.UInt32(dim))
 
-    def film_2d(self, group, index_in_group, groups_per_pixel: int):
-        """Film position: a scrambled (0,2)-sequence over the pixel's groups when the
-        camera ray is shared (stage 0 correlated); else over the pixel's samples, taken
-        index-major (i * G + g) so that the sequence's leading digits, which set the coarse
-        film position, follow the group and not the index in the group, which the
-        stratified method ties to the time."""
+    def sequence_index(self, group, index_in_group, groups_per_pixel: int):
+        """A sample's index in the pixel's low-discrepancy sequence: its group when the
+        camera ray is shared (stage 0 correlated); else its index taken index-major
+        (i * G + g), so that the sequence's leading digits, which set the coarse
+        position, follow the group and not the index in the group, which the stratified
+        method ties to the time."""
         import drjit as dr
 
         shared = self.correlation_depth > 0
-        index = dr.select(shared, group, index_in_group * groups_per_pixel + group)
-        shift_x, shift_y = self.mi.sample_tea_32(self.base, 0x5F0B0,
-                                                 _KEY_ROUNDS)
+        return dr.select(shared, group, index_in_group * groups_per_pixel + group)
+
+    def film_2d(self, group, index_in_group, groups_per_pixel: int):
+        """Film position: Sobol's first two dimensions (a scrambled (0,2)-sequence) at
+        the sample's sequence index."""
+        index = self.sequence_index(group, index_in_group, groups_per_pixel)
+        shift_x, shift_y = self.mi.sample_tea_32(self.base, 0x5F0B0, _KEY_ROUNDS)
         return sobol_2d(self.mi, index, shift_x, shift_y)
+
+    def time_sequence(self, index, double: bool):
+        """Sobol's third dimension at ``index``, Owen-scrambled per pixel: with the
+        film position of the same index, (film, time) is a (1,3)-sequence, so that a
+        pixel's samples stratify the film and the exposure jointly (what a silhouette
+        moving across the pixel needs)."""
+        mi = self.mi
+        seed, _ = mi.sample_tea_32(self.base, 0x71E3, _KEY_ROUNDS)
+        # Owen scrambling, not a digital shift: a shift keeps the points' fine digits in
+        # a fixed pattern, which aliases with a full waveform's 10^4-10^5 periods
+        bits = _reverse_permute(mi, sobol_component(mi, index, 2, 0), seed)
+        if not double:
+            return _unit(mi, bits)
+        # 32 bits, and the low-order bits filled at random (full-waveform phases)
+        low = hashed_uniform(mi, self.base ^ bits, mi.UInt32(DIM_TIME))
+        return (mi.Float64(bits) + mi.Float64(low)) * (1.0 / (1 << 32))
+
+    def first_hit_2d(self, dim: int, group, index_in_group, groups_per_pixel: int):
+        """The first surface hit's 2-D decision ``dim`` from the pixel's own
+        low-discrepancy set: Sobol's (0,2)-sequence at an index shuffled per dimension
+        (so that film, time and each decision are paired at random, not by index), its
+        values Owen-scrambled. The index is the group's when stage 1 is shared."""
+        import drjit as dr
+
+        mi = self.mi
+        index = dr.select(1 < self.correlation_depth, group,
+                          index_in_group * groups_per_pixel + group)
+        seed_index, seed_x = mi.sample_tea_32(self.base, 0xB0B0 + 2 * dim, _KEY_ROUNDS)
+        seed_y, _ = mi.sample_tea_32(self.base, 0xB0B1 + 2 * dim, _KEY_ROUNDS)
+        shuffled = _reverse_permute(mi, index, seed_index)
+        return mi.Point2f(
+            _unit(mi, _reverse_permute(mi, sobol_component(mi, shuffled, 0, 0), seed_x)),
+            _unit(mi, _reverse_permute(mi, sobol_component(mi, shuffled, 1, 0), seed_y)))
 
     def get_2d(self, stage, dim):
         key = self.key(stage)
@@ -177,22 +256,18 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
     K = group_size
 
     # ---- Primal numbers: one per group (antithetic) or per sample (others) ----
-    u_group = sample(streams.key_group, DIM_TIME, _NUMBER_ROUNDS)
-    u_own = sample(streams.key_own, DIM_TIME, _NUMBER_ROUNDS)
     is_antithetic = method >= 2
-    u = dr.select(is_antithetic, u_group, u_own)
-
-    # ---- Full time stratification across the groups of a pixel ----
     if stratify and groups_per_pixel > 1:
-        G = groups_per_pixel
-        # A random cyclic rotation of the strata, per pixel and sample index in
-        # the group (so that the K streams of the stratified method are not
-        # aligned stratum by stratum); antithetic groups share index 0.
-        rot_index = dr.select(is_antithetic, 0, index)
-        rot_key, _ = mi.sample_tea_32(streams.base, rot_index * 2 + 0x7FFFFFFF, _KEY_ROUNDS)
-        rotation = mi.UInt32(mi.sample_tea_float32(rot_key, DIM_STRATUM_ROTATION, _NUMBER_ROUNDS) * G)
-        stratum = (group + dr.minimum(rotation, G - 1)) % G
-        u = (Float(stratum) + u) * (1.0 / G)
+        # Full time stratification across the groups of a pixel: the pixel's Sobol
+        # sequence, per group for antithetic pairs (the group's film index when the
+        # camera ray is shared), else per sample, index-major (the film index when it
+        # is not).
+        u = streams.time_sequence(
+            dr.select(is_antithetic, group, index * groups_per_pixel + group), double)
+    else:
+        u = dr.select(is_antithetic,
+                      sample(streams.key_group, DIM_TIME, _NUMBER_ROUNDS),
+                      sample(streams.key_own, DIM_TIME, _NUMBER_ROUNDS))
 
     # ---- The four methods ----
     fi = Float(index)

@@ -204,6 +204,10 @@ def trace_pass(mi, setup, layout: PassLayout):
     frames = (BodyFrames(mi, scene.bodies, time, setup.shutter_open,
                          setup.shutter_open + mod.exposure) if scene.bodies else None)
 
+    # The first hit's light and BSDF samples from the pixel's low-discrepancy set
+    u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
+    u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
+
     # ---- Loop state ----
     L = mi.Spectrum(0.0)  # accumulated modulated measurement
     beta = mi.Spectrum(ray_weight)  # path throughput
@@ -243,7 +247,8 @@ def trace_pass(mi, setup, layout: PassLayout):
 
         # ---- Next-event estimation ----
         active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-        u_em = streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER))
+        u_em = dr.select(depth == 0, u_em_first,
+                         streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)))
         ds, em_weight = (
             lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
             if light_frames is not None
@@ -255,7 +260,8 @@ def trace_pass(mi, setup, layout: PassLayout):
 
         # ---- BSDF evaluation and sampling ----
         u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
-        u_dir = streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR))
+        u_dir = dr.select(depth == 0, u_dir_first,
+                          streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)))
         bsdf_val, bsdf_pdf, bs, bsdf_weight = bsdf.eval_pdf_sample(
             bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
 
