@@ -61,7 +61,8 @@ class _Hit:
     def __init__(self, mi, static, frames, ray, active, skip_idle=False):
         self.mi = mi
         self.ray = ray
-        self.pi, self.winner = nearest_hit(mi, static, frames, ray, active, skip_idle)
+        self.pi, self.winner = nearest_hit(mi, static, frames, ray, active, skip_idle,
+                                           coherent=True)
         self.valid = active & self.pi.is_valid()
         to_local, _ = body_transforms(mi, frames, self.winner)
         self.local_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # t is kept

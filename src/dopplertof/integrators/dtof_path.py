@@ -144,8 +144,8 @@ def _camera_rays(mi, setup, layout, pos, center, time, partner_fraction, u_apert
 def _intersect(mi, static, frames, ray, active, depth, first_hit):
     """The path's next surface interaction; the first one from ``first_hit`` when the
     camera rays were traced before the loop (the loop's first query then skips)."""
-    if first_hit is None:
-        return intersect(mi, static, frames, ray, active)
+    if first_hit is None:  # camera rays are coherent, as in Mitsuba's path tracer
+        return intersect(mi, static, frames, ray, active, coherent=depth == 0)
     pi, winner = nearest_hit(mi, static, frames, ray, active & (depth > 0), skip_idle=True)
     first = depth == 0
     pi = dr.select(first, first_hit[0], pi)

@@ -108,14 +108,14 @@ def transformed_ray(mi, T, ray, maxt, normalize: bool = False):
                     dr.normalize(d) if normalize else d, maxt, ray.time, ray.wavelengths)
 
 
-def _body_hits_each(mi, dr, frames, ray, active, pi, best_t):
+def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):
     """Test every body in turn (one body, or too many for the dispatch below)."""
     winner = mi.UInt32(len(frames.bodies))
     for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes, frames.to_local)):
         box_hit, box_near, box_far = box.ray_intersect(ray)
         test = active & box_hit & (box_near < best_t) & (box_far >= 0)
         pib = body.scene.ray_intersect_preliminary(
-            transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), False, test)
+            transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), coherent, test)
         closer = test & pib.is_valid() & (pib.t < best_t)
         pi = dr.select(closer, pib, pi)
         best_t = dr.select(closer, pib.t, best_t)
@@ -123,14 +123,15 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t):
     return pi, winner
 
 
-def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
+def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t, coherent):
     """Visit the bodies whose swept boxes the ray enters, nearest box first, until the
     next box starts beyond the nearest hit. Each visit is one symbolic call that runs only
     the body scenes present in a SIMD packet, so the cost follows what rays meet rather
     than the number of bodies."""
     n = len(frames.bodies)
     entry = _box_distances(dr, frames, ray, active, dr.inf)
-    targets = [lambda r, active, body=body: body.scene.ray_intersect_preliminary(r, False, active)
+    targets = [lambda r, coherent, active, body=body:
+               body.scene.ray_intersect_preliminary(r, coherent, active)
                for body in frames.bodies]
 
     def nearest_untested(tested):
@@ -150,7 +151,7 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
         tested = dr.select(go, tested | (mi.UInt32(1) << k), tested)
         local = transformed_ray(mi, _transform_by_index(mi, dr, k, frames.to_local), ray,
                            dr.minimum(ray.maxt, best_t))
-        pib = dr.switch(k, targets, local, active=go)
+        pib = dr.switch(k, targets, local, coherent, active=go)
         closer = go & pib.is_valid() & (pib.t < best_t)
         return (tested, dr.select(closer, k, winner), dr.select(closer, pib, pi),
                 dr.select(closer, pib.t, best_t))
@@ -160,18 +161,19 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t):
     return pi, winner
 
 
-def _static_preliminary(mi, dr, static_scene, ray, active, skip_idle: bool):
+def _static_preliminary(mi, dr, static_scene, ray, active, skip_idle: bool, coherent):
     """Preliminary hit in the static scene. ``skip_idle`` puts the query in a loop of one
     iteration, so that SIMD packets without an active lane skip the Embree call (a
     masked query still costs one per packet)."""
     if not skip_idle:
-        return static_scene.ray_intersect_preliminary(ray, False, active)
+        return static_scene.ray_intersect_preliminary(ray, coherent, active)
 
     def pending(done, pi):
         return active & ~done
 
     def query(done, pi):
-        return mi.Bool(True), static_scene.ray_intersect_preliminary(ray, False, active & ~done)
+        return mi.Bool(True), static_scene.ray_intersect_preliminary(ray, coherent,
+                                                                      active & ~done)
 
     _, pi = dr.while_loop((mi.Bool(False), dr.zeros(mi.PreliminaryIntersection3f)), pending,
                           query, label="dopplertof_static", max_iterations=1)
@@ -179,21 +181,22 @@ def _static_preliminary(mi, dr, static_scene, ray, active, skip_idle: bool):
 
 
 def nearest_hit(mi, static_scene, frames: BodyFrames | None, ray, active,
-                skip_idle: bool = False):
+                skip_idle: bool = False, coherent=False):
     """Nearest preliminary hit of world rays at their lanes' times, and which scene it is
     in: body index k, or ``len(bodies)`` for the static scene. The hit parameter t is
-    the world ray's (affine maps keep ray parameters)."""
+    the world ray's (affine maps keep ray parameters). ``coherent`` (a mask) tells
+    Embree that the rays are coherent (camera rays)."""
     import drjit as dr
 
     n = len(frames.bodies) if frames is not None else 0
-    pi = _static_preliminary(mi, dr, static_scene, ray, active, skip_idle)
+    pi = _static_preliminary(mi, dr, static_scene, ray, active, skip_idle, coherent)
     # A default (zero) intersection has t = 0: only active lanes with a hit are valid.
     pi.t = dr.select(active & (pi.t != 0.0), pi.t, dr.inf)
     if n == 0:
         return pi, mi.UInt32(0)
     best_t = dr.select(pi.is_valid(), pi.t, dr.inf)
     hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
-    return hits(mi, dr, frames, ray, active, pi, best_t)
+    return hits(mi, dr, frames, ray, active, pi, best_t, mi.Bool(coherent))
 
 
 def body_transforms(mi, frames: BodyFrames | None, winner):
@@ -240,11 +243,11 @@ def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, wi
     return si
 
 
-def intersect(mi, static_scene, frames: BodyFrames | None, ray, active):
+def intersect(mi, static_scene, frames: BodyFrames | None, ray, active, coherent=False):
     """Nearest surface interaction (world space) of world rays at their lanes' times."""
     if frames is None or not frames.bodies:
-        return static_scene.ray_intersect(ray, mi.RayFlags.All, False, active)
-    pi, winner = nearest_hit(mi, static_scene, frames, ray, active)
+        return static_scene.ray_intersect(ray, mi.RayFlags.All, coherent, active)
+    pi, winner = nearest_hit(mi, static_scene, frames, ray, active, coherent=coherent)
     return surface_interaction(mi, static_scene, frames, ray, pi, winner, active)
 
 
