@@ -173,7 +173,8 @@ def test_auto_sampling_rule():
     assert auto(1.0)["time_sampling_method"] == "antithetic"
     assert auto(1.0)["antithetic_shift"] == 0.5 and auto(2.0)["antithetic_shift"] == 0.25
     for h in (0.0, 0.3, 0.5, 1.5):
-        assert auto(h) == dict(time_sampling_method="uniform", path_correlation_depth=0,
+        assert auto(h) == dict(time_sampling_method="stratified", path_correlation_depth=0,
+                               time_correlate_number=2,
                                use_stratified_sampling_for_each_interval=True,
                                antithetic_mapping="replay")
     assert auto(1.0)["antithetic_mapping"] == "replay"  # measured: motion does not pay

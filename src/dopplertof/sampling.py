@@ -76,11 +76,12 @@ def auto_sampling(hetero_frequency: float) -> dict:
     Antithetic pairs with the whole path shared cancel a beat of the heterodyne signal
     when the pair is half a beat apart: near an integer number n >= 1 of beats per
     exposure the shift 1/(2n) (exactly 1/2 at n = 1) makes the pair's time signals
-    cancel (supplementary section 3; the published Cornell box: RMSE ratio 27-28 at
-    h = 1; 7.9 against 4.5 for the alternative at h = 0.75, hence the window of 0.3).
+    cancel (supplementary section 3; the published Cornell box: RMSE ratio about 32 at
+    h = 1; 9.1 against 5.0 for the alternative at h = 0.75, hence the window of 0.3).
     Far from an integer, and at h = 0 where a pair only duplicates a path (a loss of
-    sqrt 2), correlated pairs do not pay: independent paths with the time strata spread
-    over a pixel's groups do better (ratio 3 at h = 0.5, 1 at h = 0).
+    sqrt 2), correlated pairs do not pay: independent paths, each pair's two times in
+    the two halves of the exposure and the strata spread over a pixel's groups, do
+    better (ratio 4.6 at h = 0.5, 3.1 at h = 0.25, 1.0 at h = 0; docs/benchmarks.md).
     """
     h = abs(hetero_frequency)
     n = round(h)
@@ -89,8 +90,9 @@ def auto_sampling(hetero_frequency: float) -> dict:
                     path_correlation_depth=1 << 16, time_correlate_number=2,
                     use_stratified_sampling_for_each_interval=True,
                     antithetic_mapping="replay")
-    return dict(time_sampling_method="uniform", path_correlation_depth=0,
-                use_stratified_sampling_for_each_interval=True, antithetic_mapping="replay")
+    return dict(time_sampling_method="stratified", path_correlation_depth=0,
+                time_correlate_number=2, use_stratified_sampling_for_each_interval=True,
+                antithetic_mapping="replay")
 
 
 def _sobol_directions(m_initial, taps):
