@@ -72,6 +72,9 @@ def main():
         ref, t_ref = render(h, "antithetic", FULL, True, spp * args.ref_factor, 1_000_003)
         print(f"\nhetero_frequency={h:g}: reference in {t_ref:.0f} s, "
               f"rms signal {np.sqrt(np.mean(ref ** 2)):.3e}", flush=True)
+        for strat in (False, True):  # compile every kernel first: times are render times
+            render(h, "uniform", 0, strat, spp, 2)
+        render(h, "antithetic", FULL, True, spp, 2, mapping="motion")
         print(f"{'method':>18} {'depth':>5} {'strat':>5} {'RMSE':>10} {'seconds':>8}")
         for strat in (False, True):
             for method in METHODS:
