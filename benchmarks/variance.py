@@ -16,6 +16,7 @@ with its equal-time value, and last the two lines of the beyond-the-paper sampli
 
     .venv/bin/python benchmarks/variance.py            # 128x128, 1024 spp, ref x64
     .venv/bin/python benchmarks/variance.py --quick    # 64x64, 256 spp, ref x64
+    .venv/bin/python benchmarks/variance.py --quick --box-filter --hetero 1
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ def main():
     p.add_argument("--ref-factor", type=int, default=64, help="reference spp = factor x spp")
     p.add_argument("--hetero", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
     p.add_argument("--variant", default="llvm_ad_rgb")
+    p.add_argument("--box-filter", action="store_true",
+                   help="replace the scene's tent reconstruction filter by a box")
     args = p.parse_args()
     res = args.res or (64 if args.quick else 128)
     spp = args.spp or (256 if args.quick else 1024)
@@ -53,7 +56,14 @@ def main():
     import dopplertof
 
     dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(SCENE, {"resx": res, "resy": res})
+    if args.box_filter:
+        text = open(SCENE).read()
+        assert '<rfilter type="tent" />' in text
+        scene = dopplertof.load_string(text.replace('<rfilter type="tent" />',
+                                                    '<rfilter type="box" />'),
+                                       {"resx": res, "resy": res})
+    else:
+        scene = dopplertof.load_file(SCENE, {"resx": res, "resy": res})
     print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, "
           f"reference {spp * args.ref_factor} spp (antithetic, full correlation)", flush=True)
 

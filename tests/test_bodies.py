@@ -69,12 +69,20 @@ def test_dispatch_equals_testing_every_body(monkeypatch, depth):
     np.testing.assert_allclose(dispatched, each, rtol=1e-5, atol=1e-7)
 
 
-def test_swept_box_pretest_loses_nothing(monkeypatch):
+@pytest.mark.parametrize("dispatched", [True, False])
+def test_box_pretests_lose_nothing(monkeypatch, dispatched):
+    """The per-body box tests (local boxes at the lane's time when dispatched, swept
+    world boxes when every body is tested) only skip work: boxes as big as the world
+    give the same image."""
+    if not dispatched:
+        monkeypatch.setattr(bodies, "MAX_DISPATCHED_BODIES", 0)
     scene = dopplertof.load_string(scene_text(many_bodies()), depth=3)
     tight = dopplertof.render(scene, spp=8, seed=6)
     import mitsuba as mi
 
     huge = mi.ScalarBoundingBox3f(mi.ScalarPoint3f(-1e4), mi.ScalarPoint3f(1e4))
     monkeypatch.setattr(bodies.MovingBody, "swept_bbox", lambda self, t0, t1: huge)
+    monkeypatch.setattr(bodies.MovingBody, "local_bbox", lambda self: huge)
     loose = dopplertof.render(scene, spp=8, seed=6)
+    assert np.abs(tight).max() > 1e-3
     np.testing.assert_allclose(tight, loose, rtol=1e-5, atol=1e-7)

@@ -30,6 +30,16 @@ class MovingBody:
     names: tuple  #: ids of the shapes, for messages
     _swept: dict = field(default_factory=dict, repr=False)
 
+    def local_bbox(self):
+        """mi.ScalarBoundingBox3f of the body at its reference pose, padded a little
+        against rounding in the ray transform."""
+        import mitsuba as mi
+
+        bb = self.scene.bbox()
+        lo, hi = np.array(bb.min, dtype=np.float64), np.array(bb.max, dtype=np.float64)
+        pad = 1e-4 * np.linalg.norm(hi - lo) + 1e-6
+        return mi.ScalarBoundingBox3f(mi.ScalarPoint3f(*(lo - pad)), mi.ScalarPoint3f(*(hi + pad)))
+
     def swept_bbox(self, t_start: float, t_end: float):
         """mi.ScalarBoundingBox3f of the body over [t_start, t_end] (cached)."""
         import mitsuba as mi
@@ -53,6 +63,7 @@ class BodyFrames:
         self.mi = mi
         self.bodies = list(bodies)
         self.boxes = [b.swept_bbox(t_start, t_end) for b in self.bodies]
+        self.local_boxes = [b.local_bbox() for b in self.bodies]
         self.to_world, self.to_local = [], []
         for body in self.bodies:
             rel, inv = body.motion.relative(time)
@@ -84,11 +95,14 @@ def select_transform(mi, dr, masks, transforms):
 MAX_DISPATCHED_BODIES = 32
 
 
-def _box_distances(dr, frames, ray, active, upto):
-    """Per body, where the ray enters its swept box (inf: missed or beyond ``upto``)."""
+def _box_distances(mi, dr, frames, ray, active, upto):
+    """Per body, where the ray enters its bounding box (inf: missed or beyond ``upto``).
+    The box is the body's own, at its reference pose, met by the ray moved into the
+    body's frame at the lane's time: exact, and tighter than a box swept over the
+    exposure in world space (affine maps keep ray parameters, so distances compare)."""
     out = []
-    for box in frames.boxes:
-        hit, near, far = box.ray_intersect(ray)
+    for box, inv in zip(frames.local_boxes, frames.to_local):
+        hit, near, far = box.ray_intersect(transformed_ray(mi, inv, ray, ray.maxt))
         near = dr.maximum(near, 0.0)
         out.append(dr.select(active & hit & (far >= 0) & (near <= upto), near, dr.inf))
     return out
@@ -129,7 +143,7 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t, coherent):
     the body scenes present in a SIMD packet, so the cost follows what rays meet rather
     than the number of bodies."""
     n = len(frames.bodies)
-    entry = _box_distances(dr, frames, ray, active, dr.inf)
+    entry = _box_distances(mi, dr, frames, ray, active, dr.inf)
     targets = [lambda r, coherent, active, body=body:
                body.scene.ray_intersect_preliminary(r, coherent, active)
                for body in frames.bodies]
@@ -267,7 +281,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
         return blocked
 
     # ---- Dispatch: visit only the bodies whose swept boxes the segment crosses ----
-    entry = _box_distances(dr, frames, ray, active, ray.maxt)
+    entry = _box_distances(mi, dr, frames, ray, active, ray.maxt)
     pending = mi.UInt32(0)
     for k, d in enumerate(entry):
         pending |= dr.select(dr.isfinite(d), mi.UInt32(1 << k), 0)
