@@ -19,6 +19,7 @@ CONFIGS = [
     ("stratified", 1 << 16, False), ("antithetic", 0, True), ("antithetic", 1, True),
     ("antithetic", 2, True), ("antithetic", 1 << 16, True), ("antithetic", 1 << 16, False),
     ("antithetic_mirror", 2, True), ("antithetic_mirror", 1 << 16, True),
+    ("stratified", 0, True), ("auto", 1 << 16, True),
 ]
 
 
