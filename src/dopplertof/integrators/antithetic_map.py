@@ -60,15 +60,13 @@ class _Hit:
 
     def __init__(self, mi, static, frames, ray, active, skip_idle=False):
         self.mi = mi
-        self.ray = ray
         self.pi, self.winner = nearest_hit(mi, static, frames, ray, active, skip_idle,
                                            coherent=True)
         self.valid = active & self.pi.is_valid()
         to_local, _ = body_transforms(mi, frames, self.winner)
         self.local_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # t is kept
         self.local = [self.local_ray.o[i] + self.pi.t * self.local_ray.d[i] for i in range(3)]
-        world = [ray.o[i] + self.pi.t * ray.d[i] for i in range(3)]
-        self.distance = dr.norm(mi.Vector3f(*world) - ray.o) + 1e-3
+        self.distance = self.pi.t  # camera ray directions are unit vectors
 
     def same_point(self, other) -> object:
         """Whether ``other`` (a hit at another time) met this hit's point."""
@@ -147,4 +145,3 @@ class PairedCameraRays:
         scale_mapped = dr.select(primal, 2.0 * w, 2.0 * w * J * W1 / W0)
         scale_replay = dr.select(replay_is_mapped, dr.select(primal, 2.0, 0.0), 1.0)
         self.scale = dr.select(valid, scale_mapped, scale_replay)
-        self.mapped = valid
