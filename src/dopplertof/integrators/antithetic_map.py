@@ -41,18 +41,10 @@ from __future__ import annotations
 import drjit as dr
 
 from ..scene.bodies import BodyFrames, body_transforms, nearest_hit, transformed_ray
-from ..scene.motion import transform_normal, transform_point
+from ..scene.motion import determinant3, transform_normal, transform_point
 
 #: a mapped ray meets "the same point" within this fraction of the distance to it
 SAME_POINT_TOLERANCE = 1e-4
-
-
-def _det3(A):
-    if A is None:
-        return 1.0
-    return (A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1])
-            - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0])
-            + A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]))
 
 
 class _Hit:
@@ -129,7 +121,7 @@ class PairedCameraRays:
             p, to_world = _world(mi, frames[k], hit0.winner, hit0.local)
             to_local, _ = body_transforms(mi, frames[k], hit0.winner)
             density.append(projection.film_density(
-                p, transform_normal(to_local, n_local), _det3(to_world[0]), times[k]))
+                p, transform_normal(to_local, n_local), determinant3(to_world[0]), times[k]))
         J = density[1] / density[0]  # finite except at grazing angles (measure zero)
         W0, W1 = filter_weight(pos), filter_weight(pos1)
         w = W0 / (W0 + J * W1)  # balance heuristic: the same for x and T_m(x)

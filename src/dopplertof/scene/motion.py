@@ -100,11 +100,22 @@ def _transpose3(A):
     return [[A[j][i] for j in range(3)] for i in range(3)]
 
 
+def _cofactors0(A):
+    return (A[1][1] * A[2][2] - A[1][2] * A[2][1], A[1][2] * A[2][0] - A[1][0] * A[2][2],
+            A[1][0] * A[2][1] - A[1][1] * A[2][0])
+
+
+def determinant3(A):
+    """Determinant of a linear part (``None``: the identity), per lane for JIT arrays."""
+    if A is None:
+        return 1.0
+    c00, c01, c02 = _cofactors0(A)
+    return A[0][0] * c00 + A[0][1] * c01 + A[0][2] * c02
+
+
 def _inverse3(A):
     """Inverse by the adjugate (per lane for JIT arrays)."""
-    c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1]
-    c01 = A[1][2] * A[2][0] - A[1][0] * A[2][2]
-    c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0]
+    c00, c01, c02 = _cofactors0(A)
     inv_det = 1.0 / (A[0][0] * c00 + A[0][1] * c01 + A[0][2] * c02)
     return [
         [c00 * inv_det, (A[0][2] * A[2][1] - A[0][1] * A[2][2]) * inv_det,
