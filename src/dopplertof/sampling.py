@@ -174,6 +174,11 @@ class CorrelatedStreams:
         self.key_own, _ = mi.sample_tea_32(base, sample * 2 + 1, _KEY_ROUNDS)
         self.correlation_depth = correlation_depth
 
+    def _pixel_seed(self, tag: int):
+        """A per-pixel scramble seed: the pixel's key hashed with a tag (one cheap hash;
+        the TEA rounds went into the key)."""
+        return _mix32(self.base ^ ((tag * 0x9E3779B9) & 0xFFFFFFFF))
+
     def key(self, stage):
         """The stream key of a sampling stage (0: camera, k: k-th surface hit)."""
         import drjit as dr
@@ -198,7 +203,7 @@ class CorrelatedStreams:
         """Film position: Sobol's first two dimensions (a scrambled (0,2)-sequence) at
         the sample's sequence index."""
         index = self.sequence_index(group, index_in_group, groups_per_pixel)
-        shift_x, shift_y = self.mi.sample_tea_32(self.base, 0x5F0B0, _KEY_ROUNDS)
+        shift_x, shift_y = self._pixel_seed(1), self._pixel_seed(2)
         return sobol_2d(self.mi, index, shift_x, shift_y)
 
     def time_sequence(self, index, double: bool):
@@ -207,7 +212,7 @@ class CorrelatedStreams:
         pixel's samples stratify the film and the exposure jointly (what a silhouette
         moving across the pixel needs)."""
         mi = self.mi
-        seed, _ = mi.sample_tea_32(self.base, 0x71E3, _KEY_ROUNDS)
+        seed = self._pixel_seed(3)
         # Owen scrambling, not a digital shift: a shift keeps the points' fine digits in
         # a fixed pattern, which aliases with a full waveform's 10^4-10^5 periods
         bits = _reverse_permute(mi, sobol_component(mi, index, 2, 0), seed)
@@ -227,8 +232,7 @@ class CorrelatedStreams:
         mi = self.mi
         index = dr.select(1 < self.correlation_depth, group,
                           index_in_group * groups_per_pixel + group)
-        seed_index, seed_x = mi.sample_tea_32(self.base, 0xB0B0 + 2 * dim, _KEY_ROUNDS)
-        seed_y, _ = mi.sample_tea_32(self.base, 0xB0B1 + 2 * dim, _KEY_ROUNDS)
+        seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
         shuffled = _reverse_permute(mi, index, seed_index)
         return mi.Point2f(
             _unit(mi, _reverse_permute(mi, sobol_component(mi, shuffled, 0, 0), seed_x)),
