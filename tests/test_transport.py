@@ -7,7 +7,8 @@ import pytest
 
 import dopplertof
 
-SEEDS = range(8)
+SEEDS = range(16)
+SPP = 256
 
 
 def cornell(integrator):
@@ -17,7 +18,7 @@ def cornell(integrator):
     d["integrator"] = integrator
     d["sensor"]["film"]["width"] = d["sensor"]["film"]["height"] = 16
     d["sensor"]["film"]["rfilter"] = {"type": "box"}
-    d["sensor"]["sampler"] = {"type": "independent", "sample_count": 64}
+    d["sensor"]["sampler"] = {"type": "independent", "sample_count": SPP}
     return d
 
 
@@ -27,12 +28,13 @@ def regions(img):
                      lum[4:12, 4:12].mean()])
 
 
-@pytest.mark.parametrize("max_depth", [2, 6])
+@pytest.mark.parametrize("max_depth", [2, 3, 6])
 def test_matches_stock_path_tracer(max_depth):
     import mitsuba as mi
 
     # The directly visible light is hidden in both: its few, very bright edge pixels would
-    # dominate the noise of every region mean.
+    # dominate the noise of every region mean. Hidden emitters let camera rays through
+    # (Mitsuba 3.9): from depth 3 on, the ceiling seen through the light counts.
     stock_scene = mi.load_dict(cornell({"type": "path", "max_depth": max_depth,
                                         "hide_emitters": True}))
     ours_scene = dopplertof.load_dict(cornell({
@@ -40,13 +42,14 @@ def test_matches_stock_path_tracer(max_depth):
         "hide_emitters": True,
         "time_sampling_method": "uniform", "path_correlation_depth": 0}))
     weight = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)  # g1 * C(psi)
-    stock = np.array([regions(np.array(mi.render(stock_scene, spp=64, seed=s)))
+    stock = np.array([regions(np.array(mi.render(stock_scene, spp=SPP, seed=s)))
                       for s in SEEDS])
-    ours = np.array([regions(dopplertof.render(ours_scene, spp=64, seed=s)) / weight
+    ours = np.array([regions(dopplertof.render(ours_scene, spp=SPP, seed=s)) / weight
                      for s in SEEDS])
     se = np.sqrt(stock.var(axis=0, ddof=1) / len(SEEDS) + ours.var(axis=0, ddof=1) / len(SEEDS))
     assert np.all(se > 0)
     z = np.abs(stock.mean(axis=0) - ours.mean(axis=0)) / se
     assert np.all(z < 4.0), (stock.mean(axis=0), ours.mean(axis=0), se)
-    # and the agreement is tight in absolute terms
-    np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=0.03)
+    # and the agreement is tight in absolute terms (a 1% bias in how hidden emitters
+    # were handled once passed the earlier, 8 x 64 spp version of this test)
+    np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=0.005)

@@ -141,15 +141,15 @@ def _camera_rays(mi, setup, layout, pos, center, time, partner_fraction, u_apert
             pair.scale != 0.0)
 
 
-def _intersect(mi, static, frames, ray, active, depth, first_hit):
-    """The path's next surface interaction; the first one from ``first_hit`` when the
-    camera rays were traced before the loop (the loop's first query then skips)."""
+def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
+    """The path's next surface interaction; the first one (``fresh`` lanes) from
+    ``first_hit`` when the camera rays were traced before the loop (the loop's first
+    query then skips)."""
     if first_hit is None:  # camera rays are coherent, as in Mitsuba's path tracer
         return intersect(mi, static, frames, ray, active, coherent=depth == 0)
-    pi, winner = nearest_hit(mi, static, frames, ray, active & (depth > 0), skip_idle=True)
-    first = depth == 0
-    pi = dr.select(first, first_hit[0], pi)
-    winner = dr.select(first, first_hit[1], winner)
+    pi, winner = nearest_hit(mi, static, frames, ray, active & ~fresh, skip_idle=True)
+    pi = dr.select(fresh, first_hit[0], pi)
+    winner = dr.select(fresh, first_hit[1], winner)
     return surface_interaction(mi, static, frames, ray, pi, winner, active)
 
 
@@ -218,6 +218,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
     prev_bsdf_delta = mi.Bool(True)  # whether that sample was a delta lobe
     eta = mi.Float(1.0)  # relative index of refraction along the path
+    fresh = mi.Bool(True)  # first iteration: the camera ray's hit may be known already
     bsdf_ctx = mi.BSDFContext()
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
@@ -225,15 +226,20 @@ def trace_pass(mi, setup, layout: PassLayout):
     max_iterations = params.max_depth
     rr_depth = params.rr_depth
     show_direct_emitters = not setup.hide_emitters
+    hide_direct_emitters = setup.hide_emitters
     while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
         stage = depth + 1  # sampling stage of this hit's decisions
-        si = _intersect(mi, static, frames, ray, active, depth, first_hit)
+        si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
         valid = active & si.is_valid()
         length_hit = length + weight.F(dr.select(valid, si.t, 0.0))
 
         # ---- Emission from an emitter hit by the ray ----
         # (null emitter pointers evaluate to zero)
         emitter = si.emitter(static)
+        # hide_emitters, as in Mitsuba 3.9's path tracer: camera rays pass through
+        # emitters (the path goes on behind them, its length too)
+        through = (valid & (depth == 0) & (emitter != None)  # noqa: E711
+                   if hide_direct_emitters else mi.Bool(False))
         hit_emitter = valid & ((depth > 0) | show_direct_emitters)
         ds = mi.DirectionSample3f(static, si, prev_si)
         em_pdf = dr.select(prev_bsdf_delta, 0.0,
@@ -242,7 +248,7 @@ def trace_pass(mi, setup, layout: PassLayout):
         Le = emitter.eval(si, hit_emitter)
         L += dr.select(hit_emitter, beta * Le * mis_hit * weight(length_hit, t_rel), 0.0)
 
-        active_next = valid & (depth + 1 < max_depth)
+        active_next = valid & (depth + 1 < max_depth) & ~through
         bsdf = si.bsdf(ray)
 
         # ---- Next-event estimation ----
@@ -270,22 +276,24 @@ def trace_pass(mi, setup, layout: PassLayout):
         L += dr.select(active_em, beta * bsdf_val * em_weight * mis_em
                        * weight(length_em, t_rel), 0.0)
 
-        # ---- Continue the path ----
-        ray = si.spawn_ray(si.to_world(bs.wo))
-        beta *= bsdf_weight
-        eta *= bs.eta
-        prev_si = mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n)
-        prev_bsdf_pdf = bs.pdf
-        prev_bsdf_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+        # ---- Continue the path (straight on through a hidden emitter) ----
+        ray = dr.select(through, si.spawn_ray(ray.d), si.spawn_ray(si.to_world(bs.wo)))
+        bounced = ~through
+        beta[bounced] *= bsdf_weight
+        eta[bounced] *= bs.eta
+        prev_si[bounced] = mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n)
+        prev_bsdf_pdf[bounced] = bs.pdf
+        prev_bsdf_delta[bounced] = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
         length = length_hit
         u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
-        depth[valid] += 1
+        depth[valid & bounced] += 1
+        fresh = mi.Bool(False)
 
         # ---- Russian roulette ----
         beta_max = dr.max(beta)
         rr_prob = dr.minimum(beta_max * dr.square(eta), 0.95)
         rr_active = depth >= rr_depth
         beta[rr_active] *= dr.rcp(rr_prob)
-        active = active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)
+        active = (active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)) | through
 
     return L
