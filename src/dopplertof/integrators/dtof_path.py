@@ -95,34 +95,66 @@ class FilmSampler:
             )
         self.radius = float(rfilter.radius())
 
-    def offset(self, mi, u):
-        """Offset from the pixel centre, in pixels, for uniform numbers u in [0,1)."""
-        if self.kind == "BoxFilter":
-            return u - 0.5
-        if self.kind == "TentFilter":
-            return mi.warp.interval_to_tent(u) * self.radius
-        # Gaussian truncated at its radius (Mitsuba: radius = 4 sigma)
-        sigma = self.radius / 4.0
-        s = 1.0 / (sigma * math.sqrt(2.0))
-        e = math.erf(self.radius * s)
-        return dr.erfinv(dr.clip((2.0 * u - 1.0) * e, -0.9999999, 0.9999999)) / s
+    @property
+    def support(self) -> float:
+        """Half-width of the filter's support, in pixels."""
+        return 0.5 if self.kind == "BoxFilter" else self.radius
 
-    def weight(self, mi, offset):
+    # ---- One axis: the (separable) filter's CDF and its inverse on [-R, R] ----
+
+    def _gaussian_scale(self):
+        sigma = self.radius / 4.0  # Mitsuba: radius = 4 sigma
+        return 1.0 / (sigma * math.sqrt(2.0))
+
+    def _cdf(self, x):
+        R = self.support
+        x = dr.clip(x, -R, R)
+        if self.kind == "BoxFilter":
+            return (x + R) / (2.0 * R)
+        if self.kind == "TentFilter":
+            left = dr.square(x + R) / (2.0 * R * R)
+            return dr.select(x < 0.0, left, 1.0 - dr.square(R - x) / (2.0 * R * R))
+        s = self._gaussian_scale()
+        e = math.erf(R * s)
+        return (dr.erf(x * s) + e) / (2.0 * e)
+
+    def _inverse_cdf(self, v):
+        R = self.support
+        if self.kind == "BoxFilter":
+            return v * (2.0 * R) - R
+        if self.kind == "TentFilter":
+            return dr.select(v < 0.5, R * dr.sqrt(2.0 * v) - R,
+                             R - R * dr.sqrt(dr.maximum(2.0 * (1.0 - v), 0.0)))
+        s = self._gaussian_scale()
+        e = math.erf(R * s)
+        return dr.erfinv(dr.clip((2.0 * v - 1.0) * e, -0.9999999, 0.9999999)) / s
+
+    def offset(self, mi, u, lo, hi):
+        """Offset from the pixel centre, in pixels, for uniform numbers u in [0,1): the
+        filter sampled on the part of its support within [lo, hi] (the crop window seen
+        from the pixel centre), as Mitsuba's film, which splats only samples inside the
+        crop window and normalizes by their weights, averages over that part."""
+        a, b = self._cdf(lo), self._cdf(hi)
+        return self._inverse_cdf(a + u * (b - a))
+
+    def weight(self, mi, offset, lo, hi):
         """The filter at ``offset`` (pixels, Vector2f) up to a constant: the density of
-        :meth:`offset`, zero outside the filter's support."""
-        r = self.radius if self.kind != "BoxFilter" else 0.5
-        inside = (dr.abs(offset.x) < r) & (dr.abs(offset.y) < r)
+        :meth:`offset` for one pixel, zero outside the support or the window [lo, hi]."""
+        R = self.support
+        inside = ((dr.abs(offset.x) < R) & (dr.abs(offset.y) < R)
+                  & (offset.x >= lo.x) & (offset.x < hi.x)
+                  & (offset.y >= lo.y) & (offset.y < hi.y))
         if self.kind == "BoxFilter":
             value = mi.Float(1.0)
         elif self.kind == "TentFilter":
-            value = (1.0 - dr.abs(offset.x) / r) * (1.0 - dr.abs(offset.y) / r)
+            value = (1.0 - dr.abs(offset.x) / R) * (1.0 - dr.abs(offset.y) / R)
         else:
-            sigma = self.radius / 4.0
-            value = dr.exp(-(dr.square(offset.x) + dr.square(offset.y)) / (2.0 * sigma * sigma))
+            s = self._gaussian_scale()
+            value = dr.exp(-(dr.square(offset.x) + dr.square(offset.y)) * (s * s))
         return dr.select(inside, value, 0.0)
 
 
-def _camera_rays(mi, setup, layout, pos, center, time, partner_fraction, u_aperture):
+def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, u_aperture):
     """Each lane's camera ray, its weight, the path length to its origin, its first hit
     when already traced (else None), and whether the lane renders at all."""
     if setup.projection is None:
@@ -135,7 +167,7 @@ def _camera_rays(mi, setup, layout, pos, center, time, partner_fraction, u_apert
     film_size = setup.scene.sensor.film().size()
     pair = PairedCameraRays(
         mi, setup.scene, setup.camera, setup.projection, setup.film_sampler, pos, center,
-        film_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
+        window, film_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
         layout.index, u_aperture, (setup.shutter_open, setup.shutter_open + mod.exposure))
     return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
             pair.scale != 0.0)
@@ -190,13 +222,19 @@ def trace_pass(mi, setup, layout: PassLayout):
     u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
     center = mi.Point2f((px + 0.5 + crop_offset[0]) / film_size[0],
                         (py + 0.5 + crop_offset[1]) / film_size[1])
-    pos = center + mi.Vector2f(setup.film_sampler.offset(mi, u_film.x) / film_size[0],
-                               setup.film_sampler.offset(mi, u_film.y) / film_size[1])
+    # the crop window seen from the pixel centre (pixels)
+    window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
+    window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
+    sampler = setup.film_sampler
+    pos = center + mi.Vector2f(
+        sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / film_size[0],
+        sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / film_size[1])
     u_aperture = streams.get_2d(0, sampling.DIM_APERTURE)
     partner_fraction = (exposure_fraction(1 - layout.index)
                         if setup.projection is not None else None)
     ray, ray_weight, camera_offset, first_hit, active = _camera_rays(
-        mi, setup, layout, pos, center, time, partner_fraction, u_aperture)
+        mi, setup, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
+        u_aperture)
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)
 
