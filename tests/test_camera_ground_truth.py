@@ -127,3 +127,19 @@ def test_reconstruction_follows_the_distance_not_u_dot_d():
     assert np.all(np.isfinite(v))
     assert np.max(np.abs(v / gt - 1)) < 0.03
     assert np.max(np.abs(result.truth.velocity_point)) < 0.1 * speed  # u.d would say ~0
+
+
+def test_crop_window_is_the_same_part_of_the_frame():
+    """A crop window's ground truth is that window of the whole frame's: film positions
+    are normalized over the crop window, as Mitsuba's sensors take them."""
+    full_dict = tilted_sliding_plane(12.0, res=16)
+    crop_dict = tilted_sliding_plane(12.0, res=16)
+    crop_dict["sensor"]["film"].update(
+        {"crop_offset_x": 3, "crop_offset_y": 5, "crop_width": 9, "crop_height": 6})
+    full = ground_truth(dopplertof.load_dict(full_dict))
+    crop = ground_truth(dopplertof.load_dict(crop_dict))
+    assert crop.depth.shape == (6, 9)
+    window = (slice(5, 11), slice(3, 12))
+    np.testing.assert_allclose(crop.direction, full.direction[window], atol=1e-6)
+    np.testing.assert_allclose(crop.depth, full.depth[window], rtol=1e-5)
+    np.testing.assert_allclose(crop.velocity, full.velocity[window], rtol=1e-4, atol=1e-6)

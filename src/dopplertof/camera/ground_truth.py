@@ -68,6 +68,7 @@ def ground_truth(scene, params=None) -> GroundTruth:
     import drjit as dr
 
     from ..backend import require_variant
+    from ..integrators.camera import Camera
     from ..scene.bodies import BodyFrames, intersect
 
     mi = require_variant()
@@ -75,19 +76,14 @@ def ground_truth(scene, params=None) -> GroundTruth:
     sensor = scene.sensor
     film = sensor.film()
     width, height = (int(v) for v in film.crop_size())
-    offset = film.crop_offset()
-    size = film.size()
     index = dr.arange(mi.UInt32, width * height)
-    px = mi.Float(index % width)
-    py = mi.Float(index // width)
-    position = mi.Point2f((px + 0.5 + offset[0]) / size[0], (py + 0.5 + offset[1]) / size[1])
+    # pixel centres, normalized over the crop window as Mitsuba's sensors take them
+    position = mi.Point2f((mi.Float(index % width) + 0.5) / width,
+                          (mi.Float(index // width) + 0.5) / height)
     time = dr.full(mi.Float, mid, width * height)
-    ray, _ = sensor.sample_ray(time, 0.5, position, mi.Point2f(0.5, 0.5))
     camera = scene.sensor_motion
-    if camera is not None:  # the camera's pose at mid-exposure
-        from ..scene.bodies import transformed_ray
-
-        ray = transformed_ray(mi, camera.relative(time)[0], ray, ray.maxt, normalize=True)
+    # the camera's pose at mid-exposure
+    ray, _, _ = Camera(mi, sensor, camera).ray(position, time, mi.Point2f(0.5, 0.5))
     frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
 

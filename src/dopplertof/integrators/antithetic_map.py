@@ -79,19 +79,20 @@ class PairedCameraRays:
     ``t0``/``t1``: absolute times of the pair's primal (index 0) and partner (index 1);
     ``pos``: the pair's shared film position; ``center``: the pixel centre (normalized
     film coordinates); ``window``: the crop window seen from the centre (pixels, lo and
-    hi); ``film_size``: (width, height) in pixels.
+    hi); ``crop_size``: (width, height) of the crop window in pixels (film positions
+    are normalized over it).
     """
 
     def __init__(self, mi, scene, camera, projection, film_sampler, pos, center, window,
-                 film_size, t0, t1, index, u_aperture, exposure_interval):
+                 crop_size, t0, t1, index, u_aperture, exposure_interval):
         static, bodies = scene.static, scene.bodies
         frames = {0: BodyFrames(mi, bodies, t0, *exposure_interval) if bodies else None,
                   1: BodyFrames(mi, bodies, t1, *exposure_interval) if bodies else None}
         times = {0: t0, 1: t1}
 
         def filter_weight(p):
-            return film_sampler.weight(mi, mi.Vector2f((p.x - center.x) * film_size[0],
-                                                       (p.y - center.y) * film_size[1]),
+            return film_sampler.weight(mi, mi.Vector2f((p.x - center.x) * crop_size[0],
+                                                       (p.y - center.y) * crop_size[1]),
                                        *window)
 
         def hit_at(p, k, active, skip_idle=True):

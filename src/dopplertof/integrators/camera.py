@@ -23,20 +23,22 @@ def is_pinhole(sensor) -> bool:
 class Camera:
     """Camera rays of one sensor, possibly moving (``motion``: a scene Motion or None)."""
 
-    def __init__(self, mi, sensor, motion, near_clip: float, forward):
+    def __init__(self, mi, sensor, motion, near_clip: float = 0.0, forward=None):
         self.mi = mi
         self.sensor = sensor
         self.motion = motion
         self.near_clip = near_clip
-        self.forward = forward  # mi.Vector3f, rest pose
+        self.forward = forward  # mi.Vector3f, rest pose (None: no near clip offset)
 
     def ray(self, pos, time, u_aperture):
-        """World ray through normalized film position ``pos`` at absolute ``time``,
+        """World ray through film position ``pos`` (normalized over the crop window, as
+        Mitsuba's sensors take it) at absolute ``time``,
         its importance weight, and the path length from the lens point to its origin."""
         import drjit as dr
 
         ray, weight = self.sensor.sample_ray(time, 0.5, pos, u_aperture)
-        offset = self.near_clip / dr.dot(ray.d, self.forward)
+        offset = (self.near_clip / dr.dot(ray.d, self.forward) if self.forward is not None
+                  else self.mi.Float(0.0))
         if self.motion is not None:  # the ray of the rest pose, moved to the lane's time
             ray = transformed_ray(self.mi, self.motion.relative(time)[0], ray, ray.maxt,
                                   normalize=True)

@@ -164,10 +164,10 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
     mod = setup.modulation
     partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
     primal = layout.index == 0
-    film_size = setup.scene.sensor.film().size()
+    crop_size = setup.scene.sensor.film().crop_size()
     pair = PairedCameraRays(
         mi, setup.scene, setup.camera, setup.projection, setup.film_sampler, pos, center,
-        window, film_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
+        window, crop_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
         layout.index, u_aperture, (setup.shutter_open, setup.shutter_open + mod.exposure))
     return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
             pair.scale != 0.0)
@@ -214,21 +214,19 @@ def trace_pass(mi, setup, layout: PassLayout):
     time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
 
     # ---- Camera ray (stage 0) ----
+    # Film positions are normalized over the crop window, as Mitsuba's sensors take them.
     crop_size = film.crop_size()
-    crop_offset = film.crop_offset()
-    film_size = film.size()
     px = mi.Float(layout.pixel % crop_size[0])
     py = mi.Float(layout.pixel // crop_size[0])
     u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
-    center = mi.Point2f((px + 0.5 + crop_offset[0]) / film_size[0],
-                        (py + 0.5 + crop_offset[1]) / film_size[1])
+    center = mi.Point2f((px + 0.5) / crop_size[0], (py + 0.5) / crop_size[1])
     # the crop window seen from the pixel centre (pixels)
     window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
     window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
     sampler = setup.film_sampler
     pos = center + mi.Vector2f(
-        sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / film_size[0],
-        sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / film_size[1])
+        sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / crop_size[0],
+        sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / crop_size[1])
     u_aperture = streams.get_2d(0, sampling.DIM_APERTURE)
     partner_fraction = (exposure_fraction(1 - layout.index)
                         if setup.projection is not None else None)
