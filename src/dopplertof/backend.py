@@ -98,6 +98,11 @@ def set_variant(variant: str | None = None) -> str:
         )
     if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
         raise BackendError(f"unknown variant {variant!r}: expected llvm_* or cuda_*")
+    if "polarized" in variant:
+        raise BackendError(
+            f"variant {variant!r}: polarized light transport is not supported; use an "
+            "rgb, spectral or mono variant"
+        )
     if variant.startswith("llvm_"):
         ensure_libllvm()
     import mitsuba as mi

@@ -255,7 +255,9 @@ def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int) -> 
 
 
 def _spectrum_channels(mi) -> int:
-    return _channels(mi.Spectrum(0.0))
+    """Channels of a sample's value: RGB for spectral variants (converted per sample),
+    else the variant's Spectrum (3 for RGB, 1 for mono)."""
+    return 3 if mi.is_spectral else _channels(mi.Spectrum(0.0))
 
 
 def _channels(value) -> int:

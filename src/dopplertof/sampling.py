@@ -24,7 +24,7 @@ METHOD_NAMES = METHODS + ("auto",)
 
 # ---- Dimension layout -------------------------------------------------------
 DIM_TIME = 0  #: the time sample
-# (dimension 1 is free: full time stratification uses Sobol's third dimension)
+DIM_WAVELENGTH = 1  #: the wavelengths of the path (spectral variants)
 # (dimensions 2 and 3 are free: film positions come from CorrelatedStreams.film_2d)
 DIM_APERTURE = 4  #: lens position (2 numbers)
 DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here

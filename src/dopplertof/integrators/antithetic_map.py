@@ -84,7 +84,7 @@ class PairedCameraRays:
     """
 
     def __init__(self, mi, scene, camera, projection, film_sampler, pos, center, window,
-                 crop_size, t0, t1, index, u_aperture, exposure_interval):
+                 crop_size, t0, t1, index, lens, exposure_interval):
         static, bodies = scene.static, scene.bodies
         frames = {0: BodyFrames(mi, bodies, t0, *exposure_interval) if bodies else None,
                   1: BodyFrames(mi, bodies, t1, *exposure_interval) if bodies else None}
@@ -96,7 +96,7 @@ class PairedCameraRays:
                                        *window)
 
         def hit_at(p, k, active, skip_idle=True):
-            ray = camera.ray(p, times[k], u_aperture)
+            ray = camera.ray(p, times[k], *lens)
             return ray, _Hit(mi, static, frames[k], ray[0], active, skip_idle)
 
         def follow(hit, k, active):

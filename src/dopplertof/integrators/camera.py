@@ -30,13 +30,14 @@ class Camera:
         self.near_clip = near_clip
         self.forward = forward  # mi.Vector3f, rest pose (None: no near clip offset)
 
-    def ray(self, pos, time, u_aperture):
+    def ray(self, pos, time, u_aperture, u_wavelength=0.5):
         """World ray through film position ``pos`` (normalized over the crop window, as
-        Mitsuba's sensors take it) at absolute ``time``,
+        Mitsuba's sensors take it) at absolute ``time`` (``u_wavelength`` picks the
+        wavelengths in spectral variants),
         its importance weight, and the path length from the lens point to its origin."""
         import drjit as dr
 
-        ray, weight = self.sensor.sample_ray(time, 0.5, pos, u_aperture)
+        ray, weight = self.sensor.sample_ray(time, u_wavelength, pos, u_aperture)
         offset = (self.near_clip / dr.dot(ray.d, self.forward) if self.forward is not None
                   else self.mi.Float(0.0))
         if self.motion is not None:  # the ray of the rest pose, moved to the lane's time

@@ -154,11 +154,17 @@ class FilmSampler:
         return dr.select(inside, value, 0.0)
 
 
-def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, u_aperture):
+def _as_colour(mi, value, wavelengths):
+    """A sample's value for the film: spectral variants convert the sampled wavelengths'
+    values to linear sRGB, as Mitsuba's film does; others keep their Spectrum."""
+    return mi.spectrum_to_srgb(value, wavelengths) if mi.is_spectral else value
+
+
+def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, lens):
     """Each lane's camera ray, its weight, the path length to its origin, its first hit
     when already traced (else None), and whether the lane renders at all."""
     if setup.projection is None:
-        ray, weight, offset = setup.camera.ray(pos, time, u_aperture)
+        ray, weight, offset = setup.camera.ray(pos, time, *lens)
         return ray, weight, offset, None, mi.Bool(True)
     # ---- Motion-compensated antithetic pairs ----
     mod = setup.modulation
@@ -168,7 +174,7 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
     pair = PairedCameraRays(
         mi, setup.scene, setup.camera, setup.projection, setup.film_sampler, pos, center,
         window, crop_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
-        layout.index, u_aperture, (setup.shutter_open, setup.shutter_open + mod.exposure))
+        layout.index, lens, (setup.shutter_open, setup.shutter_open + mod.exposure))
     return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
             pair.scale != 0.0)
 
@@ -227,12 +233,13 @@ def trace_pass(mi, setup, layout: PassLayout):
     pos = center + mi.Vector2f(
         sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / crop_size[0],
         sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / crop_size[1])
-    u_aperture = streams.get_2d(0, sampling.DIM_APERTURE)
+    # the lens position and (spectral variants) the wavelengths, shared like the film
+    lens = (streams.get_2d(0, sampling.DIM_APERTURE), streams.get_1d(0, sampling.DIM_WAVELENGTH))
     partner_fraction = (exposure_fraction(1 - layout.index)
                         if setup.projection is not None else None)
     ray, ray_weight, camera_offset, first_hit, active = _camera_rays(
         mi, setup, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
-        u_aperture)
+        lens)
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)
 
@@ -243,6 +250,8 @@ def trace_pass(mi, setup, layout: PassLayout):
     # The first hit's light and BSDF samples from the pixel's low-discrepancy set
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
+
+    wavelengths = ray.wavelengths  # of the camera ray, for the colour conversion
 
     # ---- Loop state ----
     L = mi.Spectrum(0.0)  # accumulated modulated measurement
@@ -332,4 +341,4 @@ def trace_pass(mi, setup, layout: PassLayout):
         beta[rr_active] *= dr.rcp(rr_prob)
         active = (active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)) | through
 
-    return L
+    return _as_colour(mi, L, wavelengths)
