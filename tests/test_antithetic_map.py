@@ -113,3 +113,11 @@ def test_needs_a_pinhole_camera():
     scene = dopplertof.load_dict(d)
     with pytest.raises(ValueError, match="pinhole perspective sensor, got ThinLensCamera"):
         dopplertof.render(scene, params=MOTION)
+
+
+def test_same_seed_same_image_whatever_the_pass_size():
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    params = dict(MOTION, hetero_frequency=1.0)
+    a = dopplertof.render(scene, spp=64, seed=3, params=params)
+    b = dopplertof.render(scene, spp=64, seed=3, params=params, pass_chunks=1)
+    assert np.abs(a).max() > 0 and np.array_equal(a, b)
