@@ -80,3 +80,27 @@ def test_trapezoidal_full_waveform_is_an_error():
     with pytest.raises(dopplertof.SceneError, match="trapezoid"):
         dopplertof.load_dict(plane_scene(5.0, 0.0, integrator={
             "wave_function_type": "trapezoidal", "low_frequency_component_only": False}))
+
+
+@pytest.mark.parametrize("camera_velocity", [0.0, 150.0])
+def test_exposure_starting_later(camera_velocity):
+    """An exposure that opens at 0.25 s, keyframes at 0.25 s and 0.2515 s: the same pixel as
+    the same motion starting at 0 (times enter the motion absolutely, the modulation from
+    the exposure start)."""
+    start = 0.25
+    d = plane_scene(4.0, 40.0, spp=1 << 14, camera_velocity=camera_velocity,
+                    integrator={"hetero_frequency": 1.0})
+    for key in ("plane",):
+        d[key]["to_world"] = dopplertof.Animation(
+            [(t + start, T) for t, T in d[key]["to_world"].keyframes])
+    if camera_velocity:
+        d["sensor"]["to_world"] = dopplertof.Animation(
+            [(t + start, T) for t, T in d["sensor"]["to_world"].keyframes])
+    d["sensor"]["shutter_open"] = start
+    d["sensor"]["shutter_close"] = start + 0.0015
+    scene = dopplertof.load_dict(d)
+    assert scene.shutter_open == start
+    expected = reference(4.0, 40.0, hetero_frequency=1.0, camera_velocity=camera_velocity)
+    values = np.array([dopplertof.render(scene, seed=s)[0, 0, 0] for s in range(4)])
+    se = values.std(ddof=1) / np.sqrt(len(values))
+    assert abs(values.mean() - expected) < 4 * se + 0.01 * abs(expected), (values, expected)
