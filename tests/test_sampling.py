@@ -182,9 +182,12 @@ def test_auto_sampling_rule():
     assert auto(1.0)["antithetic_shift"] == 0.5 and auto(2.0)["antithetic_shift"] == 0.25
     for h in (0.0, 0.3, 0.5, 1.5):
         assert auto(h) == dict(time_sampling_method="stratified", path_correlation_depth=0,
-                               time_correlate_number=2,
                                use_stratified_sampling_for_each_interval=True,
                                antithetic_mapping="replay")
+    # the group size stays the user's
+    four = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
+                                   time_correlate_number=4, time=0.001).resolved(0.0)
+    assert four.time_correlate_number == 4 and four.time_sampling_method == "antithetic"
     assert auto(1.0)["antithetic_mapping"] == "replay"  # measured: motion does not pay
     p = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
                                 time=0.001).resolved(0.0)

@@ -82,16 +82,18 @@ def auto_sampling(hetero_frequency: float) -> dict:
     sqrt 2), correlated pairs do not pay: independent paths, each pair's two times in
     the two halves of the exposure and the strata spread over a pixel's groups, do
     better (ratio 4.6 at h = 0.5, 3.1 at h = 0.25, 1.0 at h = 0; docs/benchmarks.md).
+    The group size K (``time_correlate_number``) stays the user's: K > 2 antithetic
+    groups are periodic, and cancel a beat as pairs do unless n is a multiple of K.
     """
     h = abs(hetero_frequency)
     n = round(h)
     if n >= 1 and abs(h - n) <= 0.3:
         return dict(time_sampling_method="antithetic", antithetic_shift=0.5 / n,
-                    path_correlation_depth=1 << 16, time_correlate_number=2,
+                    path_correlation_depth=1 << 16,
                     use_stratified_sampling_for_each_interval=True,
                     antithetic_mapping="replay")
     return dict(time_sampling_method="stratified", path_correlation_depth=0,
-                time_correlate_number=2, use_stratified_sampling_for_each_interval=True,
+                use_stratified_sampling_for_each_interval=True,
                 antithetic_mapping="replay")
 
 
