@@ -193,7 +193,8 @@ def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
 
 @dr.syntax
 def trace_pass(mi, setup, layout: PassLayout):
-    """Render one pass; returns the per-lane Spectrum of time-averaged measurements."""
+    """Render one pass; returns each lane's time-averaged measurement (the variant's
+    Spectrum; RGB in spectral variants)."""
     scene = setup.scene
     static = scene.static
     sensor = scene.sensor
