@@ -22,6 +22,37 @@ def cornell(integrator, rfilter="box"):
     return d
 
 
+#: the D-ToF weight of every contribution at a vanishing frequency: g1 * C(psi)
+WEIGHT = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)
+
+
+def dtof(max_depth, **extra):
+    """The D-ToF integrator whose image is WEIGHT times stock `path`'s."""
+    return {"type": "dopplertof", "max_depth": max_depth, "w_g": 1e-9, "hetero_offset": 0.1,
+            "time_sampling_method": "uniform", "path_correlation_depth": 0, **extra}
+
+
+def render_both(stock_scene, ours_scene, reduce):
+    """``reduce`` of each seed's stock image and of ours divided by WEIGHT."""
+    import mitsuba as mi
+
+    stock = np.array([reduce(np.array(mi.render(stock_scene, spp=SPP, seed=s)))
+                      for s in SEEDS])
+    ours = np.array([reduce(dopplertof.render(ours_scene, spp=SPP, seed=s)) / WEIGHT
+                     for s in SEEDS])
+    return stock, ours
+
+
+def assert_agree(stock, ours, rtol=None):
+    """Means over seeds agree within 4 combined standard errors (and within ``rtol``)."""
+    se = np.sqrt(stock.var(axis=0, ddof=1) / len(SEEDS) + ours.var(axis=0, ddof=1) / len(SEEDS))
+    assert np.all(se > 0)
+    z = np.abs(stock.mean(axis=0) - ours.mean(axis=0)) / se
+    assert np.all(z < 4.0), (stock.mean(axis=0), ours.mean(axis=0), se)
+    if rtol is not None:
+        np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=rtol)
+
+
 def regions(img):
     lum = img.mean(axis=-1)
     border = np.ones_like(lum, dtype=bool)
@@ -43,22 +74,10 @@ def test_matches_stock_path_tracer(max_depth, rfilter):
     # (Mitsuba 3.9): from depth 3 on, the ceiling seen through the light counts.
     stock_scene = mi.load_dict(cornell({"type": "path", "max_depth": max_depth,
                                         "hide_emitters": True}, rfilter))
-    ours_scene = dopplertof.load_dict(cornell({
-        "type": "dopplertof", "max_depth": max_depth, "w_g": 1e-9, "hetero_offset": 0.1,
-        "hide_emitters": True,
-        "time_sampling_method": "uniform", "path_correlation_depth": 0}, rfilter))
-    weight = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)  # g1 * C(psi)
-    stock = np.array([regions(np.array(mi.render(stock_scene, spp=SPP, seed=s)))
-                      for s in SEEDS])
-    ours = np.array([regions(dopplertof.render(ours_scene, spp=SPP, seed=s)) / weight
-                     for s in SEEDS])
-    se = np.sqrt(stock.var(axis=0, ddof=1) / len(SEEDS) + ours.var(axis=0, ddof=1) / len(SEEDS))
-    assert np.all(se > 0)
-    z = np.abs(stock.mean(axis=0) - ours.mean(axis=0)) / se
-    assert np.all(z < 4.0), (stock.mean(axis=0), ours.mean(axis=0), se)
-    # and the agreement is tight in absolute terms (a 1% bias in how hidden emitters
+    ours_scene = dopplertof.load_dict(cornell(dtof(max_depth, hide_emitters=True), rfilter))
+    # the agreement is tight in absolute terms too (a 1% bias in how hidden emitters
     # were handled once passed the earlier, 8 x 64 spp version of this test)
-    np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=0.005)
+    assert_agree(*render_both(stock_scene, ours_scene, regions), rtol=0.005)
 
 
 def with_light(d, kind):
@@ -85,19 +104,10 @@ def test_delta_lights_match_stock_path_tracer(kind):
     import mitsuba as mi
 
     stock_scene = mi.load_dict(with_light(cornell({"type": "path", "max_depth": 3}), kind))
-    ours_scene = dopplertof.load_dict(with_light(cornell({
-        "type": "dopplertof", "max_depth": 3, "w_g": 1e-9, "hetero_offset": 0.1,
-        "time_sampling_method": "uniform", "path_correlation_depth": 0}), kind))
-    weight = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)
-    stock = np.array([regions(np.array(mi.render(stock_scene, spp=SPP, seed=s)))
-                      for s in SEEDS])
-    ours = np.array([regions(dopplertof.render(ours_scene, spp=SPP, seed=s)) / weight
-                     for s in SEEDS])
-    se = np.sqrt(stock.var(axis=0, ddof=1) / len(SEEDS) + ours.var(axis=0, ddof=1) / len(SEEDS))
-    assert np.all(se > 0) and np.all(stock.mean(axis=0) > 0.01)
-    z = np.abs(stock.mean(axis=0) - ours.mean(axis=0)) / se
-    assert np.all(z < 4.0), (stock.mean(axis=0), ours.mean(axis=0), se)
-    np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=0.02)
+    ours_scene = dopplertof.load_dict(with_light(cornell(dtof(3)), kind))
+    stock, ours = render_both(stock_scene, ours_scene, regions)
+    assert np.all(stock.mean(axis=0) > 0.01)
+    assert_agree(stock, ours, rtol=0.02)
 
 
 def test_crop_window_matches_stock_path_tracer():
@@ -111,22 +121,13 @@ def test_crop_window_matches_stock_path_tracer():
                                     "crop_offset_y": 3, "crop_width": 12, "crop_height": 10})
         return d
 
+    def blocks(img):  # 2 x 2 blocks of pixels: each must agree
+        assert img.shape[:2] == (10, 12)
+        return img.mean(axis=-1).reshape(5, 2, 6, 2).mean(axis=(1, 3))
+
     stock_scene = mi.load_dict(cropped({"type": "path", "max_depth": 2}))
-    ours_scene = dopplertof.load_dict(cropped({
-        "type": "dopplertof", "max_depth": 2, "w_g": 1e-9, "hetero_offset": 0.1,
-        "time_sampling_method": "uniform", "path_correlation_depth": 0}))
-    weight = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)
-    stock = np.array([np.array(mi.render(stock_scene, spp=SPP, seed=s)).mean(axis=-1)
-                      for s in SEEDS])
-    ours = np.array([dopplertof.render(ours_scene, spp=SPP, seed=s).mean(axis=-1) / weight
-                     for s in SEEDS])
-    assert ours.shape == stock.shape == (len(SEEDS), 10, 12)
-    # 2 x 2 blocks of pixels: each agrees within 4 combined standard errors
-    blocks = [img.reshape(len(SEEDS), 5, 2, 6, 2).mean(axis=(2, 4)) for img in (stock, ours)]
-    se = np.sqrt(sum(b.var(axis=0, ddof=1) for b in blocks) / len(SEEDS))
-    assert np.all(se > 0)
-    z = np.abs(blocks[0].mean(axis=0) - blocks[1].mean(axis=0)) / se
-    assert np.all(z < 4.0), z
+    ours_scene = dopplertof.load_dict(cropped(dtof(2)))
+    assert_agree(*render_both(stock_scene, ours_scene, blocks))
 
 
 @pytest.mark.parametrize("variant,channels", [("llvm_ad_spectral", 3), ("llvm_ad_mono", 1)])
@@ -137,20 +138,9 @@ def test_spectral_and_mono_variants_match_stock(variant, channels):
     import mitsuba as mi
 
     stock_scene = mi.load_dict(cornell({"type": "path", "max_depth": 3, "hide_emitters": True}))
-    ours_scene = dopplertof.load_dict(cornell({
-        "type": "dopplertof", "max_depth": 3, "w_g": 1e-9, "hetero_offset": 0.1,
-        "hide_emitters": True, "time_sampling_method": "uniform", "path_correlation_depth": 0}))
-    weight = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)
+    ours_scene = dopplertof.load_dict(cornell(dtof(3, hide_emitters=True)))
     assert dopplertof.render(ours_scene, spp=4).shape == (16, 16, channels)
-    stock = np.array([regions(np.array(mi.render(stock_scene, spp=SPP, seed=s)))
-                      for s in SEEDS])
-    ours = np.array([regions(dopplertof.render(ours_scene, spp=SPP, seed=s)) / weight
-                     for s in SEEDS])
-    se = np.sqrt(stock.var(axis=0, ddof=1) / len(SEEDS) + ours.var(axis=0, ddof=1) / len(SEEDS))
-    assert np.all(se > 0)
-    z = np.abs(stock.mean(axis=0) - ours.mean(axis=0)) / se
-    assert np.all(z < 4.0), (stock.mean(axis=0), ours.mean(axis=0), se)
-    np.testing.assert_allclose(ours.mean(axis=0), stock.mean(axis=0), rtol=0.01)
+    assert_agree(*render_both(stock_scene, ours_scene, regions), rtol=0.01)
 
 
 def test_polarized_variants_are_refused():
