@@ -79,8 +79,8 @@ def auto_sampling(hetero_frequency: float) -> dict:
     cancel (supplementary section 3; the published Cornell box: RMSE ratio about 32 at
     h = 1; 9.1 against 5.0 for the alternative at h = 0.75, hence the window of 0.3).
     Far from an integer, and at h = 0 where a pair only duplicates a path (a loss of
-    sqrt 2), correlated pairs do not pay: independent paths, each pair's two times in
-    the two halves of the exposure and the strata spread over a pixel's groups, do
+    sqrt 2), correlated pairs do not pay: independent paths, a group's K times in the K
+    parts of the exposure and the strata spread over a pixel's groups, do
     better (ratio 4.6 at h = 0.5, 3.1 at h = 0.25, 1.0 at h = 0; docs/benchmarks.md).
     The group size K (``time_correlate_number``) stays the user's: K > 2 antithetic
     groups are periodic, and cancel a beat as pairs do unless n is a multiple of K.
@@ -142,6 +142,12 @@ def _reverse_permute(mi, x, seed):
     x ^= x * 0xC7AFE638
     x ^= x * 0x8D22F6E6
     return dr.brev(x)
+
+
+def owen_sobol(mi, index, dim: int, seed):
+    """Component ``dim`` of Sobol point ``index``, Owen-scrambled with ``seed``, as a
+    32-bit integer."""
+    return _reverse_permute(mi, sobol_component(mi, index, dim, 0), seed)
 
 
 def _unit(mi, bits):
@@ -217,7 +223,7 @@ class CorrelatedStreams:
         seed = self._pixel_seed(3)
         # Owen scrambling, not a digital shift: a shift keeps the points' fine digits in
         # a fixed pattern, which aliases with a full waveform's 10^4-10^5 periods
-        bits = _reverse_permute(mi, sobol_component(mi, index, 2, 0), seed)
+        bits = owen_sobol(mi, index, 2, seed)
         if not double:
             return _unit(mi, bits)
         # 32 bits, and the low-order bits filled at random (full-waveform phases)
@@ -237,8 +243,8 @@ class CorrelatedStreams:
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
         shuffled = _reverse_permute(mi, index, seed_index)
         return mi.Point2f(
-            _unit(mi, _reverse_permute(mi, sobol_component(mi, shuffled, 0, 0), seed_x)),
-            _unit(mi, _reverse_permute(mi, sobol_component(mi, shuffled, 1, 0), seed_y)))
+            _unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
+            _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
 
     def get_2d(self, stage, dim):
         key = self.key(stage)
