@@ -3,8 +3,9 @@
 For each hetero_frequency, every time-sampling method x path correlation depth
 (0, 1, 2, full) x full time stratification (on/off) is rendered at the same spp and
 compared with a high-spp reference (antithetic, full correlation, other seed), and so
-are antithetic pairs under the motion mapping (``antithetic_mapping="motion"``) and
-``time_sampling_method="auto"``. Prints the RMSE table, seconds per render, the paper's
+are antithetic pairs under the motion mapping (``antithetic_mapping="motion"``),
+``time_sampling_method="auto"`` and auto with ``adaptive_sampling`` (per-pixel counts
+from a pilot, spp on average). Prints the RMSE table, seconds per render, the paper's
 headline ratio (naive = uniform time, independent paths, no stratification)
 
     RMSE ratio at hetero_frequency=1 (uniform/independent over antithetic/full): X
@@ -67,10 +68,11 @@ def main():
     print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, "
           f"reference {spp * args.ref_factor} spp (antithetic, full correlation)", flush=True)
 
-    def render(h, method, depth, strat, n, seed, mapping=None):
+    def render(h, method, depth, strat, n, seed, mapping=None, adaptive=False):
         params = dict(hetero_frequency=h, time_sampling_method=method,
                       path_correlation_depth=depth,
-                      use_stratified_sampling_for_each_interval=strat)
+                      use_stratified_sampling_for_each_interval=strat,
+                      adaptive_sampling=adaptive)
         if mapping is not None:
             params["antithetic_mapping"] = mapping
         t = time.perf_counter()
@@ -85,6 +87,7 @@ def main():
         for strat in (False, True):  # compile every kernel first: times are render times
             render(h, "uniform", 0, strat, spp, 2)
         render(h, "antithetic", FULL, True, spp, 2, mapping="motion")
+        render(h, "auto", FULL, True, spp, 2, adaptive=True)
         print(f"{'method':>18} {'depth':>5} {'strat':>5} {'RMSE':>10} {'seconds':>8}")
         for strat in (False, True):
             for method in METHODS:
@@ -104,6 +107,10 @@ def main():
         rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
         results[(h, "auto")] = (rmse, sec)
         print(f"{'auto':>18} {'':>5} {'':>5} {rmse:10.3e} {sec:8.2f}", flush=True)
+        img, sec = render(h, "auto", FULL, True, spp, 1, adaptive=True)
+        rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
+        results[(h, "auto", "adaptive")] = (rmse, sec)
+        print(f"{'auto+adaptive':>18} {'':>5} {'':>5} {rmse:10.3e} {sec:8.2f}", flush=True)
 
     print("\nRMSE ratio naive / each (uniform, independent, no stratification = 1):")
     header = " ".join(f"h={h:<8g}" for h in args.hetero)
@@ -125,6 +132,9 @@ def main():
                    for h in args.hetero}
     print("auto (time_sampling_method='auto'): " + ", ".join(
         f"h={h:g}: {r:.2f}" for h, r in auto_ratios.items()))
+    print("auto + adaptive_sampling: " + ", ".join(
+        f"h={h:g}: {results[(h, 'uniform', 0, False)][0] / results[(h, 'auto', 'adaptive')][0]:.2f}"
+        for h in args.hetero))
     h = 1.0 if 1.0 in args.hetero else args.hetero[-1]
     naive_rmse, naive_t = results[(h, "uniform", 0, False)]
     paper_rmse, paper_t = results[(h, "antithetic", FULL, True)]
@@ -147,7 +157,8 @@ def main():
 
 def config_name(key):
     if key[1] == "auto":
-        return "auto"
+        # auto at h = 1: antithetic, full correlation, stratified
+        return "auto + adaptive_sampling" if key[-1] == "adaptive" else "auto"
     if key[-1] == "motion":
         return f"{key[1]}, full correlation, stratified, motion mapping"
     _, method, depth, strat = key

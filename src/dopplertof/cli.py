@@ -119,7 +119,10 @@ def _cmd_render(args) -> int:
     md = result.metadata
     if not args.quiet:
         print(f"wrote {args.output}: {result.image.shape[1]}x{result.image.shape[0]}, "
-              f"{md['spp']} spp, {md['render_seconds']:.1f} s"
+              f"{md['spp']} spp"
+              + (f" (adaptive: {md['sample_counts']['min']}-{md['sample_counts']['max']} "
+                 "per pixel)" if "sample_counts" in md else "")
+              + f", {md['render_seconds']:.1f} s"
               + (f", {md['nonfinite_samples_dropped']} non-finite samples dropped"
                  if md["nonfinite_samples_dropped"] else ""))
     return 0

@@ -58,6 +58,9 @@ class RenderParams:
     #: at the paired time; None means this) or "motion" (the primal's first hit point
     #: followed on its body: integrators/antithetic_map.py)
     antithetic_mapping: str | None = None
+    #: samples per pixel set from a pilot pass (the first 1/8), more where the
+    #: neighbours vary most, spp on average, unbiased (allocation.py)
+    adaptive_sampling: bool = False
 
     # ---- Parsing ----
 
@@ -207,6 +210,7 @@ _TYPES = {
     "rr_depth": int, "hide_emitters": bool, "time_sampling_method": str,
     "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
     "use_stratified_sampling_for_each_interval": bool, "antithetic_mapping": str,
+    "adaptive_sampling": bool,
 }
 assert set(_TYPES) == set(RenderParams.names())
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import sampling
+from . import allocation, sampling
 from .params import RenderParams
 from .sampling import check_sample_count
 
@@ -34,6 +34,8 @@ class RenderResult:
 
     image: np.ndarray  #: float32 (H, W, C), the time-averaged measurement (signed)
     metadata: dict = field(default_factory=dict)
+    #: samples traced per pixel (H, W) with adaptive_sampling, else None (spp everywhere)
+    sample_counts: np.ndarray | None = None
 
 
 @dataclass
@@ -134,8 +136,11 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     setup = _make_setup(mi, scene, p, spp, int(seed))
 
     # ---- Pass plan: whole chunks per pass ----
-    chunk = min(spp, GROUPS_PER_CHUNK * setup.group_size)
+    K = setup.group_size
+    chunk = min(spp, GROUPS_PER_CHUNK * K)
     n_chunks = -(-spp // chunk)
+    pilot_chunks = (allocation.pilot_samples(spp, chunk) // chunk
+                    if p.adaptive_sampling else 0)
     if pass_chunks is None:
         pass_chunks = max(1, max_lanes // (n_pixels * chunk))
     pass_chunks = max(1, min(int(pass_chunks), n_chunks))
@@ -144,57 +149,115 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
 
     from .integrators.dtof_path import PassLayout, trace_pass
 
-    total = np.zeros((n_pixels, _spectrum_channels(mi)), dtype=np.float64)
+    channels_out = _spectrum_channels(mi)
+    total = np.zeros((n_pixels, channels_out), dtype=np.float64)
+    # adaptive sampling: the pilot's sums of squared group sums, then the counts
+    squares = np.zeros_like(total) if p.adaptive_sampling else None
+    counts = None
     nonfinite = 0
     next_chunk = 0
     key = _render_key(scene, p, spp, seed, mi.variant(), chunk)
     if checkpoint is not None:
         saved = _load_checkpoint(checkpoint, key)
         if saved is not None:
-            total, nonfinite, next_chunk = saved
+            total, nonfinite, next_chunk, saved_squares, saved_counts = saved
+            if p.adaptive_sampling:
+                squares = saved_squares if saved_squares.shape == total.shape else squares
+                counts = saved_counts if saved_counts.size == n_pixels else None
     started = _time.perf_counter()
-    bar = tqdm(total=spp, initial=min(spp, next_chunk * chunk), unit="spp", desc="rendering",
+    done = (min(spp, next_chunk * chunk) if counts is None
+            else float(np.minimum(counts, next_chunk * chunk).mean()))
+    bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
                disable=not _show_progress(progress), leave=False, file=sys.stderr)
     import drjit as dr
 
-    try:
-        # The last chunk may be short: it gets a pass of its own, so that every pass
-        # sums chunks of one size.
-        full_chunks = spp // chunk
-        plan = [(c0, min(full_chunks, c0 + pass_chunks)) for c0 in
-                range(next_chunk, full_chunks, pass_chunks)]
-        if full_chunks < n_chunks and next_chunk <= full_chunks:
-            plan.append((full_chunks, n_chunks))
-        for first_chunk, end_chunk in plan:
-            s0 = first_chunk * chunk
+    def trace_chunks(first_chunk, end_chunk):
+        """Trace chunks [first_chunk, end_chunk) of every pixel that has them and add
+        them to ``total`` (and in the pilot, to ``squares``)."""
+        nonlocal nonfinite
+        s0 = first_chunk * chunk
+        if counts is None:
             s1 = min(spp, end_chunk * chunk)
             samples = s1 - s0
             chunk_size = min(chunk, samples)
-            layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0),
-                                setup.group_size)
-            value = trace_pass(mi, setup, layout)
-            dr.eval(value)  # one path tracing kernel for all channels
-            # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
-            channels = [value[c] for c in range(_channels(value))]
-            finite = dr.isfinite(channels[0])
-            for v in channels[1:]:
-                finite &= dr.isfinite(v)
-            dropped = dr.count(~finite)
-            sums = [dr.block_sum(dr.select(finite, v, 0.0), chunk_size, mode="evaluated")
-                    for v in channels]
-            dr.eval(dropped, sums)
-            nonfinite += int(dropped[0])
-            parts = np.stack([np.asarray(v) for v in sums], axis=-1).reshape(
-                n_pixels, samples // chunk_size, -1)
-            for j in range(parts.shape[1]):  # chunk order: the image ignores pass sizes
-                total = total + parts[:, j].astype(np.float64)
-            bar.update(samples)
-            if checkpoint is not None:
-                _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk)
+            layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), K)
+            block_pixel = np.repeat(np.arange(n_pixels), samples // chunk_size)
+            lanes = n_pixels * samples
+        else:  # each pixel its own number of chunks: lanes from host arrays
+            chunk_size = chunk
+            per_pixel = np.clip(counts - s0, 0, (end_chunk - first_chunk) * chunk)
+            pixels = np.flatnonzero(per_pixel)
+            per_pixel = per_pixel[pixels]
+            lane_pixel = np.repeat(pixels, per_pixel)
+            first_lane = np.repeat(np.cumsum(per_pixel) - per_pixel, per_pixel)
+            lane_sample = s0 + np.arange(lane_pixel.size) - first_lane
+            layout = PassLayout.of_lanes(mi, lane_pixel, lane_sample, K)
+            block_pixel = lane_pixel[::chunk]
+            lanes = lane_pixel.size
+        value = trace_pass(mi, setup, layout)
+        dr.eval(value)  # one path tracing kernel for all channels
+        # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
+        channels = [value[c] for c in range(_channels(value))]
+        finite = dr.isfinite(channels[0])
+        for v in channels[1:]:
+            finite &= dr.isfinite(v)
+        dropped = dr.count(~finite)
+        channels = [dr.select(finite, v, 0.0) for v in channels]
+        sums = [dr.block_sum(v, chunk_size, mode="evaluated") for v in channels]
+        pilot = squares is not None and first_chunk < pilot_chunks
+        if pilot:  # squared sums of the groups (K samples), summed per chunk
+            sums += [dr.block_sum(dr.square(dr.block_sum(v, K, mode="evaluated")),
+                                  chunk_size // K, mode="evaluated") for v in channels]
+        dr.eval(dropped, sums)
+        nonfinite += int(dropped[0])
+        parts = np.stack([np.asarray(v) for v in sums], axis=-1).astype(np.float64)
+        # chunk order per pixel, whatever the passes: the image ignores pass sizes
+        position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
+        for j in range(int(position.max()) + 1 if position.size else 0):
+            rows = position == j
+            total[block_pixel[rows]] += parts[rows, :channels_out]
+            if pilot:
+                squares[block_pixel[rows]] += parts[rows, channels_out:]
+        bar.update(lanes / n_pixels)
+        if checkpoint is not None:
+            _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk, squares, counts)
+
+    try:
+        if not p.adaptive_sampling:
+            # The last chunk may be short: it gets a pass of its own, so that every
+            # pass sums chunks of one size.
+            full_chunks = spp // chunk
+            plan = [(c0, min(full_chunks, c0 + pass_chunks)) for c0 in
+                    range(next_chunk, full_chunks, pass_chunks)]
+            if full_chunks < n_chunks and next_chunk <= full_chunks:
+                plan.append((full_chunks, n_chunks))
+            for first_chunk, end_chunk in plan:
+                trace_chunks(first_chunk, end_chunk)
+        else:
+            # ---- Pilot: the first chunks of every pixel ----
+            for c0 in range(next_chunk, pilot_chunks, pass_chunks):
+                trace_chunks(c0, min(pilot_chunks, c0 + pass_chunks))
+            # ---- Counts from the neighbours' pilot variance, then the rest ----
+            if counts is None:
+                counts = _adaptive_counts(total, squares, pilot_chunks * chunk, K, spp,
+                                          chunk, (height, width))
+            next_chunk = max(next_chunk, pilot_chunks)
+            lanes_per_pass = pass_chunks * chunk * n_pixels
+            c0 = next_chunk
+            end = int(counts.max()) // chunk
+            while c0 < end:
+                c1, lanes = c0, 0
+                while c1 < end and (c1 == c0 or lanes + chunk * int(
+                        np.count_nonzero(counts > c1 * chunk)) <= lanes_per_pass):
+                    lanes += chunk * int(np.count_nonzero(counts > c1 * chunk))
+                    c1 += 1
+                trace_chunks(c0, c1)
+                c0 = c1
     finally:
         bar.close()
 
-    image = (total / spp).astype(np.float32).reshape(height, width, -1)
+    per_pixel = (np.full(n_pixels, spp) if counts is None else counts).astype(np.float64)
+    image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
     mod = setup.modulation
     metadata = {
         "measurement": "time-averaged correlation (1/T) * integral over the exposure; "
@@ -210,7 +273,23 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         "render_seconds": _time.perf_counter() - started,
         "params": {k: getattr(p, k) for k in RenderParams.names()},
     }
-    return RenderResult(image, metadata)
+    sample_counts = None
+    if counts is not None:
+        sample_counts = counts.reshape(height, width)
+        metadata["sample_counts"] = {"pilot": pilot_chunks * chunk, "min": int(counts.min()),
+                                     "max": int(counts.max()),
+                                     "mean": float(counts.mean())}
+    return RenderResult(image, metadata, sample_counts)
+
+
+def _adaptive_counts(total, squares, pilot: int, group_size: int, spp: int, chunk: int,
+                     shape) -> np.ndarray:
+    """Samples per pixel from the pilot: each pixel's variance of its group sums
+    (averaged over channels) goes to allocation.sample_counts."""
+    groups = pilot // group_size
+    variance = (squares - total * total / groups) / max(groups - 1, 1)
+    variance = variance.mean(axis=-1).reshape(shape)
+    return allocation.sample_counts(variance, spp, pilot, chunk).reshape(-1)
 
 
 # ---- Checkpoints ----------------------------------------------------------------
@@ -236,22 +315,28 @@ def _load_checkpoint(path, key: str):
         with np.load(path, allow_pickle=False) as data:
             saved_key = str(data["key"])
             total, nonfinite, next_chunk = data["total"], int(data["nonfinite"]), int(data["next"])
+            squares, counts = data["squares"], data["counts"]
     except Exception as e:
         raise CheckpointError(f"checkpoint {path} cannot be read: {e}") from None
     if saved_key != key:
         raise CheckpointError(
             f"checkpoint {path} belongs to a different render (scene, parameters, spp, seed "
             "or variant differ); delete it or choose another checkpoint file")
-    return total, nonfinite, next_chunk
+    return total, nonfinite, next_chunk, squares, counts
 
 
-def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int) -> None:
+def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int, squares=None,
+                     counts=None) -> None:
+    """``squares`` and ``counts``: the adaptive pilot's sums and the sample counts, when
+    there are (else saved empty)."""
     from .io import atomic_path
 
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, key=np.array(key), total=total, nonfinite=np.array(nonfinite),
-                     next=np.array(next_chunk))
+                     next=np.array(next_chunk),
+                     squares=np.zeros(0) if squares is None else squares,
+                     counts=np.zeros(0, np.int64) if counts is None else counts)
 
 
 def _spectrum_channels(mi) -> int:

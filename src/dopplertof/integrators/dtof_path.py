@@ -32,10 +32,21 @@ class PassLayout:
 
     def __init__(self, mi, n_pixels: int, samples: int, first_sample, group_size: int):
         lane = dr.arange(mi.UInt32, n_pixels * samples)
-        self.pixel = lane // samples
-        self.sample = first_sample + lane % samples
-        self.group = self.sample // group_size
-        self.index = self.sample % group_size
+        self._set(lane // samples, first_sample + lane % samples, group_size)
+
+    @classmethod
+    def of_lanes(cls, mi, pixel, sample, group_size: int):
+        """A layout from host arrays of each lane's pixel and sample index (adaptive
+        sample counts: pixels render different numbers of samples in a pass)."""
+        layout = cls.__new__(cls)
+        layout._set(mi.UInt32(pixel), mi.UInt32(sample), group_size)
+        return layout
+
+    def _set(self, pixel, sample, group_size):
+        self.pixel = pixel
+        self.sample = sample
+        self.group = sample // group_size
+        self.index = sample % group_size
 
 
 def _mis_power(pdf_a, pdf_b):

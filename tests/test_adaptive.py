@@ -1,0 +1,160 @@
+"""Adaptive sample counts (allocation.py, adaptive_sampling=true): unbiased, on budget,
+deterministic, resumable."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import dopplertof
+from analytic import plane_scene, reference
+from conftest import PUBLISHED
+from dopplertof import allocation
+
+R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
+
+
+# ---- The allocation rule ----------------------------------------------------------
+
+def test_a_pixels_count_ignores_its_own_pilot():
+    # What keeps the estimator unbiased: each pixel's count is a function of the other
+    # pixels' pilot data only (its neighbourhood and the normalization alike).
+    rng = np.random.default_rng(3)
+    var = rng.lognormal(0.0, 2.0, size=(9, 11))
+    counts = allocation.sample_counts(var, 1024, 128, 16)
+    for y, x in [(0, 0), (4, 5), (8, 10), (2, 9)]:
+        for value in (0.0, var[y, x] * 1e4, np.nan):
+            changed = var.copy()
+            changed[y, x] = value
+            other = allocation.sample_counts(changed, 1024, 128, 16)
+            assert other[y, x] == counts[y, x]
+            assert not np.array_equal(other, counts)  # its neighbours do move
+
+
+def test_counts_are_whole_chunks_on_budget():
+    rng = np.random.default_rng(4)
+    var = rng.lognormal(0.0, 2.0, size=(32, 24))
+    var[10:14, :] *= 1e3  # a band of high variance
+    counts = allocation.sample_counts(var, 1024, 128, 16)
+    assert np.all(counts % 16 == 0) and counts.min() >= 128
+    assert abs(counts.mean() - 1024) <= 8  # rounding to whole chunks only
+    assert counts[11:13].mean() > 2 * counts[20:].mean()  # more where it varies
+    # share of the budget spread uniformly: nobody far below the mean
+    assert counts.min() >= allocation.UNIFORM_SHARE * 1024 - 8
+
+
+@pytest.mark.parametrize("var", [np.zeros((5, 7)), np.full((4, 4), np.inf), np.ones((1, 1)),
+                                 np.full((3, 3), 2.5)])
+def test_no_information_means_uniform(var):
+    assert np.array_equal(allocation.sample_counts(var, 512, 64, 16),
+                          np.full(var.shape, 512))
+
+
+def test_pilot_size_and_errors():
+    assert allocation.pilot_samples(1024, 16) == 128
+    assert allocation.pilot_samples(256, 32) == 32
+    with pytest.raises(ValueError, match="spp a multiple of 16 and at least 128"):
+        allocation.pilot_samples(64, 16)
+    with pytest.raises(ValueError, match="got spp 136"):
+        allocation.pilot_samples(136, 16)
+
+
+# ---- Renders ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("h, offset", [(1.0, 0.0), (0.0, 0.3)])
+def test_adaptive_render_matches_quadrature(monkeypatch, h, offset):
+    # Plane receding at 30 m/s; h = 1: the value is the Doppler signal alone. Counts
+    # forced to a checkerboard of 1024 and 2048 samples (off the budget, on purpose), so
+    # that every pixel's sum and count must pair up; the mean over the 4x4 film of box
+    # pixels is the 1-pixel quadrature reference.
+    seen = {}
+
+    def checkerboard(variance, spp, pilot, chunk):
+        seen["shape"], seen["pilot"] = variance.shape, pilot
+        y, x = np.indices(variance.shape)
+        return np.where((x + y) % 2 == 0, spp // 2, spp)
+
+    monkeypatch.setattr(allocation, "sample_counts", checkerboard)
+    expected = reference(4.0, 30.0, hetero_frequency=h, hetero_offset=offset)
+    scene = dopplertof.load_dict(plane_scene(4.0, 30.0, spp=2048, res=4, integrator={
+        "hetero_frequency": h, "hetero_offset": offset, "adaptive_sampling": True}))
+    values = []
+    for seed in range(3):
+        result = dopplertof.render_result(scene, seed=seed)
+        assert result.sample_counts.sum() == 8 * 1024 + 8 * 2048
+        values.append(result.image[..., 0].mean())
+    assert seen == {"shape": (4, 4), "pilot": 256}
+    assert abs(np.mean(values) - expected) <= 2e-3 * abs(expected) + 2e-7, (values, expected)
+
+
+@pytest.mark.parametrize("h", [0.0, 1.0])
+def test_adaptive_agrees_with_uniform_on_the_published_scene(h):
+    # Global illumination, moving boxes: the adaptive image and the uniform one
+    # (independent seeds) agree pixel by pixel within their standard errors.
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 16, "resy": 12})
+    params = {"hetero_frequency": h, "hetero_offset": 0.2}
+    uni = np.array([dopplertof.render(scene, spp=256, seed=s, params=params)
+                    for s in range(6)])
+    ada = []
+    for s in range(6, 12):
+        result = dopplertof.render_result(scene, spp=256, seed=s,
+                                          params={**params, "adaptive_sampling": True})
+        assert result.sample_counts.max() > 2 * result.sample_counts.min()  # it adapts
+        ada.append(result.image)
+    ada = np.array(ada)
+    se = np.sqrt((uni.var(0, ddof=1) + ada.var(0, ddof=1)) / 6)
+    z = (ada.mean(0) - uni.mean(0)) / np.maximum(se, 1e-12)
+    assert np.mean(np.abs(z) > 4) < 0.01, np.sort(np.abs(z).ravel())[-10:]
+    # whole image: the mean difference within 4 standard errors
+    diff = (ada - uni).mean(axis=(1, 2, 3))
+    assert abs(diff.mean()) <= 4 * diff.std(ddof=1) / np.sqrt(6) + 1e-9
+
+
+def test_adaptive_render_is_deterministic_whatever_the_passes():
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    params = {"adaptive_sampling": True, "hetero_frequency": 1.0}
+    a = R.render_result(scene, spp=256, seed=7, params=params)
+    b = R.render_result(scene, spp=256, seed=7, params=params, pass_chunks=1)
+    c = R.render_result(scene, spp=256, seed=7, params=params, max_lanes=1 << 12)
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.image, c.image)
+    assert np.array_equal(a.sample_counts, b.sample_counts)
+    assert a.metadata["sample_counts"]["pilot"] == 32
+    assert a.metadata["sample_counts"]["mean"] == pytest.approx(256, abs=8)
+
+
+@pytest.mark.parametrize("die_after", [1, 3])  # within the pilot, after it
+def test_adaptive_render_resumes_bitwise(tmp_path, monkeypatch, die_after):
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    params = {"adaptive_sampling": True}
+    reference_image = dopplertof.render(scene, spp=256, seed=4, params=params)
+    ckpt = tmp_path / "r.ckpt"
+    calls = {"n": 0}
+    original = R._save_checkpoint
+
+    def save_then_die(*args):
+        original(*args)
+        calls["n"] += 1
+        if calls["n"] == die_after:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(R, "_save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        dopplertof.render(scene, spp=256, seed=4, params=params, pass_chunks=1,
+                          checkpoint=ckpt)
+    monkeypatch.setattr(R, "_save_checkpoint", original)
+    resumed = dopplertof.render(scene, spp=256, seed=4, params=params, pass_chunks=1,
+                                checkpoint=ckpt)
+    assert np.array_equal(resumed, reference_image)
+
+
+def test_too_few_samples_is_a_one_line_cli_error(tmp_path):
+    out = tmp_path / "img.npy"
+    run = subprocess.run(
+        [sys.executable, "-m", "dopplertof.cli", "render", PUBLISHED, "-D", "resx=8",
+         "-D", "resy=8", "--spp", "64", "-P", "adaptive_sampling=true", "--quiet",
+         "-o", str(out)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 2
+    assert "adaptive_sampling needs spp a multiple of 16 and at least 128" in run.stderr
+    assert "Traceback" not in run.stderr and len(run.stderr.strip().splitlines()) == 1
+    assert not out.exists()
