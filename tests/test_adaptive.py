@@ -36,8 +36,8 @@ def test_counts_are_whole_chunks_on_budget():
     rng = np.random.default_rng(4)
     var = rng.lognormal(0.0, 2.0, size=(32, 24))
     var[10:14, :] *= 1e3  # a band of high variance
-    counts = allocation.sample_counts(var, 1024, 128, 16)
-    assert np.all(counts % 16 == 0) and counts.min() >= 128
+    counts = allocation.sample_counts(var, 1024, 256, 16)
+    assert np.all(counts % 16 == 0) and counts.min() >= 256
     assert abs(counts.mean() - 1024) <= 8  # rounding to whole chunks only
     assert counts[11:13].mean() > 2 * counts[20:].mean()  # more where it varies
     # share of the budget spread uniformly: nobody far below the mean
@@ -52,8 +52,10 @@ def test_no_information_means_uniform(var):
 
 
 def test_pilot_size_and_errors():
-    assert allocation.pilot_samples(1024, 16) == 128
-    assert allocation.pilot_samples(256, 32) == 32
+    assert allocation.pilot_samples(1024, 16) == 256
+    assert allocation.pilot_samples(256, 32) == 64
+    # the pilot fits in the uniform share: no count is raised to it (budget kept)
+    assert 1 / allocation.PILOT_FRACTION <= allocation.UNIFORM_SHARE
     with pytest.raises(ValueError, match="spp a multiple of 16 and at least 128"):
         allocation.pilot_samples(64, 16)
     with pytest.raises(ValueError, match="got spp 136"):
@@ -84,7 +86,7 @@ def test_adaptive_render_matches_quadrature(monkeypatch, h, offset):
         result = dopplertof.render_result(scene, seed=seed)
         assert result.sample_counts.sum() == 8 * 1024 + 8 * 2048
         values.append(result.image[..., 0].mean())
-    assert seen == {"shape": (4, 4), "pilot": 256}
+    assert seen == {"shape": (4, 4), "pilot": 512}
     assert abs(np.mean(values) - expected) <= 2e-3 * abs(expected) + 2e-7, (values, expected)
 
 
@@ -119,11 +121,11 @@ def test_adaptive_render_is_deterministic_whatever_the_passes():
     c = R.render_result(scene, spp=256, seed=7, params=params, max_lanes=1 << 12)
     assert np.array_equal(a.image, b.image) and np.array_equal(a.image, c.image)
     assert np.array_equal(a.sample_counts, b.sample_counts)
-    assert a.metadata["sample_counts"]["pilot"] == 32
+    assert a.metadata["sample_counts"]["pilot"] == 64
     assert a.metadata["sample_counts"]["mean"] == pytest.approx(256, abs=8)
 
 
-@pytest.mark.parametrize("die_after", [1, 3])  # within the pilot, after it
+@pytest.mark.parametrize("die_after", [1, 5])  # within the pilot (4 passes), after it
 def test_adaptive_render_resumes_bitwise(tmp_path, monkeypatch, die_after):
     scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
     params = {"adaptive_sampling": True}

@@ -8,10 +8,13 @@ Errors concentrate where moving silhouettes, their shadows and their reflections
 pixels during the exposure, and these regions are larger than a pixel, so the
 neighbours predict a pixel's variance almost as well as the pixel itself.
 
-Counts follow sigma^a (a < 1; a = 1 would be the optimum n ~ sigma for known sigma,
-the smaller power hedges against the noise of the pilot's estimate), mixed with a
-uniform share so that no pixel falls far below the mean. The normalization, which
-couples all pixels, is computed for each pixel with its own pilot data left out.
+Counts follow the neighbours' mean pilot standard deviation (the nearest ring weighted
+3x: n ~ sigma is the optimum for known sigma), mixed with a uniform share of the budget
+so that no pixel falls far below the mean, and the pilot fits in that share (the budget
+is kept: no count is raised to the pilot). The normalization, which couples all
+pixels, is computed for each pixel with its own pilot data left out. The constants were
+chosen on the published moving Cornell box (docs/benchmarks.md); the gain moves by about
+1% across reasonable choices.
 """
 
 from __future__ import annotations
@@ -22,26 +25,36 @@ import numpy as np
 RADIUS = 2
 #: counts follow sigma ** EXPONENT
 EXPONENT = 1.0
-#: share of the budget spread uniformly
-UNIFORM_SHARE = 0.4
-#: fraction of the samples traced as the pilot
-PILOT_FRACTION = 8
+#: share of the budget spread uniformly (at least the pilot: 1 / PILOT_FRACTION)
+UNIFORM_SHARE = 0.3
+#: the pilot: 1/PILOT_FRACTION of the samples
+PILOT_FRACTION = 4
+#: chunks in the smallest pilot (8 groups each)
+MIN_PILOT_CHUNKS = 2
+#: weight of the nearest ring of neighbours (3x3) against the outer ring (5x5) in
+#: the neighbourhood mean
+INNER_WEIGHT = 3.0
 
 
 def pilot_samples(spp: int, chunk: int) -> int:
-    """Samples per pixel in the pilot: an eighth of ``spp`` in whole chunks; raises
-    when that is not at least one chunk or ``spp`` is not a whole number of chunks."""
-    if spp % chunk != 0 or spp < PILOT_FRACTION * chunk:
+    """Samples per pixel in the pilot: a quarter of ``spp`` in whole chunks; raises when
+    ``spp`` is not a whole number of chunks or the pilot would be under two chunks."""
+    smallest = PILOT_FRACTION * MIN_PILOT_CHUNKS * chunk
+    if spp % chunk != 0 or spp < smallest:
         raise ValueError(
-            f"adaptive_sampling needs spp a multiple of {chunk} and at least "
-            f"{PILOT_FRACTION * chunk} (8 groups of K samples per chunk, a pilot of "
-            f"1/{PILOT_FRACTION}), got spp {spp}")
+            f"adaptive_sampling needs spp a multiple of {chunk} and at least {smallest} "
+            f"(a pilot of 1/{PILOT_FRACTION} of the samples, at least {MIN_PILOT_CHUNKS} "
+            f"chunks of 8 groups of K samples), got spp {spp}")
     return (spp // PILOT_FRACTION) // chunk * chunk
 
 
+def _ring_weight(dy: int, dx: int) -> float:
+    return INNER_WEIGHT if max(abs(dy), abs(dx)) == 1 else 1.0
+
+
 def _neighbour_sums(values, radius: int):
-    """Sum and count of each pixel's neighbours within ``radius`` (the pixel excluded,
-    the image not padded)."""
+    """Weighted sum and total weight of each pixel's neighbours within ``radius`` (the
+    pixel excluded, the image not padded)."""
     h, w = values.shape
     total = np.zeros_like(values)
     count = np.zeros_like(values)
@@ -54,8 +67,8 @@ def _neighbour_sums(values, radius: int):
             if dy == 0 and dx == 0:
                 continue
             window = (slice(radius + dy, radius + dy + h), slice(radius + dx, radius + dx + w))
-            total += padded[window]
-            count += inside[window]
+            total += _ring_weight(dy, dx) * padded[window]
+            count += _ring_weight(dy, dx) * inside[window]
     return total, count
 
 
@@ -75,7 +88,7 @@ def sample_counts(pilot_variance, spp: int, pilot: int, chunk: int) -> np.ndarra
     p = EXPONENT / 2.0  # variance -> sigma ** EXPONENT
 
     def weight(s, c):
-        return np.where(c > 0, np.maximum(s, 0.0) / np.maximum(c, 1.0), 0.0) ** p
+        return np.where(c > 0, np.maximum(s, 0.0) / np.where(c > 0, c, 1.0), 0.0) ** p
 
     wt = weight(total, count)  # every pixel's weight (none uses its own variance)
     # W_{-i}: the sum of all weights with pixel i's variance left out of its
@@ -90,7 +103,8 @@ def sample_counts(pilot_variance, spp: int, pilot: int, chunk: int) -> np.ndarra
                 continue
             window = (slice(pad + dy, pad + dy + h), slice(pad + dx, pad + dx + w))
             # neighbour j = i + (dy, dx): its window holds i; drop var_i from it
-            w_without = weight(T[window] - var, C[window] - 1.0)
+            r = _ring_weight(dy, dx)
+            w_without = weight(T[window] - r * var, C[window] - r)
             w_sum += np.where(C[window] > 0, w_without - WT[window], 0.0)
     share = np.where(w_sum > 0, wt * n / np.where(w_sum > 0, w_sum, 1.0), 1.0)
     target = spp * ((1.0 - UNIFORM_SHARE) * share + UNIFORM_SHARE)

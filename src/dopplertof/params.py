@@ -58,7 +58,7 @@ class RenderParams:
     #: at the paired time; None means this) or "motion" (the primal's first hit point
     #: followed on its body: integrators/antithetic_map.py)
     antithetic_mapping: str | None = None
-    #: samples per pixel set from a pilot pass (the first 1/8), more where the
+    #: samples per pixel set from a pilot pass (the first 1/4), more where the
     #: neighbours vary most, spp on average, unbiased (allocation.py)
     adaptive_sampling: bool = False
 
