@@ -18,6 +18,7 @@ with its equal-time value, and last the two lines of the beyond-the-paper sampli
     .venv/bin/python benchmarks/variance.py            # 128x128, 1024 spp, ref x64
     .venv/bin/python benchmarks/variance.py --quick    # 64x64, 256 spp, ref x64
     .venv/bin/python benchmarks/variance.py --quick --box-filter --hetero 1
+    .venv/bin/python benchmarks/variance.py --hetero 1 --seed 2   # another realization
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ def main():
     p.add_argument("--ref-factor", type=int, default=64, help="reference spp = factor x spp")
     p.add_argument("--hetero", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
     p.add_argument("--variant", default="llvm_ad_rgb")
+    p.add_argument("--seed", type=int, default=1,
+                   help="seed of every measured render (the reference keeps its own)")
     p.add_argument("--box-filter", action="store_true",
                    help="replace the scene's tent reconstruction filter by a box")
     args = p.parse_args()
@@ -92,22 +95,22 @@ def main():
         for strat in (False, True):
             for method in METHODS:
                 for depth in DEPTHS:
-                    img, sec = render(h, method, depth, strat, spp, 1)
+                    img, sec = render(h, method, depth, strat, spp, args.seed)
                     rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
                     results[(h, method, depth, strat)] = (rmse, sec)
                     print(f"{method:>18} {depth_name(depth):>5} {str(strat):>5} "
                           f"{rmse:10.3e} {sec:8.2f}", flush=True)
         for method in MAPPED_METHODS:
-            img, sec = render(h, method, FULL, True, spp, 1, mapping="motion")
+            img, sec = render(h, method, FULL, True, spp, args.seed, mapping="motion")
             rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
             results[(h, method, "motion")] = (rmse, sec)
             print(f"{method + '+motion':>18} {'full':>5} {'True':>5} {rmse:10.3e} {sec:8.2f}",
                   flush=True)
-        img, sec = render(h, "auto", FULL, True, spp, 1)
+        img, sec = render(h, "auto", FULL, True, spp, args.seed)
         rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
         results[(h, "auto")] = (rmse, sec)
         print(f"{'auto':>18} {'':>5} {'':>5} {rmse:10.3e} {sec:8.2f}", flush=True)
-        img, sec = render(h, "auto", FULL, True, spp, 1, adaptive=True)
+        img, sec = render(h, "auto", FULL, True, spp, args.seed, adaptive=True)
         rmse = float(np.sqrt(np.mean((img - ref) ** 2)))
         results[(h, "auto", "adaptive")] = (rmse, sec)
         print(f"{'auto+adaptive':>18} {'':>5} {'':>5} {rmse:10.3e} {sec:8.2f}", flush=True)

@@ -8,8 +8,8 @@ Errors concentrate where moving silhouettes, their shadows and their reflections
 pixels during the exposure, and these regions are larger than a pixel, so the
 neighbours predict a pixel's variance almost as well as the pixel itself.
 
-Counts follow the neighbours' mean pilot standard deviation (the nearest ring weighted
-3x: n ~ sigma is the optimum for known sigma), mixed with a uniform share of the budget
+Counts follow the square root of the neighbours' mean pilot variance (the nearest ring
+weighted 3x: n ~ sigma is the optimum for known sigma), mixed with a uniform share of the budget
 so that no pixel falls far below the mean, and the pilot fits in that share (the budget
 is kept: no count is raised to the pilot). The normalization, which couples all
 pixels, is computed for each pixel with its own pilot data left out. The constants were
