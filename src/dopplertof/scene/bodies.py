@@ -95,6 +95,28 @@ def select_transform(mi, dr, masks, transforms):
 MAX_DISPATCHED_BODIES = 32
 
 
+def box_intersect(mi, box, ray):
+    """(hit, near, far): the slab test of a ScalarBoundingBox3f against JIT rays, as
+    Mitsuba's ``BoundingBox3f.ray_intersect``, written out because that binding is
+    shared by the variants of one float type and accepts only the first-loaded
+    variant's Ray3f (an RGB render then a spectral one in the same process failed)."""
+    import drjit as dr
+
+    lo = [float(box.min[i]) for i in range(3)]
+    hi = [float(box.max[i]) for i in range(3)]
+    hit = mi.Bool(True)
+    near = mi.Float(-dr.inf)
+    far = mi.Float(dr.inf)
+    for i in range(3):
+        o, d = ray.o[i], ray.d[i]
+        hit &= (d != 0.0) | ((o > lo[i]) & (o < hi[i]))
+        rcp = dr.rcp(d)
+        t1, t2 = (lo[i] - o) * rcp, (hi[i] - o) * rcp
+        near = dr.maximum(near, dr.minimum(t1, t2))
+        far = dr.minimum(far, dr.maximum(t1, t2))
+    return hit & (far >= near), near, far
+
+
 def _box_distances(mi, dr, frames, ray, active, upto):
     """Per body, where the ray enters its bounding box (inf: missed or beyond ``upto``).
     The box is the body's own, at its reference pose, met by the ray moved into the
@@ -102,7 +124,7 @@ def _box_distances(mi, dr, frames, ray, active, upto):
     exposure in world space (affine maps keep ray parameters, so distances compare)."""
     out = []
     for box, inv in zip(frames.local_boxes, frames.to_local):
-        hit, near, far = box.ray_intersect(transformed_ray(mi, inv, ray, ray.maxt))
+        hit, near, far = box_intersect(mi, box, transformed_ray(mi, inv, ray, ray.maxt))
         near = dr.maximum(near, 0.0)
         out.append(dr.select(active & hit & (far >= 0) & (near <= upto), near, dr.inf))
     return out
@@ -126,7 +148,7 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):
     """Test every body in turn (one body, or too many for the dispatch below)."""
     winner = mi.UInt32(len(frames.bodies))
     for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes, frames.to_local)):
-        box_hit, box_near, box_far = box.ray_intersect(ray)
+        box_hit, box_near, box_far = box_intersect(mi, box, ray)
         test = active & box_hit & (box_near < best_t) & (box_far >= 0)
         pib = body.scene.ray_intersect_preliminary(
             transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), coherent, test)
@@ -275,7 +297,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
     n = len(frames.bodies)
     if n == 1 or n > MAX_DISPATCHED_BODIES:
         for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
-            box_hit, box_near, box_far = box.ray_intersect(ray)
+            box_hit, box_near, box_far = box_intersect(mi, box, ray)
             test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
             blocked |= body.scene.ray_test(transformed_ray(mi, inv, ray, ray.maxt), test)
         return blocked
