@@ -104,3 +104,12 @@ def test_moving_bodies_render_in_every_variant_of_one_process():
     # the same scene in light: colour conversions aside, within 10%
     assert means["llvm_ad_spectral"] == pytest.approx(means["llvm_ad_rgb"], rel=0.1)
     assert means["llvm_ad_mono"] == pytest.approx(means["llvm_ad_rgb"], rel=0.1)
+
+
+def test_written_out_box_test_equals_mitsubas(monkeypatch):
+    from conftest import PUBLISHED
+
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 16, "resy": 12})
+    binding = dopplertof.render(scene, spp=16, seed=2)
+    monkeypatch.setattr(bodies, "_SLAB_VARIANTS", {"llvm_ad_rgb"})
+    assert np.array_equal(dopplertof.render(scene, spp=16, seed=2), binding)
