@@ -160,3 +160,28 @@ def test_too_few_samples_is_a_one_line_cli_error(tmp_path):
     assert "adaptive_sampling needs spp a multiple of 16 and at least 128" in run.stderr
     assert "Traceback" not in run.stderr and len(run.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_cli_writes_the_sample_counts(tmp_path):
+    out, counts = tmp_path / "img.npy", tmp_path / "counts.npy"
+    base = [sys.executable, "-m", "dopplertof.cli", "render", PUBLISHED, "-D", "resx=12",
+            "-D", "resy=10", "--spp", "128", "--quiet", "-o", str(out)]
+    run = subprocess.run(base + ["-P", "adaptive_sampling=true", "--sample-counts",
+                                 str(counts), "--seed", "3"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    result = dopplertof.render_result(scene, spp=128, seed=3,
+                                      params={"adaptive_sampling": True})
+    assert np.array_equal(np.load(counts), result.sample_counts.astype(np.float32))
+    assert np.array_equal(np.load(out), result.image)
+    png = tmp_path / "counts.png"
+    run = subprocess.run(base + ["-P", "adaptive_sampling=true", "--sample-counts", str(png)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and png.read_bytes()[:4] == b"\x89PNG"
+    # without adaptive counts: a one-line error before any rendering, nothing written
+    out.unlink()
+    run = subprocess.run(base + ["--sample-counts", str(tmp_path / "c.npy")],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 2 and "-P adaptive_sampling=true" in run.stderr
+    assert not out.exists() and not (tmp_path / "c.npy").exists()

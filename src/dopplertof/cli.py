@@ -45,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--checkpoint", metavar="FILE",
                    help="save progress after every pass and resume from it after a kill")
+    r.add_argument("--sample-counts", metavar="FILE",
+                   help="with -P adaptive_sampling=true: write the samples traced per pixel "
+                   "(.png map, .npy or .exr)")
 
     c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
                        "depth reconstruction, exact truth, previews and summary.json")
@@ -103,17 +106,28 @@ def _cmd_render(args) -> int:
     from . import io
 
     io.check_output_path(args.output)
+    if args.sample_counts:
+        io.check_output_path(args.sample_counts)
     if args.checkpoint and not os.path.isdir(os.path.dirname(os.path.abspath(args.checkpoint))):
         raise UsageError(f"checkpoint folder does not exist: {args.checkpoint}")
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, _overrides(args.defines))
+    params = _overrides(args.params) or None
+    if args.sample_counts and not dopplertof.RenderParams.from_mapping(
+            params or {}, where="render parameters", base=scene.params).adaptive_sampling:
+        raise UsageError("--sample-counts needs adaptive sample counts: add "
+                         "-P adaptive_sampling=true (or set it in the scene)")
     result = dopplertof.render_result(scene, spp=args.spp, seed=args.seed,
-                                      params=_overrides(args.params) or None,
+                                      params=params,
                                       progress=False if args.quiet else None,
                                       checkpoint=args.checkpoint)
     io.write_image(args.output, result.image, result.metadata)
+    if args.sample_counts:
+        io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
+                       title="samples per pixel (adaptive)", label="samples",
+                       cmap="viridis", signed=False)
     if args.checkpoint:  # the output is safe: the checkpoint has served
         os.unlink(args.checkpoint)
     md = result.metadata

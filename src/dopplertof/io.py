@@ -108,8 +108,10 @@ def preview_scalar(image: np.ndarray) -> np.ndarray:
 
 def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
               label: str = "time-averaged correlation (mean of channels)",
-              cmap: str = "RdBu_r", metadata: dict | None = None) -> None:
-    """Signed preview: diverging colormap centred on zero, with a colour bar."""
+              cmap: str = "RdBu_r", metadata: dict | None = None,
+              signed: bool = True) -> None:
+    """Signed preview: diverging colormap centred on zero, with a colour bar; with
+    ``signed=False`` a colour scale from zero to the maximum (counts, magnitudes)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -119,9 +121,12 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     finite = data[np.isfinite(data)]
     vmax = float(np.percentile(np.abs(finite), 99.5)) if finite.size else 1.0
     vmax = vmax if vmax > 0 else 1.0
+    if not signed:
+        vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / w + 0.6), dpi=120)
-    im = ax.imshow(data, cmap=cmap, vmin=-vmax, vmax=vmax, interpolation="nearest")
+    im = ax.imshow(data, cmap=cmap, vmin=-vmax if signed else 0.0, vmax=vmax,
+                   interpolation="nearest")
     ax.set_title(title)
     ax.set_axis_off()
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
