@@ -161,9 +161,8 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         saved = _load_checkpoint(checkpoint, key)
         if saved is not None:
             total, nonfinite, next_chunk, saved_squares, saved_counts = saved
-            if p.adaptive_sampling:
-                squares = saved_squares if saved_squares.shape == total.shape else squares
-                counts = saved_counts if saved_counts.size == n_pixels else None
+            if p.adaptive_sampling:  # (the key holds the parameters: saved adaptively)
+                squares, counts = saved_squares, (saved_counts if saved_counts.size else None)
     started = _time.perf_counter()
     done = (min(spp, next_chunk * chunk) if counts is None
             else float(np.minimum(counts, next_chunk * chunk).mean()))
@@ -241,18 +240,9 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             if counts is None:
                 counts = _adaptive_counts(total, squares, pilot_chunks * chunk, K, spp,
                                           chunk, (height, width))
-            next_chunk = max(next_chunk, pilot_chunks)
-            lanes_per_pass = pass_chunks * chunk * n_pixels
-            c0 = next_chunk
-            end = int(counts.max()) // chunk
-            while c0 < end:
-                c1, lanes = c0, 0
-                while c1 < end and (c1 == c0 or lanes + chunk * int(
-                        np.count_nonzero(counts > c1 * chunk)) <= lanes_per_pass):
-                    lanes += chunk * int(np.count_nonzero(counts > c1 * chunk))
-                    c1 += 1
-                trace_chunks(c0, c1)
-                c0 = c1
+            for first_chunk, end_chunk in _adaptive_plan(
+                    counts // chunk, max(next_chunk, pilot_chunks), pass_chunks * n_pixels):
+                trace_chunks(first_chunk, end_chunk)
     finally:
         bar.close()
 
@@ -280,6 +270,23 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                                      "max": int(counts.max()),
                                      "mean": float(counts.mean())}
     return RenderResult(image, metadata, sample_counts)
+
+
+def _adaptive_plan(chunks, first: int, chunks_per_pass: int) -> list:
+    """Passes (first_chunk, end_chunk) over the chunk columns from ``first`` on, for
+    pixels with ``chunks`` chunks each: as many columns per pass as fit in
+    ``chunks_per_pass`` pixel-chunks (at least one)."""
+    # pixels that still have chunk c (c = 0, 1, ...)
+    remaining = chunks.size - np.cumsum(np.bincount(chunks))
+    plan, c0 = [], first
+    while c0 < remaining.size - 1:
+        c1, used = c0 + 1, remaining[c0]
+        while c1 < remaining.size - 1 and used + remaining[c1] <= chunks_per_pass:
+            used += remaining[c1]
+            c1 += 1
+        plan.append((c0, c1))
+        c0 = c1
+    return plan
 
 
 def _adaptive_counts(total, squares, pilot: int, group_size: int, spp: int, chunk: int,
