@@ -46,27 +46,30 @@ def pilot_samples(spp: int, chunk: int) -> int:
     return (spp // PILOT_FRACTION) // chunk * chunk
 
 
-def _ring_weight(dy: int, dx: int) -> float:
-    return INNER_WEIGHT if max(abs(dy), abs(dx)) == 1 else 1.0
-
-
-def _neighbour_sums(values, radius: int):
-    """Weighted sum and total weight of each pixel's neighbours within ``radius`` (the
-    pixel excluded, the image not padded)."""
-    h, w = values.shape
-    total = np.zeros_like(values)
-    count = np.zeros_like(values)
-    padded = np.zeros((h + 2 * radius, w + 2 * radius))
-    padded[radius:radius + h, radius:radius + w] = values
-    inside = np.zeros_like(padded)
-    inside[radius:radius + h, radius:radius + w] = 1.0
+def _neighbour_windows(shape, radius: int):
+    """(window, weight) per neighbour offset within ``radius`` (the pixel itself
+    excluded): the window selects, in an array zero-padded by ``radius``, the value of
+    neighbour (y + dy, x + dx) for every pixel (y, x); the nearest ring weighs
+    INNER_WEIGHT, the others 1."""
+    h, w = shape
     for dy in range(-radius, radius + 1):
         for dx in range(-radius, radius + 1):
             if dy == 0 and dx == 0:
                 continue
             window = (slice(radius + dy, radius + dy + h), slice(radius + dx, radius + dx + w))
-            total += _ring_weight(dy, dx) * padded[window]
-            count += _ring_weight(dy, dx) * inside[window]
+            yield window, INNER_WEIGHT if max(abs(dy), abs(dx)) == 1 else 1.0
+
+
+def _neighbour_sums(values, radius: int):
+    """Weighted sum and total weight of each pixel's neighbours within ``radius`` (the
+    pixel excluded, the image not padded)."""
+    padded = np.pad(values, radius)
+    inside = np.pad(np.ones_like(values), radius)
+    total = np.zeros_like(values)
+    count = np.zeros_like(values)
+    for window, r in _neighbour_windows(values.shape, radius):
+        total += r * padded[window]
+        count += r * inside[window]
     return total, count
 
 
@@ -95,18 +98,11 @@ def sample_counts(pilot_variance, spp: int, pilot: int, chunk: int) -> np.ndarra
     # neighbours' windows (the only weights it enters; up to the rounding of these
     # float64 sums, far below what could move a count by a chunk)
     w_sum = np.full((h, w), wt.sum())
-    pad = RADIUS
-    big = lambda a: np.pad(a, pad)  # noqa: E731
-    T, C, WT = big(total), big(count), big(wt)
-    for dy in range(-pad, pad + 1):
-        for dx in range(-pad, pad + 1):
-            if dy == 0 and dx == 0:
-                continue
-            window = (slice(pad + dy, pad + dy + h), slice(pad + dx, pad + dx + w))
-            # neighbour j = i + (dy, dx): its window holds i; drop sd_i from it
-            r = _ring_weight(dy, dx)
-            w_without = weight(T[window] - r * sd, C[window] - r)
-            w_sum += np.where(C[window] > 0, w_without - WT[window], 0.0)
+    T, C, WT = (np.pad(a, RADIUS) for a in (total, count, wt))
+    for window, r in _neighbour_windows((h, w), RADIUS):
+        # neighbour j = i + (dy, dx): its window holds i; drop sd_i from it
+        w_without = weight(T[window] - r * sd, C[window] - r)
+        w_sum += np.where(C[window] > 0, w_without - WT[window], 0.0)
     share = np.where(w_sum > 0, wt * n / np.where(w_sum > 0, w_sum, 1.0), 1.0)
     target = spp * ((1.0 - UNIFORM_SHARE) * share + UNIFORM_SHARE)
     counts = np.rint(target / chunk).astype(np.int64) * chunk
