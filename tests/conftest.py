@@ -20,3 +20,27 @@ def llvm_variant():
 
     if mi.variant() != "llvm_ad_rgb":
         dopplertof.set_variant("llvm_ad_rgb")
+
+
+def render_killed_then_resumed(monkeypatch, scene, checkpoint, die_after, **render_args):
+    """Render with a checkpoint, one pass per chunk, killed (KeyboardInterrupt) right
+    after the ``die_after``-th checkpoint was saved; then the same render again, which
+    resumes from the checkpoint. Returns the resumed image."""
+    import dopplertof
+
+    R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
+    calls = {"n": 0}
+    original = R._save_checkpoint
+
+    def save_then_die(*args):
+        original(*args)
+        calls["n"] += 1
+        if calls["n"] == die_after:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(R, "_save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        dopplertof.render(scene, pass_chunks=1, checkpoint=checkpoint, **render_args)
+    monkeypatch.setattr(R, "_save_checkpoint", original)
+    assert os.path.exists(checkpoint)
+    return dopplertof.render(scene, pass_chunks=1, checkpoint=checkpoint, **render_args)

@@ -9,7 +9,7 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene, reference
-from conftest import PUBLISHED
+from conftest import PUBLISHED, render_killed_then_resumed
 from dopplertof import allocation
 
 R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
@@ -130,23 +130,8 @@ def test_adaptive_render_resumes_bitwise(tmp_path, monkeypatch, die_after):
     scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
     params = {"adaptive_sampling": True}
     reference_image = dopplertof.render(scene, spp=256, seed=4, params=params)
-    ckpt = tmp_path / "r.ckpt"
-    calls = {"n": 0}
-    original = R._save_checkpoint
-
-    def save_then_die(*args):
-        original(*args)
-        calls["n"] += 1
-        if calls["n"] == die_after:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(R, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        dopplertof.render(scene, spp=256, seed=4, params=params, pass_chunks=1,
-                          checkpoint=ckpt)
-    monkeypatch.setattr(R, "_save_checkpoint", original)
-    resumed = dopplertof.render(scene, spp=256, seed=4, params=params, pass_chunks=1,
-                                checkpoint=ckpt)
+    resumed = render_killed_then_resumed(monkeypatch, scene, tmp_path / "r.ckpt",
+                                         die_after, spp=256, seed=4, params=params)
     assert np.array_equal(resumed, reference_image)
 
 

@@ -10,32 +10,16 @@ import numpy as np
 import pytest
 
 import dopplertof
-from conftest import PUBLISHED
+from conftest import PUBLISHED, render_killed_then_resumed
 from dopplertof.render import CheckpointError
 
 
 def test_resume_after_interruption_is_bitwise_identical(tmp_path, monkeypatch):
     scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
     reference = dopplertof.render(scene, spp=64, seed=4)
-    ckpt = tmp_path / "r.ckpt"
-
-    R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
-
-    calls = {"n": 0}
-    original = R._save_checkpoint
-
-    def save_then_die(*args):
-        original(*args)
-        calls["n"] += 1
-        if calls["n"] == 2:
-            raise KeyboardInterrupt  # killed after two passes were saved
-
-    monkeypatch.setattr(R, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        dopplertof.render(scene, spp=64, seed=4, pass_chunks=1, checkpoint=ckpt)
-    monkeypatch.setattr(R, "_save_checkpoint", original)
-    assert ckpt.exists()
-    resumed = dopplertof.render(scene, spp=64, seed=4, pass_chunks=1, checkpoint=ckpt)
+    # killed after two passes were saved
+    resumed = render_killed_then_resumed(monkeypatch, scene, tmp_path / "r.ckpt", 2,
+                                         spp=64, seed=4)
     assert np.array_equal(resumed, reference)
 
 
