@@ -188,10 +188,23 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                disable=not _show_progress(progress), leave=False, file=sys.stderr)
     import drjit as dr
 
+    # the splat film's totals stay in Dr.Jit (float64, one array per column) between
+    # passes; the importance film's chunk sums are added on the host
+    weighted = splat is not None and offsets > 1
+    device_total = None  # column-major: column c of pixel p at c * n_pixels + p
+    if weighted:
+        device_total = (mi.Float64(total.T.ravel()) if next_chunk else
+                        dr.zeros(mi.Float64, columns * n_pixels))
+
+    def host_total():
+        if weighted:
+            return np.asarray(device_total).reshape(columns, n_pixels).T
+        return total
+
     def trace_chunks(first_chunk, end_chunk):
         """Trace chunks [first_chunk, end_chunk) of every pixel that has them and add
-        them to ``total`` (and in the pilot, to ``pilot_sums`` and ``squares``)."""
-        nonlocal nonfinite
+        them to the totals (and in the pilot, to ``pilot_sums`` and ``squares``)."""
+        nonlocal nonfinite, device_total
         s0 = first_chunk * chunk
         if counts is None:
             s1 = min(spp, end_chunk * chunk)
@@ -199,6 +212,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             chunk_size = min(chunk, samples)
             layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), K)
             block_pixel = np.repeat(np.arange(n_pixels), samples // chunk_size)
+            pixels, per_pixel = np.arange(n_pixels), np.full(n_pixels, samples)
             lanes = n_pixels * samples
         else:  # each pixel its own number of chunks: lanes from host arrays
             chunk_size = chunk
@@ -212,45 +226,47 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             block_pixel = lane_pixel[::chunk]
             lanes = lane_pixel.size
         value, film_offset = trace_pass(mi, setup, layout)
-        weights = None if splat is None else splat.lane_weights(mi, film_offset)
-        dr.eval(value, weights)  # one path tracing kernel for all channels
+        dr.eval(value, film_offset if weighted else None)  # one path tracing kernel
         # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
-        channels = [value[c] for c in range(_channels(value))]
-        finite = dr.isfinite(channels[0])
-        for v in channels[1:]:
+        raw = [value[c] for c in range(_channels(value))]
+        finite = dr.isfinite(raw[0])
+        for v in raw[1:]:
             finite &= dr.isfinite(v)
         dropped = dr.count(~finite)
-        channels = [dr.select(finite, v, 0.0) for v in channels]
+        channels = [dr.select(finite, v, 0.0) for v in raw]
 
         def chunk_sums(values):
             return [dr.block_sum(v, chunk_size, mode="evaluated") for v in values]
 
-        if weights is None:
+        if weighted:  # the splat: per film offset, weight x value (and the weights)
+            device_total = splat.accumulate(
+                mi, device_total, raw, film_offset, pixels, np.cumsum(per_pixel) - per_pixel,
+                per_pixel, chunk_size, columns, normalization == "weights")
+            sums = []
+        else:
             sums = chunk_sums(channels)
-        else:  # the splat: per film offset, weight x value (and the weights)
-            sums = chunk_sums([w * v for w in weights for v in channels])
-            if normalization == "weights":
-                sums += chunk_sums(weights)
         pilot = squares is not None and first_chunk < pilot_chunks
         if pilot:  # the samples' sums, and the squared sums of the groups (K samples)
-            sums += chunk_sums(channels) if weights is not None else []
+            sums += chunk_sums(channels) if weighted else []
             sums += [dr.block_sum(dr.square(dr.block_sum(v, K, mode="evaluated")),
                                   chunk_size // K, mode="evaluated") for v in channels]
         dr.eval(dropped, sums)
         nonfinite += int(dropped[0])
-        parts = np.stack([np.asarray(v) for v in sums], axis=-1).astype(np.float64)
+        parts = np.empty((block_pixel.size, len(sums)))
+        for i, v in enumerate(sums):
+            parts[:, i] = np.asarray(v)
         # chunk order per pixel, whatever the passes: the image ignores pass sizes
-        position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
-        raw = slice(columns if weights is not None else 0, -channels_out)
-        for j in range(int(position.max()) + 1 if position.size else 0):
-            rows = position == j
-            total[block_pixel[rows]] += parts[rows, :columns]
+        # (the importance film's sums are both its total and, in the pilot, the pixel's
+        # own sums; the squared group sums come last)
+        for pixels_j, rows in (_chunk_columns(block_pixel, n_pixels) if sums else ()):
+            if not weighted:
+                total[pixels_j] += parts[rows, :columns]
             if pilot:
-                pilot_sums[block_pixel[rows]] += parts[rows, raw]
-                squares[block_pixel[rows]] += parts[rows, -channels_out:]
+                pilot_sums[pixels_j] += parts[rows, :channels_out]
+                squares[pixels_j] += parts[rows, -channels_out:]
         bar.update(lanes / n_pixels)
         if checkpoint is not None:
-            _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk, pilot_sums,
+            _save_checkpoint(checkpoint, key, host_total(), nonfinite, end_chunk, pilot_sums,
                              squares, counts)
 
     try:
@@ -278,6 +294,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     finally:
         bar.close()
 
+    total = host_total()
     per_pixel = (np.full(n_pixels, spp) if counts is None else counts).astype(np.float64)
     if splat is None:
         image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
@@ -308,18 +325,33 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     return RenderResult(image, metadata, sample_counts)
 
 
+def _chunk_columns(block_pixel, n_pixels: int):
+    """(pixels, rows) per chunk column j: the rows of the pass's chunk sums that hold
+    chunk j of their pixel (``block_pixel``: each row's pixel, pixel-major). Slices
+    when every pixel has the same number of chunks (views, no copies), else index
+    arrays."""
+    per_pixel = block_pixel.size // n_pixels
+    if per_pixel and np.array_equal(block_pixel, np.repeat(np.arange(n_pixels), per_pixel)):
+        for j in range(per_pixel):
+            yield slice(None), slice(j, None, per_pixel)
+        return
+    position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
+    for j in range(int(position.max()) + 1 if position.size else 0):
+        rows = position == j
+        yield block_pixel[rows], rows
+
+
 def _develop_splat(splat, total, per_pixel, channels: int, shape, normalization: str):
-    """The image (H, W, C) from the splat film's sums by source pixel: each source
-    pixel's sums divided by its own sample count (so that an adaptive count, set
-    without the pixel's samples, leaves every term unbiased), shifted into the target
-    pixels and divided by the expected weight (or, ``"weights"``, the sampled one)."""
+    """The image (H, W, C) from the splat film's sums by source pixel (``total``:
+    pixels x columns): each source pixel's sums divided by its own sample count (so
+    that an adaptive count, set without the pixel's samples, leaves every term
+    unbiased), shifted into the target pixels and divided by the expected weight (or,
+    ``"weights"``, the sampled one)."""
     offsets = len(splat.offsets)
-    mean = total / per_pixel[:, None]
-    values = splat.shift_add(mean[:, :offsets * channels].reshape(-1, offsets, channels),
-                             shape)
+    mean = total.T / per_pixel[None, :]  # columns x pixels
+    values = splat.shift_add(mean[:offsets * channels], shape)
     if normalization == "weights":
-        weight = splat.shift_add(mean[:, offsets * channels:].reshape(-1, offsets, 1),
-                                 shape)[..., 0]
+        weight = splat.shift_add(mean[offsets * channels:], shape)[..., 0]
     else:
         weight = splat.expected_weights(shape)
     return values / weight[..., None]

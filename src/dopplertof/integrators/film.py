@@ -190,6 +190,65 @@ class SplatFilter:
         wy = {k: self.eval_1d(delta.y - k) for k in range(-n, n + 1)}
         return [wy[oy] * wx[ox] for ox, oy in self.offsets]
 
+    def accumulate(self, mi, totals, values, film_offset, pixel, first_lane, lanes,
+                   chunk_size: int, columns: int, with_weights: bool):
+        """Add a pass's samples to ``totals``, a Float64 array of ``columns`` x pixels
+        (column-major: column c of pixel p at c * pixels + p; the columns offset-major,
+        then channel; then, ``with_weights``, one per offset for the sums of weights).
+        Returns the new array.
+
+        One thread per pixel with samples in the pass (host arrays ``pixel``,
+        ``first_lane``, ``lanes``: its lanes are consecutive). Each chunk of
+        ``chunk_size`` lanes is summed in float32 in lane order and each chunk sum is
+        added to the float64 total in chunk order, so that the result does not depend
+        on how the samples were cut into passes; every lane is read once, its weights
+        computed there, and no two threads write one pixel (no atomics).
+        Lanes with a non-finite value count as zero."""
+        n = self.reach
+        channels = len(values)
+        n_pixels = dr.width(totals) // columns
+        pixel = mi.UInt32(pixel)
+        first, count = mi.UInt32(first_lane), mi.UInt32(lanes)
+        acc = [dr.gather(mi.Float64, totals, pixel + c * n_pixels) for c in range(columns)]
+
+        def add_sample(k, part):
+            lane = first + k
+            f = [dr.gather(mi.Float, v, lane) for v in values]
+            finite = dr.isfinite(f[0])
+            for v in f[1:]:
+                finite &= dr.isfinite(v)
+            f = [dr.select(finite, v, 0.0) for v in f]
+            dx = dr.gather(mi.Float, film_offset.x, lane)
+            dy = dr.gather(mi.Float, film_offset.y, lane)
+            wx = {j: self.eval_1d(dx - j) for j in range(-n, n + 1)}
+            wy = {j: self.eval_1d(dy - j) for j in range(-n, n + 1)}
+            part = list(part)
+            for m, (ox, oy) in enumerate(self.offsets):
+                w = wy[oy] * wx[ox]
+                for c in range(channels):
+                    part[m * channels + c] = dr.fma(w, f[c], part[m * channels + c])
+                if with_weights:
+                    i = len(self.offsets) * channels + m
+                    part[i] = part[i] + w
+            return k + 1, part
+
+        def add_chunk(k, acc):
+            # ---- One chunk: float32 sums in lane order, then into the float64 totals ----
+            end = k + chunk_size
+            k, part = dr.while_loop(
+                state=(k, [mi.Float(0.0) for _ in range(columns)]),
+                cond=lambda k, part: k < end, body=add_sample, labels=("k", "part"),
+                label="splat_chunk")
+            return k, [a + mi.Float64(p) for a, p in zip(acc, part)]
+
+        _, acc = dr.while_loop(state=(mi.UInt32(0), acc), cond=lambda k, acc: k < count,
+                               body=add_chunk, labels=("k", "acc"), label="splat")
+        out = dr.copy(totals)
+        for c, a in enumerate(acc):
+            dr.scatter(out, a, pixel + c * n_pixels)
+        dr.eval(out)
+        return out
+
     # ---- Host side ----
 
     def expected_weights(self, shape) -> np.ndarray:
@@ -208,17 +267,17 @@ class SplatFilter:
         return axis(h)[:, None] * axis(w)[None, :]
 
     def shift_add(self, sums, shape) -> np.ndarray:
-        """Sum (source pixel, offset) values into their target pixels: ``sums`` is
-        (H * W, len(offsets), C) by source pixel; returns (H, W, C), float64, the
+        """Sum (offset, source pixel) values into their target pixels: ``sums`` is
+        (len(offsets), C, H * W) by source pixel; returns (H, W, C), float64, the
         offsets added in a fixed order (deterministic)."""
         h, w = shape
-        sums = sums.reshape(h, w, len(self.offsets), -1)
-        image = np.zeros((h, w, sums.shape[-1]))
+        sums = sums.reshape(len(self.offsets), -1, h, w)
+        image = np.zeros(sums.shape[1:])
         for m, (ox, oy) in enumerate(self.offsets):
             # target (y, x) = source (y - oy, x - ox), both inside the window
             ty = slice(max(0, oy), min(h, h + oy))
             tx = slice(max(0, ox), min(w, w + ox))
             sy = slice(max(0, -oy), min(h, h - oy))
             sx = slice(max(0, -ox), min(w, w - ox))
-            image[ty, tx] += sums[sy, sx, m]
-        return image
+            image[:, ty, tx] += sums[m, :, sy, sx]
+        return np.moveaxis(image, 0, -1)
