@@ -102,6 +102,11 @@ SCENE_CASES = [
     ("sampler-method", ('<sampler type="correlated">', '<sampler type="correlated">'
                         '<string name="time_sampling_method" value="antithetic"/>'),
      "unknown parameter 'time_sampling_method' of the correlated sampler"),
+    ("analytic-square-waves", ('<float name="hetero_frequency" value="1"/>',
+                               '<float name="hetero_frequency" value="1"/>'
+                               '<string name="time_sampling_method" value="analytic"/>'
+                               '<string name="wave_function_type" value="rectangular"/>'),
+     "needs wave_function_type 'sinusoidal'"),
     ("kp-not-dividing-spp", ('<integer name="sample_count" value="4"/>',
                              '<integer name="sample_count" value="4"/>'
                              '<integer name="path_correlate_number" value="3"/>'),

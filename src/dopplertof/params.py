@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
+from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
 
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
@@ -117,6 +117,13 @@ class RenderParams:
         if self.time_sampling_method not in METHOD_NAMES:
             fail(f"unknown time_sampling_method {self.time_sampling_method!r}: expected one of "
                  f"{', '.join(METHOD_NAMES)}")
+        if self.time_sampling_method == ANALYTIC:  # the published closed form's limits
+            if self.wave_function_type != "sinusoidal":
+                fail("time_sampling_method 'analytic' integrates a sinusoid in closed form: it "
+                     f"needs wave_function_type 'sinusoidal', got {self.wave_function_type!r}")
+            if not self.low_frequency_component_only:
+                fail("time_sampling_method 'analytic' integrates the low-pass correlation: it "
+                     "needs low_frequency_component_only=true")
         if self.max_depth < -1 or self.max_depth == 0:
             fail(f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}")
         if self.rr_depth < 1:

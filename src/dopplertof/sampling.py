@@ -24,8 +24,9 @@ ANTITHETIC_MAPPINGS = ("replay", "motion")
 #: time integrated over the exposure, not sampled (integrators/analytic.py; biased)
 ANALYTIC = "analytic"
 
-#: accepted time_sampling_method names: the methods and ``auto`` (see :func:`auto_sampling`)
-METHOD_NAMES = METHODS + ("auto",)
+#: accepted time_sampling_method names: the methods, ``analytic`` and ``auto`` (see
+#: :func:`auto_sampling`)
+METHOD_NAMES = METHODS + (ANALYTIC, "auto")
 
 # ---- Dimension layout -------------------------------------------------------
 DIM_TIME = 0  #: the time sample
