@@ -12,32 +12,17 @@ from analytic import plane_scene, reference
 from conftest import PUBLISHED
 from dopplertof import sampling
 from dopplertof.cli import main
+from test_bad_input import GOOD
 
 R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
 
-SAMPLER_XML = """<scene version="3.0.0">
-  <integrator type="dopplertofpath">{integrator}</integrator>
-  <sensor type="perspective">
-    <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
-    <float name="shutter_close" value="0.0015"/>
-    <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/>
-      <rfilter type="box"/></film>
-    <sampler type="correlated"><integer name="sample_count" value="8"/>{sampler}</sampler>
-  </sensor>
-  <emitter type="point"><point name="position" x="0" y="0" z="5"/>
-    <rgb name="intensity" value="10"/></emitter>
-  <shape type="cube"><bsdf type="diffuse"/>
-    <animation name="to_world">
-      <transform time="0"><translate z="0"/></transform>
-      <transform time="0.0015"><translate z="0.015"/></transform>
-    </animation>
-  </shape>
-</scene>"""
-
-
 def load_xml(integrator="", sampler=""):
-    return dopplertof.scene.load_string(SAMPLER_XML.format(integrator=integrator,
-                                                           sampler=sampler))
+    """test_bad_input's good scene (correlated sampler, 8 spp) with more parameters."""
+    return dopplertof.scene.load_string(
+        GOOD.replace('<integer name="max_depth" value="3"/>',
+                     '<integer name="max_depth" value="3"/>' + integrator)
+        .replace('<integer name="sample_count" value="4"/>',
+                 '<integer name="sample_count" value="8"/>' + sampler))
 
 
 def published(res=8):

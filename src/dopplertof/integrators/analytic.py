@@ -33,7 +33,7 @@ from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
 from ..scene.bodies import BodyFrames
 from .dtof_path import (_as_colour, _intersect, advance, film_position, lane_streams,
-                        roulette, shade, vertex_numbers)
+                        loop_settings, roulette, shade, vertex_numbers)
 
 #: |phase change over the exposure| (rad) below which the closed forms use their series
 #: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
@@ -93,7 +93,6 @@ def trace_analytic_pass(mi, setup, layout):
     time-averaged measurement, as :func:`dtof_path.trace_pass` does."""
     scene = setup.scene
     static = scene.static
-    params = setup.params
     mod = setup.modulation
     integrated = IntegratedWeight(mi, mod)
     streams = lane_streams(mi, setup, layout)  # correlation depth 0: samples independent
@@ -129,10 +128,7 @@ def trace_analytic_pass(mi, setup, layout):
     bsdf_ctx = mi.BSDFContext()
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth = mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF)
-    max_iterations = params.max_depth
-    rr_depth = params.rr_depth
-    hide_direct_emitters = setup.hide_emitters
+    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(active1, max_iterations=max_iterations, label="dopplertof_analytic"):
         si1 = _intersect(mi, static, frames1, ray1, active1, depth1, None, fresh)
         si2 = _intersect(mi, static, frames2, ray2, active2, depth2, None, fresh)

@@ -330,13 +330,20 @@ def roulette(beta, eta, depth, rr_depth):
     return beta_max, dr.minimum(beta_max * dr.square(eta), 0.95), depth >= rr_depth
 
 
+def loop_settings(mi, setup):
+    """The path loop's plain settings: the depth limit (a UInt32), the iteration hint,
+    the Russian roulette depth and whether directly visible emitters are hidden."""
+    params = setup.params
+    return (mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF),
+            params.max_depth, params.rr_depth, setup.hide_emitters)
+
+
 @dr.syntax
 def trace_pass(mi, setup, layout: PassLayout):
     """Render one pass; returns each lane's time-averaged measurement (the variant's
     Spectrum; RGB in spectral variants)."""
     scene = setup.scene
     static = scene.static
-    params = setup.params
     mod = setup.modulation
     weight = setup.weight
     if dr.hint(setup.analytic, mode="scalar"):  # time integrated, not sampled
@@ -393,10 +400,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     bsdf_ctx = mi.BSDFContext()
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth = mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF)
-    max_iterations = params.max_depth
-    rr_depth = params.rr_depth
-    hide_direct_emitters = setup.hide_emitters
+    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
         si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
