@@ -52,7 +52,7 @@ def ls_scale(image, target):
 def ours():
     """Our render of the published XML as it is (256x256, its defaults) at 2 x 128 spp
     (seeds 0 and 1), and the block noise of their mean, relative to the reference's
-    RMS: half the blocks' seed difference (measured 4.8-4.9%)."""
+    RMS: half the blocks' seed difference (measured 5.1-5.3%, splat film)."""
     scene = dopplertof.load_file(published_path("cornell_box_moving.xml"))
     a, b = (dopplertof.render(scene, spp=128, seed=s) for s in (0, 1))
     reference = m06("reference_spp_16384.npy")
@@ -62,9 +62,9 @@ def ours():
 
 def test_against_the_published_reference(ours):
     """The Mitsuba 0.6 reference (16384 spp, antithetic, correlated paths): our block
-    error is our noise (measured 4.8-5.6% against 4.8-4.9% noise; 2.6% at 1024 spp, the
-    floor), within 1.25 sqrt(noise^2 + 2%^2); the scale is 1 within 5% (measured 1.001,
-    1.022)."""
+    error is our noise (measured 5.2-5.3% against 5.1-5.3% noise; 2.6% at 1024 spp, the
+    floor), within 1.25 sqrt(noise^2 + 2%^2); the scale is 1 within 5% (measured 0.995,
+    1.013)."""
     image, noise = ours
     reference = m06("reference_spp_16384.npy")
     error = block_rmse(image, reference)
@@ -75,8 +75,9 @@ def test_against_the_published_reference(ours):
 
 def test_against_the_published_mitsuba3_render(ours):
     """The Mitsuba 3 implementation's own EXR of this XML (1024 spp): its own block error
-    against the reference is 3.2% (scale 1.0045), ours against it 5.5-6.5% at our
-    noise; bound 1.25 sqrt(noise^2 + 3.2%^2 + 2%^2)."""
+    against the reference is 3.2% (scale 1.0045), ours against it 6.2-6.4% at our
+    noise; bound 1.25 sqrt(noise^2 + 3.2%^2 + 2%^2); scale within 8% (measured 0.955,
+    0.973: its noise and ours)."""
     import mitsuba as mi
 
     image, noise = ours
@@ -88,15 +89,15 @@ def test_against_the_published_mitsuba3_render(ours):
     assert floor < 0.04  # the fixture is what the README says
     error = block_rmse(image, exr)
     assert error < 1.25 * np.sqrt(noise**2 + floor**2 + 0.02**2), (error, noise, floor)
-    assert abs(ls_scale(image, exr) - 1.0) < 0.06
+    assert abs(ls_scale(image, exr) - 1.0) < 0.08
 
 
 def test_analytic_mode_reproduces_the_published_analytic_render():
     """time_sampling_method="analytic" against the Mitsuba 0.6 analytic render (512
-    samples of two paths): block error under 5% (measured 3.4-3.8% over 4 seeds at
-    128 spp, 3.2% at 256: the rest is the published render's own noise and the length
-    conventions), while both are biased alike against the reference (ours 7.8-8.1%,
-    theirs 9.5%, far above our noise there)."""
+    samples of two paths): block error under 5% (measured 3.3-3.4% over 3 seeds at
+    128 spp: the published render's own noise and the length conventions), while both
+    are biased alike against the reference (ours 7.9-8.0%, theirs 9.5%, far above our
+    noise there)."""
     scene = dopplertof.load_file(published_path("cornell_box_moving.xml"))
     image = dopplertof.render(scene, spp=128, seed=0,
                               params={"time_sampling_method": "analytic"})

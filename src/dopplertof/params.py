@@ -15,6 +15,10 @@ from dataclasses import dataclass, field, fields, replace
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
 
+#: how samples become pixels (integrators/film.py)
+FILM_SAMPLINGS = ("splat", "importance")
+FILM_NORMALIZATIONS = ("expected", "weights")
+
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
 
@@ -64,6 +68,13 @@ class RenderParams:
     #: samples per pixel set from a pilot pass (the first 1/4), more where the
     #: neighbours vary most, spp on average, unbiased (allocation.py)
     adaptive_sampling: bool = False
+    # ---- Film ----
+    #: "splat" (each sample weighted into every pixel its filter reaches, as Mitsuba's
+    #: film) or "importance" (film positions drawn from the filter, one pixel each)
+    film_sampling: str = "splat"
+    #: splat film: divide by the exact "expected" filter weight (unbiased) or by the
+    #: sampled "weights" (Mitsuba's ratio estimator)
+    film_normalization: str = "expected"
     # ---- Execution (the published integrators' own; none changes the image) ----
     is_doppler_integrator: bool = True  #: no effect: this integrator is a D-ToF one
     block_size: int = 0  #: no effect: the published scalar variants' tile size
@@ -147,6 +158,12 @@ class RenderParams:
         if self.antithetic_mapping not in (None,) + ANTITHETIC_MAPPINGS:
             fail(f"unknown antithetic_mapping {self.antithetic_mapping!r}: expected one of "
                  f"{', '.join(ANTITHETIC_MAPPINGS)}")
+        if self.film_sampling not in FILM_SAMPLINGS:
+            fail(f"unknown film_sampling {self.film_sampling!r}: expected one of "
+                 f"{', '.join(FILM_SAMPLINGS)}")
+        if self.film_normalization not in FILM_NORMALIZATIONS:
+            fail(f"unknown film_normalization {self.film_normalization!r}: expected one of "
+                 f"{', '.join(FILM_NORMALIZATIONS)}")
         if self.antithetic_mapping == "motion":
             method = self.time_sampling_method
             if method not in ("antithetic", "antithetic_mirror"):
@@ -248,8 +265,9 @@ _TYPES = {
     "rr_depth": int, "hide_emitters": bool, "time_sampling_method": str,
     "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
     "use_stratified_sampling_for_each_interval": bool, "antithetic_mapping": str,
-    "adaptive_sampling": bool, "path_correlate_number": int, "is_doppler_integrator": bool,
-    "block_size": int, "samples_per_pass": int, "timeout": float,
+    "adaptive_sampling": bool, "film_sampling": str, "film_normalization": str,
+    "path_correlate_number": int, "is_doppler_integrator": bool, "block_size": int,
+    "samples_per_pass": int, "timeout": float,
 }
 assert set(_TYPES) == set(RenderParams.names())
 

@@ -55,7 +55,8 @@ class RenderSetup:
     path_group_size: int  #: Kp, samples sharing one path stream
     stratify: bool
     shutter_open: float
-    film_sampler: object
+    film_sampler: object  #: integrators.film.FilmSampler: film positions in a pixel
+    splat: object  #: integrators.film.SplatFilter, or None for the importance film
     camera: object  #: integrators.camera.Camera
     projection: object  #: PinholeProjection when pairs use the motion mapping, else None
     hide_emitters: bool
@@ -66,7 +67,8 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     import drjit as dr
 
     from .integrators.camera import Camera, PinholeProjection, is_pinhole
-    from .integrators.dtof_path import FilmSampler, ModulationWeight
+    from .integrators.dtof_path import ModulationWeight
+    from .integrators.film import FilmSampler, SplatFilter
 
     sensor = scene.sensor
     mod = params.modulation(scene.shutter_interval)
@@ -77,6 +79,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
     weight = ModulationWeight(mi, mod)
     analytic = params.time_sampling_method == sampling.ANALYTIC
+    splat = params.film_sampling == "splat"
     projection = None
     if params.antithetic_mapping == "motion":
         if not is_pinhole(sensor):
@@ -96,7 +99,9 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
         antithetic_shift=dr.opaque(weight.F, mod.antithetic_shift),
         group_size=K, groups_per_pixel=spp // K, path_group_size=params.path_group_size,
         stratify=params.use_stratified_sampling_for_each_interval,
-        shutter_open=scene.shutter_open, film_sampler=FilmSampler(sensor.film()),
+        shutter_open=scene.shutter_open,
+        film_sampler=FilmSampler.uniform() if splat else FilmSampler(sensor.film()),
+        splat=SplatFilter(sensor.film()) if splat else None,
         camera=Camera(mi, sensor, scene.sensor_motion, near_clip,
                       mi.Vector3f(*map(float, forward))),
         projection=projection,
@@ -159,9 +164,21 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     from .integrators.dtof_path import PassLayout, trace_pass
 
     channels_out = _spectrum_channels(mi)
-    total = np.zeros((n_pixels, channels_out), dtype=np.float64)
-    # adaptive sampling: the pilot's sums of squared group sums, then the counts
-    squares = np.zeros_like(total) if p.adaptive_sampling else None
+    # ---- Accumulators (float64, by source pixel) ----
+    # total: per pixel and film offset, each channel's sum of filter weight x value
+    # (importance film: one offset, weight 1), then, with film_normalization="weights",
+    # each offset's sum of weights
+    splat = setup.splat
+    offsets = 1 if splat is None else len(splat.offsets)
+    columns = offsets * channels_out
+    # (a box weighs every sample 1 in its own pixel: both normalizations are the count)
+    normalization = "expected" if offsets == 1 else p.film_normalization
+    if normalization == "weights":
+        columns += offsets
+    total = np.zeros((n_pixels, columns), dtype=np.float64)
+    # adaptive sampling: the pilot's sums of samples and of squared group sums
+    pilot_sums = np.zeros((n_pixels, channels_out)) if p.adaptive_sampling else None
+    squares = np.zeros_like(pilot_sums) if p.adaptive_sampling else None
     counts = None
     nonfinite = 0
     next_chunk = 0
@@ -169,9 +186,10 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     if checkpoint is not None:
         saved = _load_checkpoint(checkpoint, key)
         if saved is not None:
-            total, nonfinite, next_chunk, saved_squares, saved_counts = saved
+            total, nonfinite, next_chunk, saved_pilot, saved_squares, saved_counts = saved
             if p.adaptive_sampling:  # (the key holds the parameters: saved adaptively)
-                squares, counts = saved_squares, (saved_counts if saved_counts.size else None)
+                pilot_sums, squares = saved_pilot, saved_squares
+                counts = saved_counts if saved_counts.size else None
     started = _time.perf_counter()
     done = (min(spp, next_chunk * chunk) if counts is None
             else float(np.minimum(counts, next_chunk * chunk).mean()))
@@ -181,7 +199,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
 
     def trace_chunks(first_chunk, end_chunk):
         """Trace chunks [first_chunk, end_chunk) of every pixel that has them and add
-        them to ``total`` (and in the pilot, to ``squares``)."""
+        them to ``total`` (and in the pilot, to ``pilot_sums`` and ``squares``)."""
         nonlocal nonfinite
         s0 = first_chunk * chunk
         if counts is None:
@@ -202,8 +220,9 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             layout = PassLayout.of_lanes(mi, lane_pixel, lane_sample, K)
             block_pixel = lane_pixel[::chunk]
             lanes = lane_pixel.size
-        value = trace_pass(mi, setup, layout)
-        dr.eval(value)  # one path tracing kernel for all channels
+        value, film_offset = trace_pass(mi, setup, layout)
+        weights = None if splat is None else splat.lane_weights(mi, film_offset)
+        dr.eval(value, weights)  # one path tracing kernel for all channels
         # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
         channels = [value[c] for c in range(_channels(value))]
         finite = dr.isfinite(channels[0])
@@ -211,9 +230,19 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             finite &= dr.isfinite(v)
         dropped = dr.count(~finite)
         channels = [dr.select(finite, v, 0.0) for v in channels]
-        sums = [dr.block_sum(v, chunk_size, mode="evaluated") for v in channels]
+
+        def chunk_sums(values):
+            return [dr.block_sum(v, chunk_size, mode="evaluated") for v in values]
+
+        if weights is None:
+            sums = chunk_sums(channels)
+        else:  # the splat: per film offset, weight x value (and the weights)
+            sums = chunk_sums([w * v for w in weights for v in channels])
+            if normalization == "weights":
+                sums += chunk_sums(weights)
         pilot = squares is not None and first_chunk < pilot_chunks
-        if pilot:  # squared sums of the groups (K samples), summed per chunk
+        if pilot:  # the samples' sums, and the squared sums of the groups (K samples)
+            sums += chunk_sums(channels) if weights is not None else []
             sums += [dr.block_sum(dr.square(dr.block_sum(v, K, mode="evaluated")),
                                   chunk_size // K, mode="evaluated") for v in channels]
         dr.eval(dropped, sums)
@@ -221,14 +250,17 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         parts = np.stack([np.asarray(v) for v in sums], axis=-1).astype(np.float64)
         # chunk order per pixel, whatever the passes: the image ignores pass sizes
         position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
+        raw = slice(columns if weights is not None else 0, -channels_out)
         for j in range(int(position.max()) + 1 if position.size else 0):
             rows = position == j
-            total[block_pixel[rows]] += parts[rows, :channels_out]
+            total[block_pixel[rows]] += parts[rows, :columns]
             if pilot:
-                squares[block_pixel[rows]] += parts[rows, channels_out:]
+                pilot_sums[block_pixel[rows]] += parts[rows, raw]
+                squares[block_pixel[rows]] += parts[rows, -channels_out:]
         bar.update(lanes / n_pixels)
         if checkpoint is not None:
-            _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk, squares, counts)
+            _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk, pilot_sums,
+                             squares, counts)
 
     reached = next_chunk  # chunks of every pixel traced so far (where it has them)
 
@@ -257,7 +289,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                 trace_pass_then_check_time(c0, min(pilot_chunks, c0 + pass_chunks))
             # ---- Counts from the neighbours' pilot variance, then the rest ----
             if counts is None:
-                counts = _adaptive_counts(total, squares, pilot_chunks * chunk, K, spp,
+                counts = _adaptive_counts(pilot_sums, squares, pilot_chunks * chunk, K, spp,
                                           chunk, (height, width))
             for first_chunk, end_chunk in _adaptive_plan(
                     counts // chunk, max(next_chunk, pilot_chunks), pass_chunks * n_pixels):
@@ -276,7 +308,11 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
               f"{per_pixel.mean():g} of {spp} samples per pixel; the image is normalized by "
               "the samples taken" + ("; the checkpoint resumes the render"
                                      if checkpoint is not None else ""), file=sys.stderr)
-    image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
+    if splat is None:
+        image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
+    else:
+        image = _develop_splat(splat, total, per_pixel, channels_out, (height, width),
+                               normalization).astype(np.float32)
     mod = setup.modulation
     metadata = {
         "measurement": "time-averaged correlation (1/T) * integral over the exposure; "
@@ -301,6 +337,23 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                                      "max": int(counts.max()),
                                      "mean": float(counts.mean())}
     return RenderResult(image, metadata, sample_counts)
+
+
+def _develop_splat(splat, total, per_pixel, channels: int, shape, normalization: str):
+    """The image (H, W, C) from the splat film's sums by source pixel: each source
+    pixel's sums divided by its own sample count (so that an adaptive count, set
+    without the pixel's samples, leaves every term unbiased), shifted into the target
+    pixels and divided by the expected weight (or, ``"weights"``, the sampled one)."""
+    offsets = len(splat.offsets)
+    mean = total / per_pixel[:, None]
+    values = splat.shift_add(mean[:, :offsets * channels].reshape(-1, offsets, channels),
+                             shape)
+    if normalization == "weights":
+        weight = splat.shift_add(mean[:, offsets * channels:].reshape(-1, offsets, 1),
+                                 shape)[..., 0]
+    else:
+        weight = splat.expected_weights(shape)
+    return values / weight[..., None]
 
 
 class _TimedOut(Exception):
@@ -356,27 +409,31 @@ def _load_checkpoint(path, key: str):
     try:
         with np.load(path, allow_pickle=False) as data:
             saved_key = str(data["key"])
-            total, nonfinite, next_chunk = data["total"], int(data["nonfinite"]), int(data["next"])
-            squares, counts = data["squares"], data["counts"]
+            if saved_key == key:
+                total, nonfinite = data["total"], int(data["nonfinite"])
+                next_chunk, pilot_sums = int(data["next"]), data["pilot_sums"]
+                squares, counts = data["squares"], data["counts"]
     except Exception as e:
         raise CheckpointError(f"checkpoint {path} cannot be read: {e}") from None
     if saved_key != key:
         raise CheckpointError(
             f"checkpoint {path} belongs to a different render (scene, parameters, spp, seed "
             "or variant differ); delete it or choose another checkpoint file")
-    return total, nonfinite, next_chunk, squares, counts
+    return total, nonfinite, next_chunk, pilot_sums, squares, counts
 
 
-def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int, squares=None,
-                     counts=None) -> None:
-    """``squares`` and ``counts``: the adaptive pilot's sums and the sample counts, when
-    there are (else saved empty)."""
+def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int,
+                     pilot_sums=None, squares=None, counts=None) -> None:
+    """``pilot_sums``, ``squares`` and ``counts``: the adaptive pilot's sums of samples
+    and of squared group sums, and the sample counts, when there are (else saved
+    empty)."""
     from .io import atomic_path
 
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, key=np.array(key), total=total, nonfinite=np.array(nonfinite),
                      next=np.array(next_chunk),
+                     pilot_sums=np.zeros(0) if pilot_sums is None else pilot_sums,
                      squares=np.zeros(0) if squares is None else squares,
                      counts=np.zeros(0, np.int64) if counts is None else counts)
 

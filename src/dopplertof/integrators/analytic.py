@@ -90,7 +90,7 @@ def _ratio(value_end, value_start):
 @dr.syntax
 def trace_analytic_pass(mi, setup, layout):
     """Render one pass with analytic time integration; returns each lane's
-    time-averaged measurement, as :func:`dtof_path.trace_pass` does."""
+    time-averaged measurement and film offset, as :func:`dtof_path.trace_pass` does."""
     scene = setup.scene
     static = scene.static
     mod = setup.modulation
@@ -98,7 +98,7 @@ def trace_analytic_pass(mi, setup, layout):
     streams = lane_streams(mi, setup, layout)  # correlation depth 0: samples independent
 
     # ---- Camera rays: one film position and lens point, at the exposure's two ends ----
-    pos, _, _, _, lens = film_position(mi, setup, layout, streams)
+    pos, film_offset, _, _, _, lens = film_position(mi, setup, layout, streams)
     t_start = dr.full(mi.Float, setup.shutter_open, dr.width(pos))
     t_end = t_start + mod.exposure
     ray1, ray_weight1, offset1 = setup.camera.ray(pos, t_start, *lens)
@@ -165,4 +165,4 @@ def trace_analytic_pass(mi, setup, layout):
         active1 = (v1.active_next & survives & (beta_max1 != 0.0)) | v1.through
         active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
 
-    return _as_colour(mi, L, wavelengths)
+    return _as_colour(mi, L, wavelengths), film_offset

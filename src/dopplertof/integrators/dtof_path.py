@@ -11,8 +11,6 @@ random numbers it shares with the other samples of its group.
 
 from __future__ import annotations
 
-import math
-
 import drjit as dr
 
 from .. import sampling
@@ -21,6 +19,7 @@ from ..scene import lights
 from ..scene.bodies import (BodyFrames, intersect, nearest_hit, occluded,
                              surface_interaction)
 from .antithetic_map import PairedCameraRays
+from .film import FilmSampler  # noqa: F401  (importance film, re-exported)
 
 
 class PassLayout:
@@ -90,81 +89,6 @@ class ModulationWeight:
         return self.to_float32(sensor * light)
 
 
-class FilmSampler:
-    """Film positions by importance sampling the reconstruction filter (box, tent,
-    gaussian), so that every sample belongs to its own pixel with weight 1."""
-
-    SUPPORTED = ("BoxFilter", "TentFilter", "GaussianFilter")
-
-    def __init__(self, film):
-        rfilter = film.rfilter()
-        self.kind = rfilter.class_name()
-        if self.kind not in self.SUPPORTED:
-            raise ValueError(
-                f"reconstruction filter {self.kind} is not supported (it has negative lobes "
-                "or no sampling routine): use box, tent or gaussian"
-            )
-        self.radius = float(rfilter.radius())
-
-    @property
-    def support(self) -> float:
-        """Half-width of the filter's support, in pixels."""
-        return 0.5 if self.kind == "BoxFilter" else self.radius
-
-    # ---- One axis: the (separable) filter's CDF and its inverse on [-R, R] ----
-
-    def _gaussian_scale(self):
-        sigma = self.radius / 4.0  # Mitsuba: radius = 4 sigma
-        return 1.0 / (sigma * math.sqrt(2.0))
-
-    def _cdf(self, x):
-        R = self.support
-        x = dr.clip(x, -R, R)
-        if self.kind == "BoxFilter":
-            return (x + R) / (2.0 * R)
-        if self.kind == "TentFilter":
-            left = dr.square(x + R) / (2.0 * R * R)
-            return dr.select(x < 0.0, left, 1.0 - dr.square(R - x) / (2.0 * R * R))
-        s = self._gaussian_scale()
-        e = math.erf(R * s)
-        return (dr.erf(x * s) + e) / (2.0 * e)
-
-    def _inverse_cdf(self, v):
-        R = self.support
-        if self.kind == "BoxFilter":
-            return v * (2.0 * R) - R
-        if self.kind == "TentFilter":
-            return dr.select(v < 0.5, R * dr.sqrt(2.0 * v) - R,
-                             R - R * dr.sqrt(dr.maximum(2.0 * (1.0 - v), 0.0)))
-        s = self._gaussian_scale()
-        e = math.erf(R * s)
-        return dr.erfinv(dr.clip((2.0 * v - 1.0) * e, -0.9999999, 0.9999999)) / s
-
-    def offset(self, mi, u, lo, hi):
-        """Offset from the pixel centre, in pixels, for uniform numbers u in [0,1): the
-        filter sampled on the part of its support within [lo, hi] (the crop window seen
-        from the pixel centre), as Mitsuba's film, which splats only samples inside the
-        crop window and normalizes by their weights, averages over that part."""
-        a, b = self._cdf(lo), self._cdf(hi)
-        return self._inverse_cdf(a + u * (b - a))
-
-    def weight(self, mi, offset, lo, hi):
-        """The filter at ``offset`` (pixels, Vector2f) up to a constant: the density of
-        :meth:`offset` for one pixel, zero outside the support or the window [lo, hi]."""
-        R = self.support
-        inside = ((dr.abs(offset.x) < R) & (dr.abs(offset.y) < R)
-                  & (offset.x >= lo.x) & (offset.x < hi.x)
-                  & (offset.y >= lo.y) & (offset.y < hi.y))
-        if self.kind == "BoxFilter":
-            value = mi.Float(1.0)
-        elif self.kind == "TentFilter":
-            value = (1.0 - dr.abs(offset.x) / R) * (1.0 - dr.abs(offset.y) / R)
-        else:
-            s = self._gaussian_scale()
-            value = dr.exp(-(dr.square(offset.x) + dr.square(offset.y)) * (s * s))
-        return dr.select(inside, value, 0.0)
-
-
 def _as_colour(mi, value, wavelengths):
     """A sample's value for the film: spectral variants convert the sampled wavelengths'
     values to linear sRGB, as Mitsuba's film does; others keep their Spectrum."""
@@ -173,10 +97,11 @@ def _as_colour(mi, value, wavelengths):
 
 def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, lens):
     """Each lane's camera ray, its weight, the path length to its origin, its first hit
-    when already traced (else None), and whether the lane renders at all."""
+    when already traced (else None), whether the lane renders at all, and its film
+    position when it is not ``pos`` (else None)."""
     if setup.projection is None:
         ray, weight, offset = setup.camera.ray(pos, time, *lens)
-        return ray, weight, offset, None, mi.Bool(True)
+        return ray, weight, offset, None, mi.Bool(True), None
     # ---- Motion-compensated antithetic pairs ----
     mod = setup.modulation
     partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
@@ -187,7 +112,7 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
         window, crop_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
         layout.index, lens, (setup.shutter_open, setup.shutter_open + mod.exposure))
     return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
-            pair.scale != 0.0)
+            pair.scale != 0.0, pair.position)
 
 
 def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
@@ -212,9 +137,11 @@ def lane_streams(mi, setup, layout: PassLayout):
 
 
 def film_position(mi, setup, layout: PassLayout, streams):
-    """Each lane's film position (filter importance sampled around its pixel centre),
-    the centre, the crop window seen from the centre (pixels, low and high corners) and
-    the lens numbers (lens position and, in spectral variants, the wavelengths)."""
+    """Each lane's film position (normalized) and its offset from its pixel centre (in
+    pixels; uniform in the pixel for the splat film, drawn from the filter for the
+    importance film), the centre, the crop window seen from the centre (pixels, low and
+    high corners) and the lens numbers (lens position and, in spectral variants, the
+    wavelengths)."""
     # Film positions are normalized over the crop window, as Mitsuba's sensors take them.
     crop_size = setup.scene.sensor.film().crop_size()
     px = mi.Float(layout.pixel % crop_size[0])
@@ -225,12 +152,12 @@ def film_position(mi, setup, layout: PassLayout, streams):
     window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
     window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
     sampler = setup.film_sampler
-    pos = center + mi.Vector2f(
-        sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / crop_size[0],
-        sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / crop_size[1])
+    film_offset = mi.Vector2f(sampler.offset(mi, u_film.x, window_lo.x, window_hi.x),
+                              sampler.offset(mi, u_film.y, window_lo.y, window_hi.y))
+    pos = center + mi.Vector2f(film_offset.x / crop_size[0], film_offset.y / crop_size[1])
     # the lens position and (spectral variants) the wavelengths, shared like the film
     lens = (streams.get_2d(0, sampling.DIM_APERTURE), streams.get_1d(0, sampling.DIM_WAVELENGTH))
-    return pos, center, window_lo, window_hi, lens
+    return pos, film_offset, center, window_lo, window_hi, lens
 
 
 def vertex_numbers(streams, depth, u_em_first, u_dir_first):
@@ -341,7 +268,8 @@ def loop_settings(mi, setup):
 @dr.syntax
 def trace_pass(mi, setup, layout: PassLayout):
     """Render one pass; returns each lane's time-averaged measurement (the variant's
-    Spectrum; RGB in spectral variants)."""
+    Spectrum; RGB in spectral variants) and its film position's offset from its
+    pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
     scene = setup.scene
     static = scene.static
     mod = setup.modulation
@@ -367,12 +295,17 @@ def trace_pass(mi, setup, layout: PassLayout):
     time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
 
     # ---- Camera ray (stage 0) ----
-    pos, center, window_lo, window_hi, lens = film_position(mi, setup, layout, streams)
+    pos, film_offset, center, window_lo, window_hi, lens = film_position(
+        mi, setup, layout, streams)
     partner_fraction = (exposure_fraction(1 - layout.index)
                         if setup.projection is not None else None)
-    ray, ray_weight, camera_offset, first_hit, active = _camera_rays(
+    ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
         mi, setup, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
         lens)
+    if lane_pos is not None:  # a mapped partner's film position is its own
+        crop_size = setup.scene.sensor.film().crop_size()
+        film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
+                                  (lane_pos.y - center.y) * crop_size[1])
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)
 
@@ -424,4 +357,4 @@ def trace_pass(mi, setup, layout: PassLayout):
         active = ((v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
                   | v.through)
 
-    return _as_colour(mi, L, wavelengths)
+    return _as_colour(mi, L, wavelengths), film_offset
