@@ -52,6 +52,7 @@ class RenderSetup:
     antithetic_shift: object
     group_size: int
     groups_per_pixel: int
+    path_group_size: int  #: Kp, samples sharing one path stream
     stratify: bool
     shutter_open: float
     film_sampler: object  #: integrators.film.FilmSampler: film positions in a pixel
@@ -59,6 +60,7 @@ class RenderSetup:
     camera: object  #: integrators.camera.Camera
     projection: object  #: PinholeProjection when pairs use the motion mapping, else None
     hide_emitters: bool
+    analytic: bool = False  #: time_sampling_method "analytic" (integrators/analytic.py)
 
 
 def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
@@ -76,6 +78,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     forward = forward / np.linalg.norm(forward)
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
     weight = ModulationWeight(mi, mod)
+    analytic = params.time_sampling_method == sampling.ANALYTIC
     splat = params.film_sampling == "splat"
     projection = None
     if params.antithetic_mapping == "motion":
@@ -87,10 +90,14 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     return RenderSetup(
         scene=scene, params=params, modulation=mod, weight=weight,
         seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
-        correlation_depth=dr.opaque(mi.UInt32, min(params.path_correlation_depth, 1 << 30)),
-        method=dr.opaque(mi.UInt32, sampling.method_index(params.time_sampling_method)),
+        # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
+        # (analytic: a sample's two paths share everything, and samples nothing)
+        correlation_depth=dr.opaque(mi.UInt32, 0 if params.path_group_size == 1 or analytic
+                                    else min(params.path_correlation_depth, 1 << 30)),
+        method=dr.opaque(mi.UInt32, 0 if analytic
+                         else sampling.method_index(params.time_sampling_method)),
         antithetic_shift=dr.opaque(weight.F, mod.antithetic_shift),
-        group_size=K, groups_per_pixel=spp // K,
+        group_size=K, groups_per_pixel=spp // K, path_group_size=params.path_group_size,
         stratify=params.use_stratified_sampling_for_each_interval,
         shutter_open=scene.shutter_open,
         film_sampler=FilmSampler.uniform() if splat else FilmSampler(sensor.film()),
@@ -98,7 +105,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
         camera=Camera(mi, sensor, scene.sensor_motion, near_clip,
                       mi.Vector3f(*map(float, forward))),
         projection=projection,
-        hide_emitters=params.hide_emitters,
+        hide_emitters=params.hide_emitters, analytic=analytic,
     )
 
 
@@ -133,7 +140,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     spp = scene.spp if spp is None else int(spp)
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    check_sample_count(p.time_correlate_number, spp)
+    check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
 
     film = scene.sensor.film()
     width, height = (int(v) for v in film.crop_size())
@@ -148,6 +155,8 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                     if p.adaptive_sampling else 0)
     if pass_chunks is None:
         pass_chunks = max(1, max_lanes // (n_pixels * chunk))
+        if p.samples_per_pass > 0:  # the published pass size, in whole chunks, within memory
+            pass_chunks = min(pass_chunks, -(-p.samples_per_pass // chunk))
     pass_chunks = max(1, min(int(pass_chunks), n_chunks))
 
     from tqdm import tqdm
@@ -173,7 +182,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     counts = None
     nonfinite = 0
     next_chunk = 0
-    key = _render_key(scene, p, spp, seed, mi.variant(), chunk)
+    key = _render_key(scene, p.image_defining(), spp, seed, mi.variant(), chunk)
     if checkpoint is not None:
         saved = _load_checkpoint(checkpoint, key)
         if saved is not None:
@@ -269,6 +278,16 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             _save_checkpoint(checkpoint, key, host_total(), nonfinite, end_chunk, pilot_sums,
                              squares, counts)
 
+    reached = next_chunk  # chunks of every pixel traced so far (where it has them)
+
+    def trace_pass_then_check_time(first_chunk, end_chunk):
+        """A pass, then the timeout: it stops the render after the pass it expires in."""
+        nonlocal reached
+        trace_chunks(first_chunk, end_chunk)
+        reached = end_chunk
+        if p.timeout >= 0 and _time.perf_counter() - started > p.timeout:
+            raise _TimedOut
+
     try:
         if not p.adaptive_sampling:
             # The last chunk may be short: it gets a pass of its own, so that every
@@ -279,23 +298,33 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             if full_chunks < n_chunks and next_chunk <= full_chunks:
                 plan.append((full_chunks, n_chunks))
             for first_chunk, end_chunk in plan:
-                trace_chunks(first_chunk, end_chunk)
+                trace_pass_then_check_time(first_chunk, end_chunk)
         else:
             # ---- Pilot: the first chunks of every pixel ----
             for c0 in range(next_chunk, pilot_chunks, pass_chunks):
-                trace_chunks(c0, min(pilot_chunks, c0 + pass_chunks))
+                trace_pass_then_check_time(c0, min(pilot_chunks, c0 + pass_chunks))
             # ---- Counts from the neighbours' pilot variance, then the rest ----
             if counts is None:
                 counts = _adaptive_counts(pilot_sums, squares, pilot_chunks * chunk, K, spp,
                                           chunk, (height, width))
             for first_chunk, end_chunk in _adaptive_plan(
                     counts // chunk, max(next_chunk, pilot_chunks), pass_chunks * n_pixels):
-                trace_chunks(first_chunk, end_chunk)
+                trace_pass_then_check_time(first_chunk, end_chunk)
+    except _TimedOut:
+        pass
     finally:
         bar.close()
 
     total = host_total()
-    per_pixel = (np.full(n_pixels, spp) if counts is None else counts).astype(np.float64)
+    # normalized by the samples taken: all of them, unless the timeout stopped the render
+    wanted = np.full(n_pixels, spp) if counts is None else counts
+    per_pixel = np.minimum(wanted, reached * chunk).astype(np.float64)
+    timed_out = bool(np.any(per_pixel < wanted))
+    if timed_out:
+        print(f"dopplertof: timeout of {p.timeout:g} s expired: stopped after "
+              f"{per_pixel.mean():g} of {spp} samples per pixel; the image is normalized by "
+              "the samples taken" + ("; the checkpoint resumes the render"
+                                     if checkpoint is not None else ""), file=sys.stderr)
     if splat is None:
         image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
     else:
@@ -310,6 +339,8 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         "omega_d_rad_s": mod.omega_d,
         "psi_rad": mod.psi,
         "spp": spp,
+        "samples_taken": float(per_pixel.mean()),  # per pixel; below spp after a timeout
+        "timed_out": timed_out,
         "seed": int(seed),
         "variant": mi.variant(),
         "nonfinite_samples_dropped": nonfinite,
@@ -355,6 +386,10 @@ def _develop_splat(splat, total, per_pixel, channels: int, shape, normalization:
     else:
         weight = splat.expected_weights(shape)
     return values / weight[..., None]
+
+
+class _TimedOut(Exception):
+    """The render's timeout expired (raised between passes)."""
 
 
 def _adaptive_plan(chunks, first: int, chunks_per_pass: int) -> list:
