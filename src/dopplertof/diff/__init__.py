@@ -1,0 +1,11 @@
+"""Differentiable D-ToF: derivatives of renders and velocities fitted to captures.
+
+See docs/differentiable.md.
+"""
+
+from .motion import VelocityMotion
+from .render import (DerivativeError, Derivatives, DifferentiableScene,
+                     render_derivatives)
+
+__all__ = ["VelocityMotion", "DerivativeError", "Derivatives", "DifferentiableScene",
+           "render_derivatives"]
