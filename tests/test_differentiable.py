@@ -111,17 +111,9 @@ def published():
 
 
 def _interior(truth, k):
-    """Pixels whose 3x3 neighbourhood sees one face of body k (away from its silhouette
-    and from the edges between its faces, which move as it turns)."""
-    on = truth.body == k
-    inner = on.copy()
-    n = np.nan_to_num(truth.normal)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            shifted = np.roll(np.roll(n, dy, 0), dx, 1)
-            inner &= np.roll(np.roll(on, dy, 0), dx, 1) & (np.sum(n * shifted, -1) > 0.999)
-    inner[[0, -1], :] = inner[:, [0, -1]] = False
-    return inner
+    from dopplertof.diff.fit import interior
+
+    return interior(truth, k)
 
 
 def _crn_difference(ds, k, kind, axis, h, spp):

@@ -95,9 +95,11 @@ def _parser() -> argparse.ArgumentParser:
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
     f.add_argument("-o", "--output", default="figures", help="output folder")
     f.add_argument("--quick", action="store_true", help="small settings")
+    from .diff.cli import add_subcommand
     from .experiments.cli import add_subcommands
 
     add_subcommands(sub)  # sweep, report, animate (each sets its own func)
+    add_subcommand(sub)  # fit
     return p
 
 

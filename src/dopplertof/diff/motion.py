@@ -118,8 +118,12 @@ class VelocityMotion:
             xp = dr
         v, w = self._values(as_numpy)
         tau = t - self.t_ref
-        R = rotation(w, tau, xp)
         p = self.pivot
+        if self._translation_only(w):  # as keyframed translations: the cheap path
+            Bt = self.base[:3, 3].tolist()
+            b = [Bt[i] + v[i] * tau for i in range(3)]
+            return (None, b), (None, [-x for x in b])
+        R = rotation(w, tau, xp)
         # D(t): x' = R (x - p) + p + v tau; Rel(t) = D(t) base
         B, Bt = self.base[:3, :3].tolist(), self.base[:3, 3].tolist()
         A = [[sum(R[i][k] * B[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
@@ -134,10 +138,16 @@ class VelocityMotion:
         ib = [-(IA[i][0] * b[0] + IA[i][1] * b[1] + IA[i][2] * b[2]) for i in range(3)]
         return (A, b), (IA, ib)
 
+    def _translation_only(self, w) -> bool:
+        """No rotation (plain zeros, not AD variables) and a base without linear part:
+        Rel(t) is a translation, and the renderer's translation-only path serves."""
+        return (all(isinstance(x, float) and x == 0.0 for x in w)
+                and np.allclose(self.base[:3, :3], np.eye(3), rtol=0.0, atol=1e-12))
+
     def relative_matrix(self, t: float) -> np.ndarray:
         (A, b), _ = self.relative(np.float64(t))
         M = np.eye(4)
-        M[:3, :3] = np.array(A, dtype=np.float64)
+        M[:3, :3] = np.eye(3) if A is None else np.array(A, dtype=np.float64)
         M[:3, 3] = np.array(b, dtype=np.float64)
         return M
 

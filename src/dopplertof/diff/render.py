@@ -167,14 +167,20 @@ def _floats(values):
 
 
 def _with_variables(mi, motion: VelocityMotion, prefix: str, variables: dict):
-    """A copy of ``motion`` whose components are Dr.Jit Floats (the AD variables in
-    ``variables`` where named)."""
+    """A copy of ``motion`` whose components are Dr.Jit Floats: the AD variables in
+    ``variables`` where named, else opaque values (one kernel serves every velocity,
+    as a fit needs) and zero angular velocities as plain zeros (no rotation: the
+    renderer's translation-only path)."""
+    import drjit as dr
+
     out = VelocityMotion(motion.pivot, [0.0] * 3, [0.0] * 3, motion.t_ref,
                          motion.reference, motion.interval, motion.base)
     v, w = _floats(motion.velocity), _floats(motion.angular_velocity)
-    out.velocity = [variables.get(f"{prefix}.v{a}", mi.Float(v[i])) for i, a in enumerate(AXES)]
-    out.angular_velocity = [variables.get(f"{prefix}.w{a}", mi.Float(w[i]))
-                            for i, a in enumerate(AXES)]
+    out.velocity = [variables.get(f"{prefix}.v{a}", dr.opaque(mi.Float, v[i]))
+                    for i, a in enumerate(AXES)]
+    turning = any(f"{prefix}.w{a}" in variables for a in AXES) or any(w)
+    out.angular_velocity = [variables.get(f"{prefix}.w{a}", dr.opaque(mi.Float, w[i]))
+                            if turning else 0.0 for i, a in enumerate(AXES)]
     return out
 
 
@@ -271,36 +277,50 @@ def render_derivatives(dscene: DifferentiableScene, names=(), spp: int | None = 
         # traversal clears the graph it passes
         for i, name in enumerate(names or [None]):
             value, x, restore = _trace(dscene, name, pixels, samples, s0, spp, seed)
-            sums = _pixel_sums(mi, value, samples)
-            grads = []
+            if i == 0:  # the render: one path tracing kernel, then the pixel sums
+                dr.eval(value)
+                image[pixels] += _host(_pixel_sums(mi, dr.detach(value), samples))
             if name is not None:
                 if dr.grad(x) == 0.0:
                     dr.forward_from(x)
                 else:  # already traversed into the scene's data
-                    dr.forward_to(sums)
-                grads = [dr.grad(s) for s in sums]
-            dr.eval(sums if i == 0 else None, grads)
-            if i == 0:
-                image[pixels] += _host(sums)
-            if name is not None:
-                tangents[name][pixels] += _host(grads)
+                    dr.forward_to(value)
+                tangent = dr.grad(value)
+                dr.eval(tangent)  # one derivative kernel (its loop carries the primal)
+                finite = _finite(dr.detach(value))
+                tangents[name][pixels] += _host(_pixel_sums(mi, tangent, samples, finite))
             restore()
-            del value, x, sums, grads
+            del value, x
     shape = (height, width, channels)
     return Derivatives((image / spp).reshape(shape),
                        {n: (t / spp).reshape(shape) for n, t in tangents.items()}, spp, seed)
 
 
-def _pixel_sums(mi, value, samples):
-    """Per pixel, each channel's sum of its samples (non-finite samples dropped, as
-    the renderer does): pixel-major lanes, so one block sum per channel."""
+def _channels_of(value):
+    return [value[c] for c in range(len(value))] if hasattr(value, "__len__") else [value]
+
+
+def _finite(value):
+    """Lanes whose every channel is finite (the renderer drops the others)."""
     import drjit as dr
 
-    raw = [value[c] for c in range(len(value))] if hasattr(value, "__len__") else [value]
-    finite = dr.isfinite(dr.detach(raw[0]))
+    raw = _channels_of(value)
+    finite = dr.isfinite(raw[0])
     for v in raw[1:]:
-        finite &= dr.isfinite(dr.detach(v))
-    return [dr.block_sum(dr.select(finite, v, 0.0), samples) for v in raw]
+        finite &= dr.isfinite(v)
+    return finite
+
+
+def _pixel_sums(mi, value, samples, finite=None):
+    """Per pixel, each channel's sum of its samples (evaluated ``value``, pixel-major
+    lanes: one block sum per channel), over the lanes ``finite`` (default: those whose
+    value is finite, as the renderer drops the others)."""
+    import drjit as dr
+
+    finite = _finite(value) if finite is None else finite
+    sums = [dr.block_sum(dr.select(finite, v, 0.0), samples) for v in _channels_of(value)]
+    dr.eval(sums)
+    return sums
 
 
 def _host(values):
@@ -354,8 +374,12 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
             tp.update()
 
     # ---- The pass: lanes of the chosen pixels, samples s0 .. s0 + samples ----
-    lane = np.arange(len(pixels) * samples)
-    layout = PassLayout.of_lanes(mi, np.repeat(pixels, samples), s0 + lane % samples,
-                                 setup.group_size)
+    n_pixels = int(np.prod(scene.sensor.film().crop_size()))
+    if len(pixels) == n_pixels and np.array_equal(pixels, np.arange(n_pixels)):
+        layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), setup.group_size)
+    else:  # some pixels: lanes from host arrays
+        lane = np.arange(len(pixels) * samples)
+        layout = PassLayout.of_lanes(mi, np.repeat(pixels, samples), s0 + lane % samples,
+                                     setup.group_size)
     value, _ = trace_pass(mi, setup, layout)
     return value, variables.get(name), restore

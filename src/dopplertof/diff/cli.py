@@ -1,0 +1,77 @@
+"""Command-line subcommand ``fit``: velocities fitted to a capture folder.
+
+``add_subcommand(subparsers)`` adds it to the main parser and sets ``func``. Bad input
+raises an exception with a one-line message before any work and any output.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def add_subcommand(sub) -> None:
+    from .fit import FIT_SPP
+
+    f = sub.add_parser("fit", help="fit the moving bodies' velocities to a capture folder "
+                       "through the renderer (fit.json, convergence.png)")
+    f.add_argument("capture", help="folder written by `dopplertof capture`")
+    f.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
+    f.add_argument("--spp", type=_positive_int, default=FIT_SPP,
+                   help=f"samples per pixel of the fit's renders (default {FIT_SPP})")
+    f.add_argument("--seed", type=int, help="seed of the fit's renders (default: the "
+                   "capture's + 1)")
+    f.add_argument("--iterations", type=_positive_int, default=12,
+                   help="Gauss-Newton iterations at most (default 12)")
+    f.add_argument("--angular", action="store_true", help="fit angular velocities too")
+    f.add_argument("--start", action="append", metavar="K=VX,VY,VZ",
+                   help="start body K's linear velocity (m/s) here instead of the closed "
+                   "form (repeatable)")
+    f.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="the capture's -D values for the scene (repeatable)")
+    f.add_argument("--variant", default=None, help="an AD variant (default llvm_ad_rgb)")
+    f.add_argument("--quiet", action="store_true", help="no progress bar")
+    f.set_defaults(func=run)
+
+
+def parse_start(items) -> dict:
+    from .fit import FitError
+
+    out = {}
+    for item in items or []:
+        try:
+            k, values = item.split("=", 1)
+            v = [float(x) for x in values.split(",")]
+            if len(v) != 3:
+                raise ValueError
+            out[int(k)] = v
+        except ValueError:
+            raise FitError(f"--start expects K=VX,VY,VZ (body index, m/s), got {item!r}") from None
+    return out
+
+
+def run(args) -> int:
+    import dopplertof
+    from ..camera.output import prepare_folder
+    from ..cli import _overrides
+    from .fit import fit, format_fit, write_fit
+
+    start = parse_start(args.start)
+    prepare_folder(args.output)  # before any work: nothing written on bad input
+    dopplertof.set_variant(args.variant)
+    result = fit(args.capture, start=start or None, spp=args.spp, seed=args.seed,
+                 iterations=args.iterations, angular=args.angular,
+                 defines=_overrides(args.defines), progress=False if args.quiet else None)
+    paths = write_fit(result, args.output)
+    print(format_fit(result))
+    print(f"wrote {', '.join(paths)}")
+    return 0

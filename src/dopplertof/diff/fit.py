@@ -1,0 +1,575 @@
+"""Velocities fitted through the renderer: captures in, each body's motion out.
+
+A capture folder (``dopplertof capture``) holds the captures and, in summary.json, the
+scene they came from and its parameters. :func:`fit` renders the heterodyne captures
+(they carry the Doppler content) with every body moving at constant linear velocity
+(and, with ``angular=True``, angular velocity) about its pose at mid-exposure, and
+minimizes the squared difference to the given captures over the bodies' interior
+pixels:
+
+    loss(theta) = sum over captures c and pixels i of (render_c,i(theta) - capture_c,i)^2
+
+by Gauss-Newton steps with Levenberg-Marquardt damping: the gradient J^T r
+preconditioned by J^T J, with the Jacobian J from forward-mode derivatives
+(:mod:`.render`). Every iteration renders with the same seed (correlated sampling):
+the loss is a smooth function of theta, not a new noisy sample each time.
+
+The start is each body's linear velocity from the closed-form per-pixel radial
+velocities (velocity.npy): at pixel i of a translating body, radial velocity
+r_i = (u . n_i) / (d_i . n_i), linear in u, solved by least squares over the body's
+pixels (normals and rays from the scene's geometry at mid-exposure); or a start the
+user gives.
+
+The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
+final loss over its degrees of freedom (the render and capture noise that the residual
+shows); a radial velocity's follows from it through its derivative.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import time as _time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .motion import VelocityMotion
+
+#: captures fitted (their Doppler content is what the velocities change)
+FIT_CAPTURES = ("heterodyne_0", "heterodyne_0.25")
+
+#: directions of the (column-scaled) Jacobian below this fraction of its largest
+#: singular value are not constrained by the captures: no step along them
+RCOND = 0.05
+
+#: default samples per pixel of the fit's renders
+FIT_SPP = 128
+
+
+class FitError(ValueError):
+    """A capture folder, start or setting that cannot be fitted; the message names it."""
+
+
+@dataclass
+class CaptureData:
+    scene: object  #: DopplerScene, loaded as the capture saw it
+    base: object  #: RenderParams of the capture
+    summary: dict
+    captures: dict  #: name -> (H, W) float64
+    records: dict  #: name -> summary.json's capture record
+    velocity: np.ndarray | None  #: closed-form radial velocity (H, W) or None
+
+
+@dataclass
+class FitResult:
+    bodies: list
+    iterations: int
+    loss: float
+    history: list = field(default_factory=list)
+    settings: dict = field(default_factory=dict)
+
+    def as_json(self) -> dict:
+        return {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,
+                "history": self.history, "settings": self.settings}
+
+
+# ---- Reading a capture folder ------------------------------------------------------
+
+def _declared_defaults(path: str) -> set:
+    with open(path, encoding="utf-8") as f:
+        return set(re.findall(r"<default\s+name=\"([^\"]+)\"", f.read()))
+
+
+def load_capture(folder, defines=None) -> CaptureData:
+    """The scene, parameters and captures of a capture folder. The scene is loaded with
+    its resolution set to the captures' (through the <default> values it declares:
+    res, resx/resy, width/height) and ``defines`` (the capture's -D values)."""
+    import dopplertof
+    from ..params import RenderParams
+
+    folder = os.fspath(folder)
+    summary_path = os.path.join(folder, "summary.json")
+    if not os.path.isdir(folder):
+        raise FitError(f"capture folder not found: {folder}")
+    if not os.path.isfile(summary_path):
+        raise FitError(f"{folder} has no summary.json: not a folder written by "
+                       "`dopplertof capture`")
+    try:
+        with open(summary_path, encoding="utf-8") as f:
+            summary = json.load(f)
+        scene_path = summary["scene"]
+        width, height = summary["resolution"]
+        records = {r["name"]: r for r in summary["captures"]}
+        params = summary["render_params"]
+    except (ValueError, KeyError, TypeError) as e:
+        raise FitError(f"{summary_path} cannot be read as a capture summary: {e}") from None
+    if not os.path.isfile(scene_path):
+        raise FitError(f"the capture's scene file is not found: {scene_path}")
+    declared = _declared_defaults(scene_path)
+    overrides = {}
+    for name, value in (("res", width), ("resx", width), ("width", width),
+                        ("resy", height), ("height", height)):
+        if name in declared and (name != "res" or width == height):
+            overrides[name] = str(value)
+    overrides.update(defines or {})
+    scene = dopplertof.load_file(scene_path, overrides)
+    got = tuple(int(v) for v in scene.sensor.film().crop_size())
+    if got != (width, height):
+        raise FitError(f"the scene loads at {got[0]}x{got[1]} but the captures are "
+                       f"{width}x{height}: pass the capture's -D values")
+    if not scene.bodies:
+        raise FitError(f"{scene_path} has no moving body: nothing to fit")
+    base = RenderParams.from_mapping({k: v for k, v in params.items() if v is not None},
+                                     where=f"{summary_path} render_params")
+    captures = {}
+    for name in FIT_CAPTURES:
+        path = os.path.join(folder, f"{name}.npy")
+        if name not in records or not os.path.isfile(path):
+            raise FitError(f"{folder} has no {name}.npy: the fit needs the heterodyne "
+                           "captures")
+        image = np.load(path).astype(np.float64)
+        if image.shape != (height, width):
+            raise FitError(f"{path} is {image.shape}, not the summary's {height}x{width}")
+        captures[name] = image
+    vpath = os.path.join(folder, "velocity.npy")
+    velocity = np.load(vpath).astype(np.float64) if os.path.isfile(vpath) else None
+    return CaptureData(scene, base, summary, captures, records, velocity)
+
+
+def _capture_params(data: CaptureData, name: str):
+    from ..camera.capture import CaptureSpec
+
+    r = data.records[name]
+    return CaptureSpec(name, r["kind"], r["w_g_MHz"], r["hetero_frequency"],
+                       r["hetero_offset"]).params(data.base)
+
+
+# ---- Geometry and the closed-form start --------------------------------------------
+
+def _scene_with(scene, motions):
+    return replace(scene, bodies=tuple(replace(b, motion=m, _swept={})
+                                       for b, m in zip(scene.bodies, motions)))
+
+
+def _truth(scene, motions, params):
+    from ..camera.ground_truth import ground_truth
+
+    return ground_truth(_scene_with(scene, [_plain(m) for m in motions]), params)
+
+
+def _plain(m: VelocityMotion) -> VelocityMotion:
+    return VelocityMotion(m.pivot, [float(x) for x in m.velocity],
+                          [float(x) for x in m.angular_velocity], m.t_ref, m.reference,
+                          m.interval, m.base)
+
+
+def interior(truth, k: int) -> np.ndarray:
+    """Pixels whose 3x3 neighbourhood sees one face of body k: away from its silhouette
+    and its edges, whose motion (visibility) the derivatives do not model."""
+    on = truth.body == k
+    n = np.nan_to_num(truth.normal)
+    inner = on.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            shifted = np.roll(np.roll(n, dy, 0), dx, 1)
+            inner &= np.roll(np.roll(on, dy, 0), dx, 1) & (np.sum(n * shifted, -1) > 0.999)
+    inner[[0, -1], :] = False
+    inner[:, [0, -1]] = False
+    return inner
+
+
+def closed_form_velocity(truth, radial, mask) -> np.ndarray:
+    """The linear velocity u whose radial velocities (u . n) / (d . n) best match
+    ``radial`` on ``mask`` (least squares; minimum norm where faces leave it open)."""
+    ok = mask & np.isfinite(radial)
+    if ok.sum() < 3:
+        return np.zeros(3)
+    n, d = truth.normal[ok], truth.direction[ok]
+    rhs = radial[ok] * np.sum(d * n, -1)
+    u, *_ = np.linalg.lstsq(n, rhs, rcond=1e-3)
+    return u
+
+
+def radial_velocity(truth, k: int):
+    """summary.json's velocity_gt_median_m_s: the median radial velocity of body k's
+    pixels at mid-exposure."""
+    on = truth.body == k
+    return float(np.median(truth.velocity[on])) if on.any() else None
+
+
+# ---- The fit -----------------------------------------------------------------------
+
+def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
+        iterations: int = 12, angular: bool = False, defines=None, progress=None,
+        tolerance: float = 1e-3, block: int = 8) -> FitResult:
+    """Fit every body's velocity to the captures in ``folder`` (see the module
+    docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
+    to start from instead of the closed form; ``seed``: of the fit's renders (default:
+    the capture's + 1, independent of its noise); ``block``: the residuals are sums over
+    blocks of block x block interior pixels of one body (a per-pixel Jacobian's Monte
+    Carlo noise would inflate J^T J and shorten every step; block sums keep the
+    velocity field's variation and average the noise)."""
+    from tqdm import tqdm
+
+    from ..render import _show_progress
+    from .render import DifferentiableScene, render_derivatives
+
+    data = load_capture(folder, defines)
+    scene = data.scene
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise FitError(f"spp must be a positive integer, got {spp!r}")
+    seed = int(data.summary.get("seed", 0)) + 1 if seed is None else int(seed)
+    jacobian_seed = seed + 1
+    t0 = scene.shutter_open
+    t1 = t0 + data.base.exposure(scene.shutter_interval)
+    t_mid = 0.5 * (t0 + t1)
+    n_bodies = len(scene.bodies)
+    # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
+    motions = [VelocityMotion.from_motion(b.motion, t0, t1, t_ref=t_mid)
+               for b in scene.bodies]
+    for m in motions:
+        m.velocity, m.angular_velocity = [0.0] * 3, [0.0] * 3
+    geometry = _truth(scene, motions, data.base)
+    masks = [interior(geometry, k) for k in range(n_bodies)]
+    for k, mask in enumerate(masks):
+        if mask.sum() < 4:
+            raise FitError(f"body {k} ({', '.join(scene.bodies[k].names)}) covers fewer than "
+                           "4 interior pixels: too small to fit at this resolution")
+
+    # ---- Start ----
+    closed_form = [None] * n_bodies
+    for k in range(n_bodies):
+        if data.velocity is not None:
+            closed_form[k] = closed_form_velocity(geometry, data.velocity, masks[k])
+    start = dict(start or {})
+    for k, value in start.items():
+        if not isinstance(k, (int, np.integer)) or not 0 <= k < n_bodies:
+            raise FitError(f"start names body {k!r}; the scene has bodies 0 .. {n_bodies - 1}")
+    for k, m in enumerate(motions):
+        if k in start:
+            value = start[k]
+            v, w = (value if len(value) == 2 and np.ndim(value[0]) == 1 else (value, None))
+            m.velocity = [float(x) for x in np.asarray(v, float).reshape(3)]
+            if w is not None:
+                m.angular_velocity = [float(x) for x in np.asarray(w, float).reshape(3)]
+        elif closed_form[k] is not None:
+            m.velocity = closed_form[k].tolist()
+        else:
+            raise FitError(f"{folder} has no velocity.npy for the closed-form start: give a "
+                           f"start for body {k}")
+
+    # ---- One differentiable scene per capture, sharing the motions ----
+    scenes = {}
+    for name in FIT_CAPTURES:
+        ds = DifferentiableScene(scene, _capture_params(data, name))
+        ds.motions = motions
+        scenes[name] = ds
+    pixels = np.flatnonzero(np.logical_or.reduce(masks))
+    groups = _blocks(masks, block)  # per rendered pixel, its block
+    n_groups = int(groups.max()) + 1
+
+    def pool(values):  # per-pixel values -> block sums
+        return np.bincount(groups, weights=values, minlength=n_groups)
+    names = [f"body{k}.{kind}{a}" for k in range(n_bodies)
+             for kind in ("vw" if angular else "v") for a in "xyz"]
+    target = np.concatenate([pool(data.captures[c].ravel()[pixels]) for c in FIT_CAPTURES])
+
+    def values():
+        out = []
+        for k in range(n_bodies):
+            out += motions[k].velocity
+            if angular:
+                out += motions[k].angular_velocity
+        return np.array(out, dtype=np.float64)
+
+    def set_values(theta):
+        per = 6 if angular else 3
+        for k in range(n_bodies):
+            motions[k].velocity = theta[k * per:k * per + 3].tolist()
+            if angular:
+                motions[k].angular_velocity = theta[k * per + 3:k * per + 6].tolist()
+
+    def evaluate(samples):
+        """Residuals and Jacobians at the current motions from two renders of
+        independent random numbers (A, B)."""
+        out = []
+        for seed_ in (seed, jacobian_seed):
+            residual, jacobian = [], []
+            for c in FIT_CAPTURES:
+                d = render_derivatives(scenes[c], names, spp=samples, seed=seed_,
+                                       pixels=pixels)
+                residual.append(pool(d.image.mean(-1).ravel()[pixels]))
+                jacobian.append(np.stack([pool(d.tangents[n].mean(-1).ravel()[pixels])
+                                          for n in names], -1))
+            out.append((np.concatenate(residual) - target, np.concatenate(jacobian)))
+        return out
+
+    def radial_all():
+        truth = _truth(scene, motions, data.base)
+        return [radial_velocity(truth, k) for k in range(n_bodies)]
+
+    # ---- Gauss-Newton with Levenberg-Marquardt damping ----
+    # Early iterations render a quarter of the samples (the start may be far off); the
+    # last ones all of them. Parameters the captures do not see (a Jacobian column far
+    # below the others: a velocity along no visible face's normal) keep their start.
+    started = _time.perf_counter()
+    K = scenes[FIT_CAPTURES[0]].params.time_correlate_number
+    coarse = max(K, (spp // 4) // K * K)
+    samples = coarse if coarse < spp else spp
+    history = []
+    damping = 1e-3
+    theta = values()
+    state = evaluate(samples)
+    loss = _cross_loss(state)
+    history.append({"iteration": 0, "loss": loss, "spp": samples,
+                    "radial_velocity_m_s": radial_all(), "parameters": theta.tolist(),
+                    "seconds": _time.perf_counter() - started})
+    bar = tqdm(total=iterations, desc="fitting", unit="it", leave=False,
+               disable=not _show_progress(progress))
+    done = 0
+    seen = np.ones(len(theta), dtype=bool)
+    try:
+        for it in range(1, iterations + 1):
+            step, seen = _damped_step(state, damping)
+            step = _trust(step, theta)
+            while True:
+                set_values(theta + step)
+                state_new = evaluate(samples)
+                loss_new = _cross_loss(state_new)
+                if loss_new <= loss or damping > 1e3:
+                    break
+                damping *= 10.0  # a worse loss: a shorter, more gradient-like step
+                step, seen = _damped_step(state, damping)
+                step = _trust(step, theta)
+            theta, state, loss = theta + step, state_new, loss_new
+            damping = max(damping / 10.0, 1e-6)
+            done = it
+            bar.update(1)
+            history.append({"iteration": it, "loss": loss, "spp": samples,
+                            "radial_velocity_m_s": radial_all(), "parameters": theta.tolist(),
+                            "seconds": _time.perf_counter() - started})
+            small = np.linalg.norm(step) <= 1e-2 * max(np.linalg.norm(theta), 1e-12)
+            stalled = loss_new > 0.9 * history[-2]["loss"]  # the noise's floor
+            if samples < spp and (small or stalled or it >= iterations // 2):
+                samples = spp  # near: the precise renders (the loss is re-evaluated)
+                state = evaluate(samples)
+                loss = _cross_loss(state)
+            elif np.linalg.norm(step) <= tolerance * max(np.linalg.norm(theta), 1e-12):
+                break
+    finally:
+        bar.close()
+    (r, J), (r_b, J_b) = state
+    loss_ab = loss
+    loss = 0.5 * float(r @ r + r_b @ r_b)
+    J = 0.5 * (J + J_b)
+
+    # ---- Uncertainties from the final Jacobian ----
+    G, seen = _metric(state)
+    dof = max(len(r) - int(seen.sum()), 1)
+    cov = np.zeros((len(theta), len(theta)))
+    if seen.any():
+        scale = np.sqrt(np.diag(G)[seen])
+        Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
+        # s^2 of one render's residual: the mean of the two
+        cov[np.ix_(seen, seen)] = ((loss / dof) * _truncated_inverse(Gs, RCOND ** 2)
+                                   / np.outer(scale, scale))
+    sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.nan)
+    radial = radial_all()
+    # the radial velocities' derivatives (central differences of the truth; linear in u)
+    grad_radial = np.zeros((n_bodies, len(theta)))
+    for j in range(len(theta)):
+        h = 1e-3 * max(1.0, abs(theta[j]))
+        up, down = theta.copy(), theta.copy()
+        up[j] += h
+        down[j] -= h
+        set_values(up)
+        r_up = radial_all()
+        set_values(down)
+        r_down = radial_all()
+        for k in range(n_bodies):
+            if r_up[k] is not None:
+                grad_radial[k, j] = (r_up[k] - r_down[k]) / (2 * h)
+    set_values(theta)
+    per = 6 if angular else 3
+    bodies = []
+    for k in range(n_bodies):
+        g = grad_radial[k]
+        entry = {
+            "name": ", ".join(scene.bodies[k].names),
+            "radial_velocity_m_s": radial[k],
+            "radial_velocity_uncertainty_m_s": float(np.sqrt(max(g @ cov @ g, 0.0))),
+            "linear_velocity_m_s": theta[k * per:k * per + 3].tolist(),
+            "linear_velocity_uncertainty_m_s": _or_none(sigma[k * per:k * per + 3]),
+            "angular_velocity_rad_s": [float(x) for x in motions[k].angular_velocity],
+            "angular_velocity_uncertainty_rad_s": (_or_none(sigma[k * per + 3:k * per + 6])
+                                                   if angular else None),
+            "pivot_m": motions[k].pivot,
+            "start_linear_velocity_m_s": history[0]["parameters"][k * per:k * per + 3],
+            "start_radial_velocity_m_s": history[0]["radial_velocity_m_s"][k],
+            "closed_form_linear_velocity_m_s": (None if closed_form[k] is None
+                                                else closed_form[k].tolist()),
+            "interior_pixels": int(masks[k].sum()),
+        }
+        truth_summary = [b for b in data.summary.get("bodies", [])
+                         if b.get("name") == entry["name"]]
+        if truth_summary:  # the capture's own record, for comparison
+            entry["capture_velocity_gt_median_m_s"] = truth_summary[0].get(
+                "velocity_gt_median_m_s")
+            entry["capture_velocity_median_m_s"] = truth_summary[0].get(
+                "velocity_median_m_s")
+        bodies.append(entry)
+    settings = {
+        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
+        "spp": int(spp), "seed": seed, "jacobian_seed": jacobian_seed, "pixels": int(pixels.size), "block": int(block),
+        "residuals": "per capture, sums over blocks of interior pixels of one body",
+        "parameters": names, "angular": bool(angular),
+        "start": "user" if start else "closed form (velocity.npy)",
+        "method": "Gauss-Newton with Levenberg-Marquardt damping on the cross loss "
+                  "(R_A - C).(R_B - C) of two renders of independent seeds, forward-mode "
+                  "Jacobians, the same seeds every iteration (correlated sampling)",
+        "motion": "constant linear (and angular) velocity about the pose at mid-exposure, "
+                  "t_ref = %.9g s" % t_mid,
+        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = loss / (residuals - parameters), "
+                       "^+: the pseudo-inverse over the directions the captures constrain "
+                       "(singular values >= %g of the largest, columns scaled); null: a "
+                       "parameter the captures do not see (kept at its start)" % RCOND,
+        "unconstrained": [n for n, ok in zip(names, seen) if not ok],
+        "seconds": round(_time.perf_counter() - started, 3),
+    }
+    settings["cross_loss"] = loss_ab
+    return FitResult(bodies, done, loss, history, settings)
+
+
+def _blocks(masks, block: int) -> np.ndarray:
+    """Per pixel of the union of ``masks`` (flat order), the index of its block: its
+    body and its block x block tile."""
+    height, width = masks[0].shape
+    y, x = np.divmod(np.arange(height * width), width)
+    tile = (y // block) * (-(-width // block)) + x // block
+    label = np.full(height * width, -1)
+    for k, mask in enumerate(masks):
+        on = mask.ravel()
+        label[on] = k * (tile.max() + 1) + tile[on]
+    used = label[label >= 0]
+    return np.unique(used, return_inverse=True)[1]
+
+
+def _cross_loss(state) -> float:
+    """(R_A - C) . (R_B - C): its expectation is the squared distance of the expected
+    render to the captures, without the renders' variance (which depends on the
+    velocities and would bias a fit of the plain squared loss, by O(1/spp))."""
+    (r_a, _), (r_b, _) = state
+    return float(r_a @ r_b)
+
+
+def _metric(state, snr=0.25):
+    """The Gauss-Newton metric from two Jacobians of independent noise: G = (J_A^T J_B +
+    J_B^T J_A) / 2, whose expectation is J^T J of the expected Jacobian (J_A^T J_A would
+    add the noise's energy, and shorten every step by it). The mask of the parameters
+    the captures see: those whose column's signal (G's diagonal) is at least ``snr`` of
+    its energy (the mean of J_A^T J_A and J_B^T J_B); the others keep their start."""
+    (_, J_a), (_, J_b) = state
+    G = 0.5 * (J_a.T @ J_b + J_b.T @ J_a)
+    energy = 0.5 * (np.sum(J_a * J_a, 0) + np.sum(J_b * J_b, 0))
+    d = np.diag(G)
+    seen = (d > 0) & (d >= snr * energy) & (energy > 0)
+    return G, seen
+
+
+def _damped_step(state, damping, rcond=RCOND):
+    """The Levenberg-Marquardt step of the cross loss, -(G + damping diag(G))^+ g with
+    g = (J_A^T r_B + J_B^T r_A) / 2 and G from :func:`_metric`, over the parameters
+    the captures see, in the directions whose eigenvalue (columns scaled by G's
+    diagonal) reaches ``rcond``^2 of the largest. Returns the step and that mask."""
+    (r_a, J_a), (r_b, J_b) = state
+    G, seen = _metric(state)
+    step = np.zeros(J_a.shape[1])
+    if not seen.any():
+        return step, seen
+    scale = np.sqrt(np.diag(G)[seen])
+    A = G[np.ix_(seen, seen)] / np.outer(scale, scale)
+    A += damping * np.diag(np.diag(A))
+    g = 0.5 * (J_a.T @ r_b + J_b.T @ r_a)[seen] / scale
+    step[seen] = -_truncated_inverse(A, rcond ** 2) @ g / scale
+    return step, seen
+
+
+def _trust(step, theta, fraction=0.5):
+    """The step shortened to at most ``fraction`` of |theta| (at least 1 m/s): noise in
+    weakly constrained directions cannot throw the motion far in one iteration."""
+    limit = fraction * max(np.linalg.norm(theta), 1.0)
+    norm = np.linalg.norm(step)
+    return step if norm <= limit else step * (limit / norm)
+
+
+def _truncated_inverse(A, rcond):
+    """Pseudo-inverse of a symmetric matrix without its eigen-directions below ``rcond``
+    of the largest eigenvalue."""
+    w, V = np.linalg.eigh(A)
+    keep = w > rcond * max(w.max(), 1e-300)
+    return (V[:, keep] / w[keep]) @ V[:, keep].T
+
+
+def _or_none(values):
+    return [None if not np.isfinite(x) else float(x) for x in values]
+
+
+# ---- Output --------------------------------------------------------------------------
+
+def write_fit(result: FitResult, folder) -> list:
+    """fit.json and convergence.png into ``folder`` (created if missing; atomic)."""
+    from .. import io
+    from ..camera.output import prepare_folder
+
+    folder = prepare_folder(folder, create=True)
+    paths = [os.path.join(folder, "fit.json"), os.path.join(folder, "convergence.png")]
+    io.write_json(paths[0], result.as_json())
+    write_convergence_plot(result, paths[1])
+    return paths
+
+
+def write_convergence_plot(result: FitResult, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .. import io
+
+    its = [h["iteration"] for h in result.history]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    axes[0].semilogy(its, [max(h["loss"], 1e-300) for h in result.history], "o-")
+    axes[0].set_xlabel("iteration")
+    axes[0].set_ylabel("loss (sum of squared capture differences)")
+    axes[0].set_title("loss")
+    for k, body in enumerate(result.bodies):
+        line, = axes[1].plot(its, [h["radial_velocity_m_s"][k] for h in result.history],
+                             "o-", label=body["name"])
+        if body.get("capture_velocity_gt_median_m_s") is not None:
+            axes[1].axhline(body["capture_velocity_gt_median_m_s"], color=line.get_color(),
+                            ls="--", lw=1, label=f"{body['name']}: capture's truth")
+        if body.get("capture_velocity_median_m_s") is not None:
+            axes[1].axhline(body["capture_velocity_median_m_s"], color=line.get_color(),
+                            ls=":", lw=1, label=f"{body['name']}: closed form")
+    axes[1].set_xlabel("iteration")
+    axes[1].set_ylabel("radial velocity (m/s, median over the body)")
+    axes[1].set_title("fitted radial velocity")
+    axes[1].legend(fontsize=7)
+    fig.tight_layout()
+    io.save_figure(fig, path)
+    plt.close(fig)
+
+
+def format_fit(result: FitResult) -> str:
+    lines = [f"fit: {result.iterations} iterations, loss {result.loss:.4g}, "
+             f"{result.settings.get('seconds', 0):.1f} s"]
+    for b in result.bodies:
+        truth = b.get("capture_velocity_gt_median_m_s")
+        lines.append(
+            f"  {b['name']}: radial {b['radial_velocity_m_s']:+.3f} "
+            f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s"
+            + (f" (capture's truth {truth:+.3f}, error "
+               f"{100 * (b['radial_velocity_m_s'] / truth - 1):+.2f}%)" if truth else ""))
+    return "\n".join(lines)
