@@ -9,10 +9,15 @@ pixels:
 
     loss(theta) = sum over captures c and pixels i of (render_c,i(theta) - capture_c,i)^2
 
-by Gauss-Newton steps with Levenberg-Marquardt damping: the gradient J^T r
-preconditioned by J^T J, with the Jacobian J from forward-mode derivatives
-(:mod:`.render`). Every iteration renders with the same seed (correlated sampling):
-the loss is a smooth function of theta, not a new noisy sample each time.
+by Gauss-Newton steps with Levenberg-Marquardt damping, with the Jacobian J from
+forward-mode derivatives (:mod:`.render`). Two details make it unbiased for renders of
+few samples: the loss is estimated by the cross product (R_A - C) . (R_B - C) of two
+renders of independent seeds A and B (its expectation has no variance term, which
+depends on the velocities), with the metric (J_A^T J_B + J_B^T J_A) / 2 (J_A^T J_A
+would add the Jacobian's noise energy and shorten every step); and the residuals are
+sums over blocks of interior pixels. Every iteration renders with the same two seeds
+(correlated sampling): the loss is a smooth function of theta, not a new noisy sample
+each time.
 
 The start is each body's linear velocity from the closed-form per-pixel radial
 velocities (velocity.npy): at pixel i of a translating body, radial velocity
