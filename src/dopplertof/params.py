@@ -72,9 +72,10 @@ class RenderParams:
     #: "splat" (each sample weighted into every pixel its filter reaches, as Mitsuba's
     #: film) or "importance" (film positions drawn from the filter, one pixel each)
     film_sampling: str = "splat"
-    #: splat film: divide by the exact "expected" filter weight (unbiased) or by the
-    #: sampled "weights" (Mitsuba's ratio estimator)
-    film_normalization: str = "expected"
+    #: splat film: divide by the sampled "weights" (Mitsuba's ratio estimator; far less
+    #: noise on smooth surfaces, bias below measurement) or by the exact "expected"
+    #: filter weight (unbiased)
+    film_normalization: str = "weights"
     # ---- Execution (the published integrators' own; none changes the image) ----
     is_doppler_integrator: bool = True  #: no effect: this integrator is a D-ToF one
     block_size: int = 0  #: no effect: the published scalar variants' tile size
