@@ -1,4 +1,4 @@
-"""Mitsuba variant choice and the libLLVM check (DESIGN section 6).
+"""Mitsuba variant choice and the libLLVM check (design.md section 6).
 
 The Mitsuba wheel's LLVM variants load the system's libLLVM at run time. Dr.Jit 1.5
 aborts the whole process inside LLVM 14 or 15 ("Cannot select ... fminimum"), so we

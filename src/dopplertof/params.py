@@ -1,6 +1,6 @@
 """Parameters of a D-ToF render: names, types, defaults and the derived quantities.
 
-Names and defaults follow the published implementation (DESIGN section 1). The same
+Names and defaults follow the published implementation (design.md section 1). The same
 parser serves the XML ``<integrator>`` and ``<sampler>`` elements, Mitsuba's
 ``Properties`` (when the plugin is built by Mitsuba itself), Python dicts and ``-D``
 style overrides, so that a name means the same everywhere and an unknown name is an

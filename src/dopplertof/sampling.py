@@ -1,4 +1,4 @@
-"""Time sampling and correlated random streams (DESIGN section 2).
+"""Time sampling and correlated random streams (design.md section 2).
 
 A pixel's samples come in groups of K that share a time stream, and in *path groups*
 of Kp consecutive samples (``path_correlate_number``, default K) that share a path

@@ -31,7 +31,7 @@ from .signals import Sinusoid, TruncatedAttenuatedSinusoid
 
 TWO_PI = 2.0 * math.pi
 
-#: the renderer's time-sampling methods (DESIGN section 2) and their default shifts
+#: the renderer's time-sampling methods (design.md section 2) and their default shifts
 METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
 DEFAULT_SHIFTS = {"uniform": 0.0, "stratified": 0.0, "antithetic": 0.5, "antithetic_mirror": 0.0}
 

@@ -2,7 +2,7 @@
 
 Pure NumPy: every function takes scalar sensor images (H, W) and the modulation, and
 knows nothing of the renderer. Conventions are those of :mod:`dopplertof.modulation`
-(DESIGN sections 1 and 4); ``docs/camera.md`` derives every formula below.
+(design.md sections 1 and 4); ``docs/camera.md`` derives every formula below.
 
 A capture at sensor offset o (psi = 2 pi o) of a single path whose length grows
 linearly, L(t) = L0 + L' t, measures the low-pass value
