@@ -7,6 +7,7 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
+from .io import FOLDER_HELP
 
 
 class UsageError(Exception):
@@ -28,13 +29,14 @@ def _overrides(pairs) -> dict:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dopplertof",
-                                description="Doppler time-of-flight camera simulator")
+                                description="Doppler time-of-flight camera simulator",
+                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("render", help="render a D-ToF image of a scene")
     r.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
-    r.add_argument("-o", "--output", required=True, help="output file: .exr, .npy or .png")
+    r.add_argument("-o", "--output", required=True, help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's sampler)")
     r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     r.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
@@ -44,15 +46,16 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--checkpoint", metavar="FILE",
-                   help="save progress after every pass and resume from it after a kill")
+                   help="save progress after every pass and resume from it after a kill "
+                   f"(its folder {FOLDER_HELP})")
     r.add_argument("--sample-counts", metavar="FILE",
                    help="with -P adaptive_sampling=true: write the samples traced per pixel "
-                   "(.png map, .npy or .exr)")
+                   f"(.png map, .npy or .exr; its folder {FOLDER_HELP})")
 
     c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
                        "depth reconstruction, exact truth, previews and summary.json")
     c.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
-    c.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
+    c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP})")
     c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
                    "scene's sampler)")
     c.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -85,7 +88,8 @@ def _parser() -> argparse.ArgumentParser:
     n.add_argument("--noise-seed", type=int, metavar="S", help="default 0")
 
     d = sub.add_parser("demo", help="one camera frame of the built-in moving Cornell box")
-    d.add_argument("-o", "--output", default="demo_out", help="output folder")
+    d.add_argument("-o", "--output", default="demo_out",
+                   help=f"output folder ({FOLDER_HELP}; default demo_out)")
     d.add_argument("--spp", type=int, default=DEMO_SPP, help=f"default {DEMO_SPP}")
     d.add_argument("--res", type=int, default=DEMO_RES, help=f"default {DEMO_RES}")
     d.add_argument("--variant", default=None)
@@ -93,7 +97,8 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true")
 
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
-    f.add_argument("-o", "--output", default="figures", help="output folder")
+    f.add_argument("-o", "--output", default="figures",
+                   help=f"output folder ({FOLDER_HELP}; default figures)")
     f.add_argument("--quick", action="store_true", help="small settings")
     from .experiments.cli import add_subcommands
 
@@ -108,8 +113,8 @@ def _cmd_render(args) -> int:
     io.check_output_path(args.output)
     if args.sample_counts:
         io.check_output_path(args.sample_counts)
-    if args.checkpoint and not os.path.isdir(os.path.dirname(os.path.abspath(args.checkpoint))):
-        raise UsageError(f"checkpoint folder does not exist: {args.checkpoint}")
+    if args.checkpoint:
+        io.check_output_folder(os.path.dirname(os.path.abspath(args.checkpoint)))
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     dopplertof.set_variant(args.variant)

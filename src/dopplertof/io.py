@@ -3,6 +3,11 @@
 Every writer renders to a temporary file in the target folder and renames it into
 place, so that a failed or interrupted write never leaves a partial file and never
 replaces a good one.
+
+Output folders, one rule for every command: a missing output folder (and its missing
+parents) is created when the first file is written into it; before any work,
+:func:`check_output_folder` refuses a path that cannot become one (a file in the way,
+no write permission), so that bad input writes nothing, not even a folder.
 """
 
 from __future__ import annotations
@@ -21,28 +26,54 @@ class OutputError(ValueError):
     """An output path that cannot be written (unknown extension, missing folder...)."""
 
 
+#: what every command's --help says about its output folder
+FOLDER_HELP = "created, with missing parents, if missing"
+
+
+def check_output_folder(folder) -> str:
+    """Before any work: ``folder`` is an existing writable folder, or a missing one that
+    can be created (its nearest existing ancestor is a writable folder). Creates
+    nothing; the writers create it. Returns the absolute path."""
+    folder = os.path.abspath(os.fspath(folder))
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise OutputError(f"output path exists and is not a folder: {folder}")
+    existing = folder
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.path.isdir(existing):
+        raise OutputError(f"cannot create the output folder {folder}: {existing} is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"output folder is not writable: {existing}")
+    return folder
+
+
+def make_output_folder(folder) -> str:
+    """Check ``folder`` (:func:`check_output_folder`) and create it; returns its path."""
+    folder = check_output_folder(folder)
+    os.makedirs(folder, exist_ok=True)
+    return folder
+
+
 def check_output_path(path) -> str:
-    """Validate an output path before any work is done; returns its extension."""
+    """Validate an output file path before any work is done; returns its extension.
+    A missing folder is created when the file is written."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in FORMATS:
         raise OutputError(f"unknown output extension {ext or '(none)'!r} in {path}: "
                           f"use one of {', '.join(FORMATS)}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise OutputError(f"output folder does not exist: {folder}")
-    if not os.access(folder, os.W_OK):
-        raise OutputError(f"output folder is not writable: {folder}")
     if os.path.isdir(path):
         raise OutputError(f"output path is a folder: {path}")
+    check_output_folder(os.path.dirname(os.path.abspath(path)))
     return ext
 
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path`` (same extension); rename on success."""
+    """Yield a temporary path beside ``path`` (same extension); rename on success.
+    A missing folder is created first."""
     path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
+    folder = make_output_folder(os.path.dirname(os.path.abspath(path)))
     base, ext = os.path.splitext(os.path.basename(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
     os.close(fd)

@@ -13,24 +13,15 @@ from .. import io
 from . import figures
 
 
-class OutputFolderError(ValueError):
-    """An output folder that cannot be used."""
+#: an output folder that cannot be used
+OutputFolderError = io.OutputError
 
 
 def prepare_folder(folder, create: bool = False) -> str:
     """Check (before any work) that ``folder`` can receive the outputs: an existing
-    writable folder, or a new one whose parent exists (created when ``create``)."""
-    folder = os.fspath(folder)
-    if os.path.exists(folder) and not os.path.isdir(folder):
-        raise OutputFolderError(f"output path exists and is not a folder: {folder}")
-    target = folder if os.path.isdir(folder) else os.path.dirname(os.path.abspath(folder))
-    if not os.path.isdir(target):
-        raise OutputFolderError(f"parent of the output folder does not exist: {target}")
-    if not os.access(target, os.W_OK):
-        raise OutputFolderError(f"output folder is not writable: {target}")
-    if create:
-        os.makedirs(folder, exist_ok=True)
-    return folder
+    writable folder or one that can be created with its parents (created when
+    ``create``); see :func:`dopplertof.io.check_output_folder`."""
+    return io.make_output_folder(folder) if create else io.check_output_folder(folder)
 
 
 def write_result(result, folder) -> list:

@@ -228,7 +228,7 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
     tasks = plan_animation(scene, output, frames, frame_period=frame_period, start=start,
                            spp=spp, seed=seed, defines=defines, params=params,
                            variant=variant, previews=previews)
-    os.makedirs(output, exist_ok=True)
+    io.make_output_folder(output)
     pending = []
     for task in tasks:
         if is_complete(task.folder, task.hash, task.outputs):
