@@ -341,19 +341,48 @@ def _errors(recon: Reconstruction, truth: GroundTruth, depth_modulo):
     }
 
 
+#: name of the summary entry for the static surfaces (the pixels of no moving body)
+STATIC_SURFACES = "static surfaces"
+
+#: the note on static surfaces whose velocity error comes from multipath
+MULTIPATH_NOTE = ("the static surfaces' velocity error is multipath, not noise: light "
+                  "reflected off moving bodies reaches them along paths whose length changes; "
+                  "max_depth=2 (direct light only) removes it")
+
+#: what the truth means when the light is not at the camera
+LIGHT_OFF_CAMERA_NOTE = ("the camera measures half the rate of change (and half the length) "
+                         "of the whole path camera -> surface -> light; the truth is the "
+                         "distance from the camera along the pixel's ray and its rate of "
+                         "change, equal to it only for a light at the camera")
+
+
+def _region(name, on, recon: Reconstruction, truth: GroundTruth) -> dict:
+    """Per-pixel velocity error statistics over the pixels ``on`` (the same pixels for
+    truth and measurement), with the spread of the truth there."""
+    measured = recon.velocity[on & np.isfinite(recon.velocity)]
+    true = truth.velocity[on & np.isfinite(truth.velocity)]
+    return {
+        "name": name, "pixels": int(on.sum()),
+        "velocity_error_m_s": error_stats(recon.velocity[on], truth.velocity[on]),
+        "velocity_gt_median_m_s": float(np.median(true)) if true.size else None,
+        "velocity_gt_p5_m_s": float(np.percentile(true, 5)) if true.size else None,
+        "velocity_gt_p95_m_s": float(np.percentile(true, 95)) if true.size else None,
+        "velocity_median_m_s": float(np.median(measured)) if measured.size else None,
+        "velocity_abs_error_median_m_s": error_stats(
+            recon.velocity[on], truth.velocity[on])["median_abs"],
+    }
+
+
 def _bodies(scene, recon: Reconstruction, truth: GroundTruth):
-    out = []
-    for k, body in enumerate(scene.bodies):
-        on = truth.body == k
-        measured = recon.velocity[on & np.isfinite(recon.velocity)]
-        out.append({
-            "name": ", ".join(body.names), "pixels": int(on.sum()),
-            "velocity_gt_median_m_s": float(np.median(truth.velocity[on])) if on.any() else None,
-            "velocity_median_m_s": float(np.median(measured)) if measured.size else None,
-            "velocity_abs_error_median_m_s": error_stats(
-                recon.velocity[on], truth.velocity[on])["median_abs"],
-        })
-    return out
+    """One entry per moving body."""
+    return [_region(", ".join(body.names), truth.body == k, recon, truth)
+            for k, body in enumerate(scene.bodies)]
+
+
+def _static_surfaces(recon: Reconstruction, truth: GroundTruth):
+    """The same entry for the pixels that see a static surface (None when none does)."""
+    static = truth.body == -1
+    return _region(STATIC_SURFACES, static, recon, truth) if static.any() else None
 
 
 def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon, noise_free,
@@ -426,6 +455,7 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         "noise": noise_info,
         "errors": _errors(recon, truth, depth_modulo),
         "bodies": _bodies(scene, recon, truth),
+        "static_surfaces": _static_surfaces(recon, truth),
         "speed_of_light_m_s": SPEED_OF_LIGHT,
         "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),
                     "total": round(seconds, 3)},
@@ -434,6 +464,37 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
         summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
     return summary
+
+
+def body_lines(summary: dict) -> list:
+    """Per body (and the static surfaces): the per-pixel velocity error over the pixels
+    where both truth and measurement exist, and the spread of the truth; the meaning of
+    the truth when the light is not at the camera; the multipath note."""
+    lines = []
+    bodies = summary["bodies"]
+    static = summary.get("static_surfaces")
+    for body in bodies + ([static] if static else []):
+        err = body.get("velocity_error_m_s") or {}
+        if not body["pixels"] or not err.get("pixels"):
+            continue
+        lo, hi = body["velocity_gt_p5_m_s"], body["velocity_gt_p95_m_s"]
+        truth = (f"truth {lo:+.3g} m/s" if abs(hi - lo) < 0.005 * max(abs(lo), abs(hi), 1e-9)
+                 else f"truth {lo:+.3g} to {hi:+.3g} m/s (5th-95th percentile)")
+        lines.append(f"  {body['name']}: velocity error median {err['median_abs']:.3g} m/s, "
+                     f"95th percentile {err['p95_abs']:.3g} m/s, mean {err['mean_signed']:+.3g}"
+                     f" m/s over {err['pixels']} of {body['pixels']} pixels; {truth}")
+    max_depth = summary.get("render_params", {}).get("max_depth", -1)
+    if (static and bodies and (max_depth == -1 or max_depth > 2)
+            and (static.get("velocity_error_m_s") or {}).get("p95_abs")
+            and static["velocity_error_m_s"]["p95_abs"] > 0.05):
+        lines.append(f"  note: {MULTIPATH_NOTE} (-P max_depth=2)")
+    light = summary.get("light") or {}
+    if light and not light.get("colocated", True):
+        offsets = [e["offset_from_camera_m"] for e in light.get("lights", [])
+                   if "offset_from_camera_m" in e]
+        where = (f" ({max(offsets):.3g} m from it)" if offsets else "")
+        lines.append(f"  note: the light is not at the camera{where}: {LIGHT_OFF_CAMERA_NOTE}")
+    return lines
 
 
 def format_summary(summary: dict, folder: str | None = None) -> str:
@@ -479,9 +540,5 @@ def format_summary(summary: dict, folder: str | None = None) -> str:
     nan = summary["velocity"]["nan_pixels"]
     if nan:
         lines.append("  velocity NaN: " + ", ".join(f"{n} px {why}" for why, n in nan.items()))
-    for body in summary["bodies"]:
-        if body["pixels"] and body["velocity_median_m_s"] is not None:
-            lines.append(f"  {body['name']}: truth {body['velocity_gt_median_m_s']:+.2f} m/s, "
-                         f"measured {body['velocity_median_m_s']:+.2f} m/s (median over "
-                         f"{body['pixels']} pixels)")
+    lines += body_lines(summary)
     return "\n".join(lines)
