@@ -7,24 +7,12 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
+from .experiments.cli import parse_pairs
 from .io import FOLDER_HELP
 
 
 class UsageError(Exception):
     pass
-
-
-def _overrides(pairs) -> dict:
-    """``["name=value", ...]`` (from -D or -P) as a dict."""
-    out = {}
-    for item in pairs or []:
-        if "=" not in item:
-            raise UsageError(f"-D expects name=value, got {item!r}")
-        name, value = item.split("=", 1)
-        if not name:
-            raise UsageError(f"-D expects name=value, got {item!r}")
-        out[name.strip()] = value
-    return out
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -36,7 +24,8 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("render", help="render a D-ToF image of a scene")
     r.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
-    r.add_argument("-o", "--output", required=True, help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
+    r.add_argument("-o", "--output", required=True,
+                   help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's sampler)")
     r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     r.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
@@ -106,6 +95,18 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _load_scene(args):
+    """Set the variant, load the scene with the -D values; say on stderr what the loader
+    assumed (stdout is for results)."""
+    import dopplertof
+
+    dopplertof.set_variant(args.variant)
+    scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
+    for note in scene.notes:
+        print(f"dopplertof: note: {note}", file=sys.stderr)
+    return scene
+
+
 def _cmd_render(args) -> int:
     import dopplertof
     from . import io
@@ -117,9 +118,8 @@ def _cmd_render(args) -> int:
         io.check_output_folder(os.path.dirname(os.path.abspath(args.checkpoint)))
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
-    dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
-    params = _overrides(args.params) or None
+    scene = _load_scene(args)
+    params = parse_pairs(args.params, "-P") or None
     if args.sample_counts and not dopplertof.RenderParams.from_mapping(
             params or {}, where="render parameters", base=scene.params).adaptive_sampling:
         raise UsageError("--sample-counts needs adaptive sample counts: add "
@@ -163,15 +163,14 @@ def _cmd_capture(args) -> int:
                   if getattr(args, opt) is not None}
     noise = NoiseModel(**noise_args) if (args.noise or noise_args) else None
     prepare_folder(args.output)
-    dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
+    scene = _load_scene(args)
 
     def report(spec, seconds):
         if not args.quiet:
             print(f"  {spec.name:<16} {seconds:6.1f} s", flush=True)
 
     result = dopplertof.capture(scene, spp=args.spp, seed=args.seed,
-                                params=_overrides(args.params) or None,
+                                params=parse_pairs(args.params, "-P") or None,
                                 hetero_frequency=args.hetero_frequency,
                                 unwrap_frequency=args.unwrap_frequency, noise=noise,
                                 min_signal_fraction=args.min_signal,

@@ -50,7 +50,7 @@ def _seed_list(text: str) -> tuple:
     return seeds
 
 
-def _pairs(items, flag: str) -> dict:
+def parse_pairs(items, flag: str) -> dict:
     out = {}
     for item in items or []:
         name, sep, value = item.partition("=")
@@ -138,7 +138,7 @@ def _sweep_config(args):
     from .config import ConfigError, load_config
     from .presets import preset_config
 
-    defines = _pairs(args.defines, "-D")
+    defines = parse_pairs(args.defines, "-D")
     if args.preset:
         if args.config:
             raise ConfigError("give a configuration file or --preset, not both")
@@ -205,8 +205,8 @@ def cmd_animate(args) -> int:
 
     summary = run_animation(args.scene, args.output, args.frames,
                             frame_period=args.frame_period, start=args.start, spp=args.spp,
-                            seed=args.seed, defines=_pairs(args.defines, "-D"),
-                            params=_pairs(args.params, "-P"), variant=args.variant,
+                            seed=args.seed, defines=parse_pairs(args.defines, "-D"),
+                            params=parse_pairs(args.params, "-P"), variant=args.variant,
                             previews=args.previews, fps=args.fps, scheduler=args.scheduler,
                             workers=args.workers, retries=args.retries,
                             progress=_progress(args))
