@@ -144,6 +144,12 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     if pass_chunks is None:
         pass_chunks = max(1, max_lanes // (n_pixels * chunk))
     pass_chunks = max(1, min(int(pass_chunks), n_chunks))
+    from . import budget
+
+    cost = budget.check(budget.estimate(width, height, _spectrum_channels(mi), spp, chunk,
+                                        pass_chunks, p.adaptive_sampling))
+    if progress is not False and cost.seconds > budget.LONG_RENDER_SECONDS:
+        print(f"dopplertof: rendering {cost.describe()}", file=sys.stderr, flush=True)
 
     from tqdm import tqdm
 
