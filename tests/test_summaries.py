@@ -49,3 +49,17 @@ def test_light_off_the_camera_says_what_the_truth_means(name, off):
     text = format_summary(frame(name).summary)
     assert ("the light is not at the camera (1.5 m from it)" in text) == off
     assert ("whole path camera -> surface -> light" in text) == off
+
+
+def test_rotating_body_with_the_inverse_square_calibration_is_flagged():
+    scene = dopplertof.load_file(os.path.join(ROOT, "examples", "rotating_cube.xml"),
+                                 {"res": 8, "spp": 8, "max_depth": 2})
+    rect = dopplertof.capture(scene, params={"wave_function_type": "rectangular"})
+    assert rect.summary["velocity"]["rotating_bodies"] == ["cube"]
+    assert rect.summary["velocity"]["calibration"] == "inverse-square"
+    assert "does not model the brightness change of a turning surface" in \
+        format_summary(rect.summary)
+    sine = dopplertof.capture(scene)
+    assert "turning surface" not in format_summary(sine.summary)
+    ball = frame("translating_sphere.xml")
+    assert ball.summary["velocity"]["rotating_bodies"] == []

@@ -50,8 +50,30 @@ CALIBRATION_NOTES = {
             "ignored (its first-order term cancels for sinusoids)",
     "inverse-square": "single-path model with brightness (d_mid / d(t))^2 (colocated point "
                       "light) solved per pixel with the reconstructed phase and depth; "
-                      "needs the true distance: unwrap depth beyond the wrap distance",
+                      "needs the true distance: unwrap depth beyond the wrap distance; a "
+                      "turning surface also changes brightness through its cosine, which it "
+                      "does not model (docs/camera.md, Brightness changes)",
 }
+
+#: the note when the inverse-square calibration meets a rotating body (numbers: docs/camera.md)
+ROTATION_NOTE = ("the inverse-square calibration does not model the brightness change of a "
+                 "turning surface (its cosine term): expect a velocity bias of several "
+                 "percent on {names} with this waveform (rectangular, examples/"
+                 "rotating_cube.xml: -12% median); the sinusoidal waveform has none (+0.3%)")
+
+
+def rotating_bodies(scene, base: RenderParams) -> list:
+    """Names of the bodies whose orientation changes during the exposure."""
+    from .ground_truth import mid_exposure
+
+    start, _, end = mid_exposure(scene, base)
+    names = []
+    for body in scene.bodies:
+        a = body.motion.relative_matrix(start)[:3, :3]
+        b = body.motion.relative_matrix(end)[:3, :3]
+        if not np.allclose(a, b, rtol=0, atol=1e-9):
+            names.append(", ".join(body.names))
+    return names
 
 
 class CaptureError(ValueError):
@@ -428,6 +450,7 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
                       "hetero_frequency; v = c Delta_omega / (2 omega_g)",
             "calibration": calibration,
             "calibration_note": CALIBRATION_NOTES[calibration],
+            "rotating_bodies": rotating_bodies(scene, base),
             "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
             "nan_when": {text.split(" (")[0].split(":")[0]: text
                          for text in rec.INVALID_REASONS.values()},
@@ -488,6 +511,9 @@ def body_lines(summary: dict) -> list:
             and (static.get("velocity_error_m_s") or {}).get("p95_abs")
             and static["velocity_error_m_s"]["p95_abs"] > 0.05):
         lines.append(f"  note: {MULTIPATH_NOTE} (-P max_depth=2)")
+    rotating = summary.get("velocity", {}).get("rotating_bodies")
+    if rotating and summary["velocity"].get("calibration") == "inverse-square":
+        lines.append("  note: " + ROTATION_NOTE.format(names=", ".join(rotating)))
     light = summary.get("light") or {}
     if light and not light.get("colocated", True):
         offsets = [e["offset_from_camera_m"] for e in light.get("lights", [])
