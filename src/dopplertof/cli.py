@@ -128,7 +128,9 @@ def _cmd_render(args) -> int:
                                       params=params,
                                       progress=False if args.quiet else None,
                                       checkpoint=args.checkpoint)
-    io.write_image(args.output, result.image, result.metadata)
+    io.write_image(args.output, result.image, result.metadata,
+                   **({"title": io.render_title(result.metadata)}
+                      if args.output.lower().endswith(".png") else {}))
     if args.sample_counts:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",

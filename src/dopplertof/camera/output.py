@@ -41,8 +41,8 @@ def write_result(result, folder) -> list:
             continue
         image = result.captures[name]
         io.write_npy(path(f"{name}.npy"), image)
-        title = (f"{record['kind']} capture, offset {record['hetero_offset']:g}, "
-                 f"h={record['hetero_frequency']:g}, {record['w_g_MHz']:g} MHz{noisy}")
+        title = io.measurement_title(record["kind"], record["hetero_frequency"],
+                                     record["hetero_offset"], record["w_g_MHz"], noisy)
         io.write_png(path(f"{name}.png"), image, title=title,
                      label="time-averaged correlation (scene units)", metadata=record)
 
@@ -61,11 +61,11 @@ def write_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
                           cmap="RdBu_r", vmax=v_limit, symmetric=True,
-                          note="grey: NaN (nothing hit or signal too weak)")
+                          note=io.NO_SIGNAL_NOTE)
     error = recon.velocity - truth.velocity
     figures.write_map(path("velocity_error.png"), error, "velocity error (reconstructed - truth)",
                       "m/s", cmap="PuOr_r", symmetric=True,
-                      note="grey: NaN (nothing hit or signal too weak)")
+                      note=io.NO_SIGNAL_NOTE)
 
     depth_info = summary["depth"]
     wrap_note = (f"wraps every {depth_info['wrap_distance_m']:.3f} m"
@@ -82,7 +82,7 @@ def write_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
-                          vmin=d_lo, vmax=d_hi, note=f"{note}; grey: NaN")
+                          vmin=d_lo, vmax=d_hi, note=f"{note}; {io.NO_SIGNAL_NOTE}")
 
     figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
                              truth.velocity, f"{os.path.basename(summary['scene'])}: "
