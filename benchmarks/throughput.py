@@ -7,7 +7,10 @@ compiles every kernel, and the median time of each is compared.
 
     .venv/bin/python benchmarks/throughput.py [--res 256] [--spp 64] [--repeats 5]
 
-The last line reads `throughput ratio (2 moving bodies): X` (ours / stock time).
+The last lines read `throughput ratio (2 moving bodies): X` (ours / stock time) and
+`splat film cost (gaussian): Y`: the time of the splat film (every sample weighted into
+each pixel its filter reaches) over the importance film, both dopplertof, interleaved,
+on the static scene with that filter (tent and gaussian; a box is the same kernel).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ WALLS = """
 
 
 def scene_xml(n_bodies: int, moving: bool, integrator: str, res: int, spp: int,
-              depth: int) -> str:
+              depth: int, rfilter: str = "box") -> str:
     """Cornell box with n boxes on a grid; ``moving`` adds keyframes (10 m/s along z)."""
     boxes = []
     side = int(np.ceil(np.sqrt(max(n_bodies, 1))))
@@ -66,7 +69,7 @@ def scene_xml(n_bodies: int, moving: bool, integrator: str, res: int, spp: int,
     <float name="shutter_close" value="0.0015"/>
     <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>
     <film type="hdrfilm"><integer name="width" value="{res}"/>
-      <integer name="height" value="{res}"/><rfilter type="box"/></film>
+      <integer name="height" value="{res}"/><rfilter type="{rfilter}"/></film>
   </sensor>
   {WALLS}
   {''.join(boxes)}
@@ -111,6 +114,28 @@ def compare(n_bodies: int, moving: bool, args) -> float:
     return o / s
 
 
+def film_cost(rfilter: str, args) -> float:
+    """Splat over importance film time, dopplertof on the static scene."""
+    import dopplertof
+
+    scene = dopplertof.load_string(
+        scene_xml(2, False, "dopplertof", args.res, args.spp, args.depth, rfilter))
+
+    def run(film):
+        return lambda: dopplertof.render(scene, spp=args.spp, seed=0, progress=False,
+                                         params={"film_sampling": film})
+
+    run("splat")(), run("importance")()  # warm-up
+    t_splat, t_importance = [], []
+    for _ in range(args.repeats):
+        t_importance.append(timed(run("importance")))
+        t_splat.append(timed(run("splat")))
+    s, i = statistics.median(t_splat), statistics.median(t_importance)
+    print(f"{rfilter + ' film':>18}: importance {i:7.3f} s   splat {s:7.3f} s   ratio "
+          f"{s / i:5.3f}", flush=True)
+    return s / i
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--res", type=int, default=256)
@@ -128,9 +153,12 @@ def main():
     static = compare(2, False, args)
     sixteen = compare(16, True, args)
     two = compare(2, True, args)
+    costs = {f: film_cost(f, args) for f in ("tent", "gaussian")}
     print(f"throughput ratio (static): {static:.3f}")
     print(f"throughput ratio (16 moving bodies): {sixteen:.3f}")
     print(f"throughput ratio (2 moving bodies): {two:.3f}")
+    for f, cost in costs.items():
+        print(f"splat film cost ({f}): {cost:.3f}")
 
 
 if __name__ == "__main__":

@@ -102,6 +102,15 @@ SCENE_CASES = [
     ("sampler-method", ('<sampler type="correlated">', '<sampler type="correlated">'
                         '<string name="time_sampling_method" value="antithetic"/>'),
      "unknown parameter 'time_sampling_method' of the correlated sampler"),
+    ("analytic-square-waves", ('<float name="hetero_frequency" value="1"/>',
+                               '<float name="hetero_frequency" value="1"/>'
+                               '<string name="time_sampling_method" value="analytic"/>'
+                               '<string name="wave_function_type" value="rectangular"/>'),
+     "needs wave_function_type 'sinusoidal'"),
+    ("kp-not-dividing-spp", ('<integer name="sample_count" value="4"/>',
+                             '<integer name="sample_count" value="4"/>'
+                             '<integer name="path_correlate_number" value="3"/>'),
+     "spp 4 is not a multiple of path_correlate_number=3"),
     ("mirror-with-four", ('<sampler type="correlated">', '<sampler type="correlated">'
                           '<integer name="time_correlate_number" value="4"/>'), None),
 ]
@@ -163,6 +172,8 @@ def test_good_scene_renders(tmp_path, capsys, output):
     (["-P", "max_depth=0"], "max_depth must be >= 1"),
     (["-P", "rr_depth=x"], "must be an integer"),
     (["--variant", "scalar_rgb"], "not supported"),
+    (["-P", "samples_per_pass=3"], "spp 4 is not a multiple of samples_per_pass=3"),
+    (["-P", "timeout=inf"], "must be finite"),
 ], ids=lambda v: " ".join(v) if isinstance(v, list) else None)
 def test_bad_arguments(tmp_path, capsys, output, args, expected):
     scene = tmp_path / "scene.xml"

@@ -135,8 +135,8 @@ def _cmd_render(args) -> int:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
-    if args.checkpoint:  # the output is safe: the checkpoint has served
-        os.unlink(args.checkpoint)
+    if args.checkpoint and not result.metadata["timed_out"]:  # the output is safe:
+        os.unlink(args.checkpoint)  # the checkpoint has served (a timed-out one resumes)
     md = result.metadata
     if not args.quiet:
         print(f"wrote {args.output}: {result.image.shape[1]}x{result.image.shape[0]}, "

@@ -14,7 +14,11 @@ from dataclasses import dataclass, field, fields, replace
 
 from .hints import did_you_mean
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
+from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
+
+#: how samples become pixels (integrators/film.py)
+FILM_SAMPLINGS = ("splat", "importance")
+FILM_NORMALIZATIONS = ("expected", "weights")
 
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
@@ -54,6 +58,9 @@ class RenderParams:
     antithetic_shift: float | None = None  #: default 0.5 (shifted) or 0 (mirrored)
     path_correlation_depth: int = FULL_CORRELATION  #: stages sharing random numbers
     time_correlate_number: int = 2  #: K, samples per correlated group
+    #: Kp, consecutive samples sharing one path random stream (None: K), as the
+    #: published sampler's ``path_correlate_number``
+    path_correlate_number: int | None = None
     use_stratified_sampling_for_each_interval: bool = True
     #: how an antithetic pair's partner is built: "replay" (the primal's random numbers
     #: at the paired time; None means this) or "motion" (the primal's first hit point
@@ -62,6 +69,18 @@ class RenderParams:
     #: samples per pixel set from a pilot pass (the first 1/4), more where the
     #: neighbours vary most, spp on average, unbiased (allocation.py)
     adaptive_sampling: bool = False
+    # ---- Film ----
+    #: "splat" (each sample weighted into every pixel its filter reaches, as Mitsuba's
+    #: film) or "importance" (film positions drawn from the filter, one pixel each)
+    film_sampling: str = "splat"
+    #: splat film: divide by the exact "expected" filter weight (unbiased) or by the
+    #: sampled "weights" (Mitsuba's ratio estimator)
+    film_normalization: str = "expected"
+    # ---- Execution (the published integrators' own; none changes the image) ----
+    is_doppler_integrator: bool = True  #: no effect: this integrator is a D-ToF one
+    block_size: int = 0  #: no effect: the published scalar variants' tile size
+    samples_per_pass: int = -1  #: samples per pixel per pass (-1: set by memory)
+    timeout: float = -1.0  #: seconds; stop after the pass it expires in (< 0: none)
 
     # ---- Parsing ----
 
@@ -76,8 +95,6 @@ class RenderParams:
         known = {f.name: f for f in fields(cls)}
         changes = {}
         for name, value in values.items():
-            if name == "path_correlate_number":  # the published sampler's name
-                name = "path_correlation_depth"
             if name not in known:
                 raise ParameterError(
                     f"{where}: unknown parameter {name!r}{did_you_mean(name, known)} "
@@ -113,6 +130,13 @@ class RenderParams:
         if self.time_sampling_method not in METHOD_NAMES:
             fail(f"unknown time_sampling_method {self.time_sampling_method!r}: expected one of "
                  f"{', '.join(METHOD_NAMES)}")
+        if self.time_sampling_method == ANALYTIC:  # the published closed form's limits
+            if self.wave_function_type != "sinusoidal":
+                fail("time_sampling_method 'analytic' integrates a sinusoid in closed form: it "
+                     f"needs wave_function_type 'sinusoidal', got {self.wave_function_type!r}")
+            if not self.low_frequency_component_only:
+                fail("time_sampling_method 'analytic' integrates the low-pass correlation: it "
+                     "needs low_frequency_component_only=true")
         if self.max_depth < -1 or self.max_depth == 0:
             fail(f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}")
         if self.rr_depth < 1:
@@ -121,6 +145,14 @@ class RenderParams:
             fail(f"path_correlation_depth must be >= 0, got {self.path_correlation_depth}")
         if self.time_correlate_number < 1:
             fail(f"time_correlate_number must be >= 1, got {self.time_correlate_number}")
+        if self.path_correlate_number is not None and self.path_correlate_number < 1:
+            fail(f"path_correlate_number must be >= 1, got {self.path_correlate_number}")
+        if self.block_size < 0:
+            fail(f"block_size must be >= 0, got {self.block_size}")
+        if self.samples_per_pass == 0 or self.samples_per_pass < -1:
+            fail(f"samples_per_pass must be >= 1 or -1 (automatic), got {self.samples_per_pass}")
+        if not math.isfinite(self.timeout):
+            fail(f"timeout must be finite (seconds, -1: none), got {self.timeout}")
         if (self.time_sampling_method == "antithetic_mirror"
                 and self.time_correlate_number != 2):
             fail("time_sampling_method 'antithetic_mirror' pairs samples: it needs "
@@ -128,6 +160,12 @@ class RenderParams:
         if self.antithetic_mapping not in (None,) + ANTITHETIC_MAPPINGS:
             fail(f"unknown antithetic_mapping {self.antithetic_mapping!r}: expected one of "
                  f"{', '.join(ANTITHETIC_MAPPINGS)}")
+        if self.film_sampling not in FILM_SAMPLINGS:
+            fail(f"unknown film_sampling {self.film_sampling!r}: expected one of "
+                 f"{', '.join(FILM_SAMPLINGS)}")
+        if self.film_normalization not in FILM_NORMALIZATIONS:
+            fail(f"unknown film_normalization {self.film_normalization!r}: expected one of "
+                 f"{', '.join(FILM_NORMALIZATIONS)}")
         if self.antithetic_mapping == "motion":
             method = self.time_sampling_method
             if method not in ("antithetic", "antithetic_mirror"):
@@ -142,9 +180,23 @@ class RenderParams:
             if self.path_correlation_depth < 1:
                 fail("antithetic_mapping 'motion' needs the pair to share its film position: "
                      "path_correlation_depth >= 1, got 0")
+            if self.path_group_size != 2:
+                fail("antithetic_mapping 'motion' maps a pair's shared path: it needs "
+                     f"path_correlate_number=2 (the pair), got {self.path_correlate_number}")
         return self
 
     # ---- Derived quantities ----
+
+    @property
+    def path_group_size(self) -> int:
+        """Kp: consecutive samples sharing one path random stream."""
+        return self.path_correlate_number or self.time_correlate_number
+
+    def image_defining(self) -> "RenderParams":
+        """The parameters with the execution ones (which never change an image: pass
+        size, timeout, and those without effect) at their defaults."""
+        return replace(self, **{f.name: f.default for f in fields(self)
+                                if f.name in EXECUTION_PARAMS})
 
     def resolved(self, shutter: float) -> "RenderParams":
         """The parameters with ``time_sampling_method="auto"`` replaced by its choice
@@ -205,6 +257,9 @@ class Modulation:
         return self.omega_d * self.exposure / (2 * math.pi)
 
 
+#: parameters that decide how a render runs, never what it computes
+EXECUTION_PARAMS = ("is_doppler_integrator", "block_size", "samples_per_pass", "timeout")
+
 _TYPES = {
     "time": float, "w_g": float, "w_s": float, "g_0": float, "g_1": float,
     "sensor_phase_offset": float, "hetero_frequency": float, "hetero_offset": float,
@@ -212,7 +267,9 @@ _TYPES = {
     "rr_depth": int, "hide_emitters": bool, "time_sampling_method": str,
     "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
     "use_stratified_sampling_for_each_interval": bool, "antithetic_mapping": str,
-    "adaptive_sampling": bool,
+    "adaptive_sampling": bool, "film_sampling": str, "film_normalization": str,
+    "path_correlate_number": int, "is_doppler_integrator": bool, "block_size": int,
+    "samples_per_pass": int, "timeout": float,
 }
 assert set(_TYPES) == set(RenderParams.names())
 

@@ -52,19 +52,23 @@ class RenderSetup:
     antithetic_shift: object
     group_size: int
     groups_per_pixel: int
+    path_group_size: int  #: Kp, samples sharing one path stream
     stratify: bool
     shutter_open: float
-    film_sampler: object
+    film_sampler: object  #: integrators.film.FilmSampler: film positions in a pixel
+    splat: object  #: integrators.film.SplatFilter, or None for the importance film
     camera: object  #: integrators.camera.Camera
     projection: object  #: PinholeProjection when pairs use the motion mapping, else None
     hide_emitters: bool
+    analytic: bool = False  #: time_sampling_method "analytic" (integrators/analytic.py)
 
 
 def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
     import drjit as dr
 
     from .integrators.camera import Camera, PinholeProjection, is_pinhole
-    from .integrators.dtof_path import FilmSampler, ModulationWeight
+    from .integrators.dtof_path import ModulationWeight
+    from .integrators.film import FilmSampler, SplatFilter
 
     sensor = scene.sensor
     mod = params.modulation(scene.shutter_interval)
@@ -74,6 +78,8 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     forward = forward / np.linalg.norm(forward)
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
     weight = ModulationWeight(mi, mod)
+    analytic = params.time_sampling_method == sampling.ANALYTIC
+    splat = params.film_sampling == "splat"
     projection = None
     if params.antithetic_mapping == "motion":
         if not is_pinhole(sensor):
@@ -84,16 +90,22 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     return RenderSetup(
         scene=scene, params=params, modulation=mod, weight=weight,
         seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
-        correlation_depth=dr.opaque(mi.UInt32, min(params.path_correlation_depth, 1 << 30)),
-        method=dr.opaque(mi.UInt32, sampling.method_index(params.time_sampling_method)),
+        # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
+        # (analytic: a sample's two paths share everything, and samples nothing)
+        correlation_depth=dr.opaque(mi.UInt32, 0 if params.path_group_size == 1 or analytic
+                                    else min(params.path_correlation_depth, 1 << 30)),
+        method=dr.opaque(mi.UInt32, 0 if analytic
+                         else sampling.method_index(params.time_sampling_method)),
         antithetic_shift=dr.opaque(weight.F, mod.antithetic_shift),
-        group_size=K, groups_per_pixel=spp // K,
+        group_size=K, groups_per_pixel=spp // K, path_group_size=params.path_group_size,
         stratify=params.use_stratified_sampling_for_each_interval,
-        shutter_open=scene.shutter_open, film_sampler=FilmSampler(sensor.film()),
+        shutter_open=scene.shutter_open,
+        film_sampler=FilmSampler.uniform() if splat else FilmSampler(sensor.film()),
+        splat=SplatFilter(sensor.film()) if splat else None,
         camera=Camera(mi, sensor, scene.sensor_motion, near_clip,
                       mi.Vector3f(*map(float, forward))),
         projection=projection,
-        hide_emitters=params.hide_emitters,
+        hide_emitters=params.hide_emitters, analytic=analytic,
     )
 
 
@@ -128,7 +140,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     spp = scene.spp if spp is None else int(spp)
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    check_sample_count(p.time_correlate_number, spp)
+    check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
 
     film = scene.sensor.film()
     width, height = (int(v) for v in film.crop_size())
@@ -143,6 +155,8 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                     if p.adaptive_sampling else 0)
     if pass_chunks is None:
         pass_chunks = max(1, max_lanes // (n_pixels * chunk))
+        if p.samples_per_pass > 0:  # the published pass size, in whole chunks, within memory
+            pass_chunks = min(pass_chunks, -(-p.samples_per_pass // chunk))
     pass_chunks = max(1, min(int(pass_chunks), n_chunks))
     from . import budget
 
@@ -156,19 +170,32 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     from .integrators.dtof_path import PassLayout, trace_pass
 
     channels_out = _spectrum_channels(mi)
-    total = np.zeros((n_pixels, channels_out), dtype=np.float64)
-    # adaptive sampling: the pilot's sums of squared group sums, then the counts
-    squares = np.zeros_like(total) if p.adaptive_sampling else None
+    # ---- Accumulators (float64, by source pixel) ----
+    # total: per pixel and film offset, each channel's sum of filter weight x value
+    # (importance film: one offset, weight 1), then, with film_normalization="weights",
+    # each offset's sum of weights
+    splat = setup.splat
+    offsets = 1 if splat is None else len(splat.offsets)
+    columns = offsets * channels_out
+    # (a box weighs every sample 1 in its own pixel: both normalizations are the count)
+    normalization = "expected" if offsets == 1 else p.film_normalization
+    if normalization == "weights":
+        columns += offsets
+    total = np.zeros((n_pixels, columns), dtype=np.float64)
+    # adaptive sampling: the pilot's sums of samples and of squared group sums
+    pilot_sums = np.zeros((n_pixels, channels_out)) if p.adaptive_sampling else None
+    squares = np.zeros_like(pilot_sums) if p.adaptive_sampling else None
     counts = None
     nonfinite = 0
     next_chunk = 0
-    key = _render_key(scene, p, spp, seed, mi.variant(), chunk)
+    key = _render_key(scene, p.image_defining(), spp, seed, mi.variant(), chunk)
     if checkpoint is not None:
         saved = _load_checkpoint(checkpoint, key)
         if saved is not None:
-            total, nonfinite, next_chunk, saved_squares, saved_counts = saved
+            total, nonfinite, next_chunk, saved_pilot, saved_squares, saved_counts = saved
             if p.adaptive_sampling:  # (the key holds the parameters: saved adaptively)
-                squares, counts = saved_squares, (saved_counts if saved_counts.size else None)
+                pilot_sums, squares = saved_pilot, saved_squares
+                counts = saved_counts if saved_counts.size else None
     started = _time.perf_counter()
     done = (min(spp, next_chunk * chunk) if counts is None
             else float(np.minimum(counts, next_chunk * chunk).mean()))
@@ -176,10 +203,23 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                disable=not _show_progress(progress), leave=False, file=sys.stderr)
     import drjit as dr
 
+    # the splat film's totals stay in Dr.Jit (float64, one array per column) between
+    # passes; the importance film's chunk sums are added on the host
+    weighted = splat is not None and offsets > 1
+    device_total = None  # column-major: column c of pixel p at c * n_pixels + p
+    if weighted:
+        device_total = (mi.Float64(total.T.ravel()) if next_chunk else
+                        dr.zeros(mi.Float64, columns * n_pixels))
+
+    def host_total():
+        if weighted:
+            return np.asarray(device_total).reshape(columns, n_pixels).T
+        return total
+
     def trace_chunks(first_chunk, end_chunk):
         """Trace chunks [first_chunk, end_chunk) of every pixel that has them and add
-        them to ``total`` (and in the pilot, to ``squares``)."""
-        nonlocal nonfinite
+        them to the totals (and in the pilot, to ``pilot_sums`` and ``squares``)."""
+        nonlocal nonfinite, device_total
         s0 = first_chunk * chunk
         if counts is None:
             s1 = min(spp, end_chunk * chunk)
@@ -187,6 +227,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             chunk_size = min(chunk, samples)
             layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), K)
             block_pixel = np.repeat(np.arange(n_pixels), samples // chunk_size)
+            pixels, per_pixel = np.arange(n_pixels), np.full(n_pixels, samples)
             lanes = n_pixels * samples
         else:  # each pixel its own number of chunks: lanes from host arrays
             chunk_size = chunk
@@ -199,33 +240,59 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             layout = PassLayout.of_lanes(mi, lane_pixel, lane_sample, K)
             block_pixel = lane_pixel[::chunk]
             lanes = lane_pixel.size
-        value = trace_pass(mi, setup, layout)
-        dr.eval(value)  # one path tracing kernel for all channels
+        value, film_offset = trace_pass(mi, setup, layout)
+        dr.eval(value, film_offset if weighted else None)  # one path tracing kernel
         # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
-        channels = [value[c] for c in range(_channels(value))]
-        finite = dr.isfinite(channels[0])
-        for v in channels[1:]:
+        raw = [value[c] for c in range(_channels(value))]
+        finite = dr.isfinite(raw[0])
+        for v in raw[1:]:
             finite &= dr.isfinite(v)
         dropped = dr.count(~finite)
-        channels = [dr.select(finite, v, 0.0) for v in channels]
-        sums = [dr.block_sum(v, chunk_size, mode="evaluated") for v in channels]
+        channels = [dr.select(finite, v, 0.0) for v in raw]
+
+        def chunk_sums(values):
+            return [dr.block_sum(v, chunk_size, mode="evaluated") for v in values]
+
+        if weighted:  # the splat: per film offset, weight x value (and the weights)
+            device_total = splat.accumulate(
+                mi, device_total, raw, film_offset, pixels, np.cumsum(per_pixel) - per_pixel,
+                per_pixel, chunk_size, columns, normalization == "weights")
+            sums = []
+        else:
+            sums = chunk_sums(channels)
         pilot = squares is not None and first_chunk < pilot_chunks
-        if pilot:  # squared sums of the groups (K samples), summed per chunk
+        if pilot:  # the samples' sums, and the squared sums of the groups (K samples)
+            sums += chunk_sums(channels) if weighted else []
             sums += [dr.block_sum(dr.square(dr.block_sum(v, K, mode="evaluated")),
                                   chunk_size // K, mode="evaluated") for v in channels]
         dr.eval(dropped, sums)
         nonfinite += int(dropped[0])
-        parts = np.stack([np.asarray(v) for v in sums], axis=-1).astype(np.float64)
+        parts = np.empty((block_pixel.size, len(sums)))
+        for i, v in enumerate(sums):
+            parts[:, i] = np.asarray(v)
         # chunk order per pixel, whatever the passes: the image ignores pass sizes
-        position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
-        for j in range(int(position.max()) + 1 if position.size else 0):
-            rows = position == j
-            total[block_pixel[rows]] += parts[rows, :channels_out]
+        # (the importance film's sums are both its total and, in the pilot, the pixel's
+        # own sums; the squared group sums come last)
+        for pixels_j, rows in (_chunk_columns(block_pixel, n_pixels) if sums else ()):
+            if not weighted:
+                total[pixels_j] += parts[rows, :columns]
             if pilot:
-                squares[block_pixel[rows]] += parts[rows, channels_out:]
+                pilot_sums[pixels_j] += parts[rows, :channels_out]
+                squares[pixels_j] += parts[rows, -channels_out:]
         bar.update(lanes / n_pixels)
         if checkpoint is not None:
-            _save_checkpoint(checkpoint, key, total, nonfinite, end_chunk, squares, counts)
+            _save_checkpoint(checkpoint, key, host_total(), nonfinite, end_chunk, pilot_sums,
+                             squares, counts)
+
+    reached = next_chunk  # chunks of every pixel traced so far (where it has them)
+
+    def trace_pass_then_check_time(first_chunk, end_chunk):
+        """A pass, then the timeout: it stops the render after the pass it expires in."""
+        nonlocal reached
+        trace_chunks(first_chunk, end_chunk)
+        reached = end_chunk
+        if p.timeout >= 0 and _time.perf_counter() - started > p.timeout:
+            raise _TimedOut
 
     try:
         if not p.adaptive_sampling:
@@ -237,23 +304,38 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             if full_chunks < n_chunks and next_chunk <= full_chunks:
                 plan.append((full_chunks, n_chunks))
             for first_chunk, end_chunk in plan:
-                trace_chunks(first_chunk, end_chunk)
+                trace_pass_then_check_time(first_chunk, end_chunk)
         else:
             # ---- Pilot: the first chunks of every pixel ----
             for c0 in range(next_chunk, pilot_chunks, pass_chunks):
-                trace_chunks(c0, min(pilot_chunks, c0 + pass_chunks))
+                trace_pass_then_check_time(c0, min(pilot_chunks, c0 + pass_chunks))
             # ---- Counts from the neighbours' pilot variance, then the rest ----
             if counts is None:
-                counts = _adaptive_counts(total, squares, pilot_chunks * chunk, K, spp,
+                counts = _adaptive_counts(pilot_sums, squares, pilot_chunks * chunk, K, spp,
                                           chunk, (height, width))
             for first_chunk, end_chunk in _adaptive_plan(
                     counts // chunk, max(next_chunk, pilot_chunks), pass_chunks * n_pixels):
-                trace_chunks(first_chunk, end_chunk)
+                trace_pass_then_check_time(first_chunk, end_chunk)
+    except _TimedOut:
+        pass
     finally:
         bar.close()
 
-    per_pixel = (np.full(n_pixels, spp) if counts is None else counts).astype(np.float64)
-    image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
+    total = host_total()
+    # normalized by the samples taken: all of them, unless the timeout stopped the render
+    wanted = np.full(n_pixels, spp) if counts is None else counts
+    per_pixel = np.minimum(wanted, reached * chunk).astype(np.float64)
+    timed_out = bool(np.any(per_pixel < wanted))
+    if timed_out:
+        print(f"dopplertof: timeout of {p.timeout:g} s expired: stopped after "
+              f"{per_pixel.mean():g} of {spp} samples per pixel; the image is normalized by "
+              "the samples taken" + ("; the checkpoint resumes the render"
+                                     if checkpoint is not None else ""), file=sys.stderr)
+    if splat is None:
+        image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
+    else:
+        image = _develop_splat(splat, total, per_pixel, channels_out, (height, width),
+                               normalization).astype(np.float32)
     mod = setup.modulation
     metadata = {
         "measurement": "time-averaged correlation (1/T) * integral over the exposure; "
@@ -263,6 +345,8 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         "omega_d_rad_s": mod.omega_d,
         "psi_rad": mod.psi,
         "spp": spp,
+        "samples_taken": float(per_pixel.mean()),  # per pixel; below spp after a timeout
+        "timed_out": timed_out,
         "seed": int(seed),
         "variant": mi.variant(),
         "nonfinite_samples_dropped": nonfinite,
@@ -276,6 +360,42 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
                                      "max": int(counts.max()),
                                      "mean": float(counts.mean())}
     return RenderResult(image, metadata, sample_counts)
+
+
+def _chunk_columns(block_pixel, n_pixels: int):
+    """(pixels, rows) per chunk column j: the rows of the pass's chunk sums that hold
+    chunk j of their pixel (``block_pixel``: each row's pixel, pixel-major). Slices
+    when every pixel has the same number of chunks (views, no copies), else index
+    arrays."""
+    per_pixel = block_pixel.size // n_pixels
+    if per_pixel and np.array_equal(block_pixel, np.repeat(np.arange(n_pixels), per_pixel)):
+        for j in range(per_pixel):
+            yield slice(None), slice(j, None, per_pixel)
+        return
+    position = np.arange(block_pixel.size) - np.searchsorted(block_pixel, block_pixel)
+    for j in range(int(position.max()) + 1 if position.size else 0):
+        rows = position == j
+        yield block_pixel[rows], rows
+
+
+def _develop_splat(splat, total, per_pixel, channels: int, shape, normalization: str):
+    """The image (H, W, C) from the splat film's sums by source pixel (``total``:
+    pixels x columns): each source pixel's sums divided by its own sample count (so
+    that an adaptive count, set without the pixel's samples, leaves every term
+    unbiased), shifted into the target pixels and divided by the expected weight (or,
+    ``"weights"``, the sampled one)."""
+    offsets = len(splat.offsets)
+    mean = total.T / per_pixel[None, :]  # columns x pixels
+    values = splat.shift_add(mean[:offsets * channels], shape)
+    if normalization == "weights":
+        weight = splat.shift_add(mean[offsets * channels:], shape)[..., 0]
+    else:
+        weight = splat.expected_weights(shape)
+    return values / weight[..., None]
+
+
+class _TimedOut(Exception):
+    """The render's timeout expired (raised between passes)."""
 
 
 def _adaptive_plan(chunks, first: int, chunks_per_pass: int) -> list:
@@ -327,27 +447,31 @@ def _load_checkpoint(path, key: str):
     try:
         with np.load(path, allow_pickle=False) as data:
             saved_key = str(data["key"])
-            total, nonfinite, next_chunk = data["total"], int(data["nonfinite"]), int(data["next"])
-            squares, counts = data["squares"], data["counts"]
+            if saved_key == key:
+                total, nonfinite = data["total"], int(data["nonfinite"])
+                next_chunk, pilot_sums = int(data["next"]), data["pilot_sums"]
+                squares, counts = data["squares"], data["counts"]
     except Exception as e:
         raise CheckpointError(f"checkpoint {path} cannot be read: {e}") from None
     if saved_key != key:
         raise CheckpointError(
             f"checkpoint {path} belongs to a different render (scene, parameters, spp, seed "
             "or variant differ); delete it or choose another checkpoint file")
-    return total, nonfinite, next_chunk, squares, counts
+    return total, nonfinite, next_chunk, pilot_sums, squares, counts
 
 
-def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int, squares=None,
-                     counts=None) -> None:
-    """``squares`` and ``counts``: the adaptive pilot's sums and the sample counts, when
-    there are (else saved empty)."""
+def _save_checkpoint(path, key: str, total, nonfinite: int, next_chunk: int,
+                     pilot_sums=None, squares=None, counts=None) -> None:
+    """``pilot_sums``, ``squares`` and ``counts``: the adaptive pilot's sums of samples
+    and of squared group sums, and the sample counts, when there are (else saved
+    empty)."""
     from .io import atomic_path
 
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, key=np.array(key), total=total, nonfinite=np.array(nonfinite),
                      next=np.array(next_chunk),
+                     pilot_sums=np.zeros(0) if pilot_sums is None else pilot_sums,
                      squares=np.zeros(0) if squares is None else squares,
                      counts=np.zeros(0, np.int64) if counts is None else counts)
 

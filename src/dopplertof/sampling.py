@@ -1,10 +1,12 @@
 """Time sampling and correlated random streams (DESIGN section 2).
 
-A pixel's samples come in groups of K. Every random number is a hash of
-(seed, pixel, stream, dimension): the *shared* stream of a group (keyed by the group
-index) or the sample's *own* stream (keyed by its global sample index). Stage ``k`` of
-a path (0: camera ray; k >= 1: the decisions at the k-th surface hit) draws from the
-shared stream when ``k < path_correlation_depth``. Because dimensions are fixed per
+A pixel's samples come in groups of K that share a time stream, and in *path groups*
+of Kp consecutive samples (``path_correlate_number``, default K) that share a path
+stream. Every random number is a hash of (seed, pixel, stream, dimension): the
+*shared* stream of a group (keyed by the group index) or the sample's *own* stream
+(keyed by its global sample index). Stage ``k`` of a path (0: camera ray; k >= 1: the
+decisions at the k-th surface hit) draws from its path group's shared stream when
+``k < path_correlation_depth``. Because dimensions are fixed per
 stage and numbers are hashed rather than drawn from a sequential generator, the two
 streams stay aligned whatever is selected, and a sample replays exactly for the same
 pixel, sample index and dimension, whatever the pass it is rendered in.
@@ -19,8 +21,12 @@ METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
 #: how an antithetic pair's partner is built (integrators/antithetic_map.py)
 ANTITHETIC_MAPPINGS = ("replay", "motion")
 
-#: accepted time_sampling_method names: the methods and ``auto`` (see :func:`auto_sampling`)
-METHOD_NAMES = METHODS + ("auto",)
+#: time integrated over the exposure, not sampled (integrators/analytic.py; biased)
+ANALYTIC = "analytic"
+
+#: accepted time_sampling_method names: the methods, ``analytic`` and ``auto`` (see
+#: :func:`auto_sampling`)
+METHOD_NAMES = METHODS + (ANALYTIC, "auto")
 
 # ---- Dimension layout -------------------------------------------------------
 DIM_TIME = 0  #: the time sample
@@ -171,14 +177,19 @@ class CorrelatedStreams:
     """The shared and own random streams of a set of lanes.
 
     Parameters are Dr.Jit UInt32 arrays (one entry per lane) except ``seed`` and
-    ``correlation_depth``, which may be opaque scalars.
+    ``correlation_depth``, which may be opaque scalars. ``group`` keys the time
+    stream (``key_group``), ``path_group`` (default: ``group``) the shared path stream
+    (``key_path``); with Kp = K they are one stream, as published.
     """
 
-    def __init__(self, mi, pixel, group, sample, seed, correlation_depth):
+    def __init__(self, mi, pixel, group, sample, seed, correlation_depth, path_group=None):
         self.mi = mi
         base, _ = mi.sample_tea_32(pixel, seed, _KEY_ROUNDS)
         self.base = base
         self.key_group, _ = mi.sample_tea_32(base, group * 2, _KEY_ROUNDS)
+        self.path_group = group if path_group is None else path_group
+        self.key_path = (self.key_group if path_group is None
+                         else mi.sample_tea_32(base, path_group * 2, _KEY_ROUNDS)[0])
         self.key_own, _ = mi.sample_tea_32(base, sample * 2 + 1, _KEY_ROUNDS)
         self.correlation_depth = correlation_depth
 
@@ -191,21 +202,21 @@ class CorrelatedStreams:
         """The stream key of a sampling stage (0: camera, k: k-th surface hit)."""
         import drjit as dr
 
-        return dr.select(stage < self.correlation_depth, self.key_group, self.key_own)
+        return dr.select(stage < self.correlation_depth, self.key_path, self.key_own)
 
     def get_1d(self, stage, dim):
         return hashed_uniform(self.mi, self.key(stage), self.mi.UInt32(dim))
 
     def sequence_index(self, group, index_in_group, groups_per_pixel: int):
-        """A sample's index in the pixel's low-discrepancy sequence: its group when the
-        camera ray is shared (stage 0 correlated); else its index taken index-major
+        """A sample's index in the pixel's low-discrepancy sequence: its path group when
+        the camera ray is shared (stage 0 correlated); else its index taken index-major
         (i * G + g), so that the sequence's leading digits, which set the coarse
         position, follow the group and not the index in the group, which the stratified
         method ties to the time."""
         import drjit as dr
 
         shared = self.correlation_depth > 0
-        return dr.select(shared, group, index_in_group * groups_per_pixel + group)
+        return dr.select(shared, self.path_group, index_in_group * groups_per_pixel + group)
 
     def film_2d(self, group, index_in_group, groups_per_pixel: int):
         """Film position: Sobol's first two dimensions (a scrambled (0,2)-sequence) at
@@ -234,11 +245,11 @@ class CorrelatedStreams:
         """The first surface hit's 2-D decision ``dim`` from the pixel's own
         low-discrepancy set: Sobol's (0,2)-sequence at an index shuffled per dimension
         (so that film, time and each decision are paired at random, not by index), its
-        values Owen-scrambled. The index is the group's when stage 1 is shared."""
+        values Owen-scrambled. The index is the path group's when stage 1 is shared."""
         import drjit as dr
 
         mi = self.mi
-        index = dr.select(1 < self.correlation_depth, group,
+        index = dr.select(1 < self.correlation_depth, self.path_group,
                           index_in_group * groups_per_pixel + group)
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
         shuffled = _reverse_permute(mi, index, seed_index)
@@ -299,8 +310,10 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
     return t
 
 
-def check_sample_count(group_size: int, spp: int) -> None:
-    """Errors for a sample count that the correlated groups cannot use."""
+def check_sample_count(group_size: int, spp: int, path_group_size: int | None = None,
+                       samples_per_pass: int = -1) -> None:
+    """Errors for a sample count that the correlated groups (K samples sharing a time
+    stream, Kp a path stream) or the published ``samples_per_pass`` cannot use."""
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
     if spp > MAX_SPP:
@@ -309,6 +322,13 @@ def check_sample_count(group_size: int, spp: int) -> None:
         raise ValueError(
             f"spp {spp} is not a multiple of the group size time_correlate_number={group_size}"
         )
+    if path_group_size is not None and spp % path_group_size != 0:
+        raise ValueError(
+            f"spp {spp} is not a multiple of path_correlate_number={path_group_size} "
+            "(samples sharing one path stream)")
+    if samples_per_pass > 0 and spp % samples_per_pass != 0:
+        raise ValueError(
+            f"spp {spp} is not a multiple of samples_per_pass={samples_per_pass}")
 
 
 __all__ = [

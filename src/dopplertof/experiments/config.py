@@ -329,7 +329,8 @@ def check_render_settings(params: dict, spp: int, facts: SceneFacts, where: str)
     from ..sampling import check_sample_count
 
     try:
-        check_sample_count(resolved.time_correlate_number, spp)
+        check_sample_count(resolved.time_correlate_number, spp, resolved.path_group_size,
+                           resolved.samples_per_pass)
     except ValueError as e:
         raise ConfigError(f"{where}: {e}") from None
     return resolved

@@ -15,7 +15,9 @@ the support of the pixel's reconstruction filter, and the camera ray through pos
 meets the same point first. Its Jacobian is J = |d pos1 / d pos0| = D(t1) / D(t0), D
 the film area per unit body area (``PinholeProjection.film_density``).
 
-Estimator (per pair; W the filter at a film position, filter-importance-sampled):
+Estimator (per pair; W the density of the film positions: the filter for the
+``importance`` film; for the ``splat`` film the pixel's own cell, uniform, the filter
+then being part of the integrand, which each lane evaluates at its own position):
 with the balance heuristic between the primal and the mapped strategy (section 4.1),
 whose weights for x and T_m(x) are the same number w = W0 / (W0 + J W1),
 
@@ -134,6 +136,7 @@ class PairedCameraRays:
         use1 = ~primal & valid
         self.ray, self.weight, self.offset = (dr.select(primal, a, dr.select(use1, b, c))
                                               for a, b, c in zip(ray0, ray1, ray_r))
+        self.position = dr.select(primal, pos, dr.select(use1, pos1, pos))  # film
         self.pi = dr.select(primal, hit0.pi, dr.select(use1, hit1.pi, hit_r.pi))
         self.winner = dr.select(primal, hit0.winner,
                                 dr.select(use1, hit1.winner, hit_r.winner))

@@ -11,8 +11,6 @@ random numbers it shares with the other samples of its group.
 
 from __future__ import annotations
 
-import math
-
 import drjit as dr
 
 from .. import sampling
@@ -21,6 +19,7 @@ from ..scene import lights
 from ..scene.bodies import (BodyFrames, intersect, nearest_hit, occluded,
                              surface_interaction)
 from .antithetic_map import PairedCameraRays
+from .film import FilmSampler  # noqa: F401  (importance film, re-exported)
 
 
 class PassLayout:
@@ -90,81 +89,6 @@ class ModulationWeight:
         return self.to_float32(sensor * light)
 
 
-class FilmSampler:
-    """Film positions by importance sampling the reconstruction filter (box, tent,
-    gaussian), so that every sample belongs to its own pixel with weight 1."""
-
-    SUPPORTED = ("BoxFilter", "TentFilter", "GaussianFilter")
-
-    def __init__(self, film):
-        rfilter = film.rfilter()
-        self.kind = rfilter.class_name()
-        if self.kind not in self.SUPPORTED:
-            raise ValueError(
-                f"reconstruction filter {self.kind} is not supported (it has negative lobes "
-                "or no sampling routine): use box, tent or gaussian"
-            )
-        self.radius = float(rfilter.radius())
-
-    @property
-    def support(self) -> float:
-        """Half-width of the filter's support, in pixels."""
-        return 0.5 if self.kind == "BoxFilter" else self.radius
-
-    # ---- One axis: the (separable) filter's CDF and its inverse on [-R, R] ----
-
-    def _gaussian_scale(self):
-        sigma = self.radius / 4.0  # Mitsuba: radius = 4 sigma
-        return 1.0 / (sigma * math.sqrt(2.0))
-
-    def _cdf(self, x):
-        R = self.support
-        x = dr.clip(x, -R, R)
-        if self.kind == "BoxFilter":
-            return (x + R) / (2.0 * R)
-        if self.kind == "TentFilter":
-            left = dr.square(x + R) / (2.0 * R * R)
-            return dr.select(x < 0.0, left, 1.0 - dr.square(R - x) / (2.0 * R * R))
-        s = self._gaussian_scale()
-        e = math.erf(R * s)
-        return (dr.erf(x * s) + e) / (2.0 * e)
-
-    def _inverse_cdf(self, v):
-        R = self.support
-        if self.kind == "BoxFilter":
-            return v * (2.0 * R) - R
-        if self.kind == "TentFilter":
-            return dr.select(v < 0.5, R * dr.sqrt(2.0 * v) - R,
-                             R - R * dr.sqrt(dr.maximum(2.0 * (1.0 - v), 0.0)))
-        s = self._gaussian_scale()
-        e = math.erf(R * s)
-        return dr.erfinv(dr.clip((2.0 * v - 1.0) * e, -0.9999999, 0.9999999)) / s
-
-    def offset(self, mi, u, lo, hi):
-        """Offset from the pixel centre, in pixels, for uniform numbers u in [0,1): the
-        filter sampled on the part of its support within [lo, hi] (the crop window seen
-        from the pixel centre), as Mitsuba's film, which splats only samples inside the
-        crop window and normalizes by their weights, averages over that part."""
-        a, b = self._cdf(lo), self._cdf(hi)
-        return self._inverse_cdf(a + u * (b - a))
-
-    def weight(self, mi, offset, lo, hi):
-        """The filter at ``offset`` (pixels, Vector2f) up to a constant: the density of
-        :meth:`offset` for one pixel, zero outside the support or the window [lo, hi]."""
-        R = self.support
-        inside = ((dr.abs(offset.x) < R) & (dr.abs(offset.y) < R)
-                  & (offset.x >= lo.x) & (offset.x < hi.x)
-                  & (offset.y >= lo.y) & (offset.y < hi.y))
-        if self.kind == "BoxFilter":
-            value = mi.Float(1.0)
-        elif self.kind == "TentFilter":
-            value = (1.0 - dr.abs(offset.x) / R) * (1.0 - dr.abs(offset.y) / R)
-        else:
-            s = self._gaussian_scale()
-            value = dr.exp(-(dr.square(offset.x) + dr.square(offset.y)) * (s * s))
-        return dr.select(inside, value, 0.0)
-
-
 def _as_colour(mi, value, wavelengths):
     """A sample's value for the film: spectral variants convert the sampled wavelengths'
     values to linear sRGB, as Mitsuba's film does; others keep their Spectrum."""
@@ -173,10 +97,11 @@ def _as_colour(mi, value, wavelengths):
 
 def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, lens):
     """Each lane's camera ray, its weight, the path length to its origin, its first hit
-    when already traced (else None), and whether the lane renders at all."""
+    when already traced (else None), whether the lane renders at all, and its film
+    position when it is not ``pos`` (else None)."""
     if setup.projection is None:
         ray, weight, offset = setup.camera.ray(pos, time, *lens)
-        return ray, weight, offset, None, mi.Bool(True)
+        return ray, weight, offset, None, mi.Bool(True), None
     # ---- Motion-compensated antithetic pairs ----
     mod = setup.modulation
     partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
@@ -187,7 +112,7 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
         window, crop_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
         layout.index, lens, (setup.shutter_open, setup.shutter_open + mod.exposure))
     return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
-            pair.scale != 0.0)
+            pair.scale != 0.0, pair.position)
 
 
 def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
@@ -202,21 +127,159 @@ def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
     return surface_interaction(mi, static, frames, ray, pi, winner, active)
 
 
+def lane_streams(mi, setup, layout: PassLayout):
+    """The correlated random streams of a pass's lanes (groups of K share the time
+    stream, path groups of Kp the path stream)."""
+    return sampling.CorrelatedStreams(
+        mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth,
+        path_group=(None if setup.path_group_size == setup.group_size
+                    else layout.sample // setup.path_group_size))
+
+
+def film_position(mi, setup, layout: PassLayout, streams):
+    """Each lane's film position (normalized) and its offset from its pixel centre (in
+    pixels; uniform in the pixel for the splat film, drawn from the filter for the
+    importance film), the centre, the crop window seen from the centre (pixels, low and
+    high corners) and the lens numbers (lens position and, in spectral variants, the
+    wavelengths)."""
+    # Film positions are normalized over the crop window, as Mitsuba's sensors take them.
+    crop_size = setup.scene.sensor.film().crop_size()
+    px = mi.Float(layout.pixel % crop_size[0])
+    py = mi.Float(layout.pixel // crop_size[0])
+    u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
+    center = mi.Point2f((px + 0.5) / crop_size[0], (py + 0.5) / crop_size[1])
+    # the crop window seen from the pixel centre (pixels)
+    window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
+    window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
+    sampler = setup.film_sampler
+    film_offset = mi.Vector2f(sampler.offset(mi, u_film.x, window_lo.x, window_hi.x),
+                              sampler.offset(mi, u_film.y, window_lo.y, window_hi.y))
+    pos = center + mi.Vector2f(film_offset.x / crop_size[0], film_offset.y / crop_size[1])
+    # the lens position and (spectral variants) the wavelengths, shared like the film
+    lens = (streams.get_2d(0, sampling.DIM_APERTURE), streams.get_1d(0, sampling.DIM_WAVELENGTH))
+    return pos, film_offset, center, window_lo, window_hi, lens
+
+
+def vertex_numbers(streams, depth, u_em_first, u_dir_first):
+    """The random numbers of the decisions at surface hit ``depth`` (0-based, sampling
+    stage depth + 1): light sample, BSDF lobe and direction, Russian roulette; the
+    first hit's light and BSDF samples from the pixel's low-discrepancy set."""
+    stage = depth + 1
+    u_em = dr.select(depth == 0, u_em_first,
+                     streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)))
+    u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
+    u_dir = dr.select(depth == 0, u_dir_first,
+                      streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)))
+    u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
+    return u_em, u_lobe, u_dir, u_rr
+
+
+class Vertex:
+    """What a path finds at one surface hit: the emission it hits and the light sample
+    it takes (each as its contribution without the modulation, its MIS weight and its
+    full path length), and the BSDF sample that continues it."""
+
+    __slots__ = ("valid", "through", "hit_emitter", "emitted", "mis_hit", "length_hit",
+                 "active_em", "em_value", "mis_em", "length_em", "active_next", "bs",
+                 "bsdf_weight")
+
+
+def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
+          prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth, hide_direct_emitters, F,
+          bsdf_ctx) -> Vertex:
+    """One surface hit of a path (``si``, found for ``ray``) with the decisions'
+    random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type."""
+    v = Vertex()
+    u_em, u_lobe, u_dir, _ = numbers
+    valid = active & si.is_valid()
+    length_hit = length + F(dr.select(valid, si.t, 0.0))
+
+    # ---- Emission from an emitter hit by the ray ----
+    # (null emitter pointers evaluate to zero)
+    emitter = si.emitter(static)
+    # hide_emitters, as in Mitsuba 3.9's path tracer: camera rays pass through
+    # emitters (the path goes on behind them, its length too)
+    through = (valid & (depth == 0) & (emitter != None)  # noqa: E711
+               if hide_direct_emitters else mi.Bool(False))
+    hit_emitter = valid & ((depth > 0) | (not hide_direct_emitters))
+    ds = mi.DirectionSample3f(static, si, prev_si)
+    em_pdf = dr.select(prev_bsdf_delta, 0.0,
+                       static.pdf_emitter_direction(prev_si, ds, hit_emitter & ~prev_bsdf_delta))
+    v.mis_hit = _mis_power(prev_bsdf_pdf, em_pdf)
+    v.emitted = beta * emitter.eval(si, hit_emitter)
+
+    active_next = valid & (depth + 1 < max_depth) & ~through
+    bsdf = si.bsdf(ray)
+
+    # ---- Next-event estimation ----
+    active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+    ds, em_weight = (
+        lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
+        if light_frames is not None
+        else static.sample_emitter_direction(si, u_em, False, active_em))
+    active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
+    shadow_ray = si.spawn_ray_to(ds.p)
+    active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
+    wo = si.to_local(ds.d)
+
+    # ---- BSDF evaluation and sampling ----
+    bsdf_val, bsdf_pdf, v.bs, v.bsdf_weight = bsdf.eval_pdf_sample(
+        bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
+    v.mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
+    v.em_value = beta * bsdf_val * em_weight
+    v.length_em = length_hit + F(ds.dist)
+    v.valid, v.through, v.hit_emitter, v.length_hit = valid, through, hit_emitter, length_hit
+    v.active_em, v.active_next = active_em, active_next
+    return v
+
+
+def advance(mi, si, ray, v: Vertex, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta,
+            depth):
+    """The path after vertex ``v``: its next ray (straight on through a hidden emitter)
+    and the state that follows the BSDF sample."""
+    ray = dr.select(v.through, si.spawn_ray(ray.d), si.spawn_ray(si.to_world(v.bs.wo)))
+    bounced = ~v.through
+    beta = dr.select(bounced, beta * v.bsdf_weight, beta)
+    eta = dr.select(bounced, eta * v.bs.eta, eta)
+    prev_si = dr.select(bounced, mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n),
+                        prev_si)
+    prev_bsdf_pdf = dr.select(bounced, v.bs.pdf, prev_bsdf_pdf)
+    prev_bsdf_delta = dr.select(bounced, mi.has_flag(v.bs.sampled_type, mi.BSDFFlags.Delta),
+                                prev_bsdf_delta)
+    depth = dr.select(v.valid & bounced, depth + 1, depth)
+    return ray, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth
+
+
+def roulette(beta, eta, depth, rr_depth):
+    """Russian roulette: the throughput's largest channel (before the roulette), the
+    survival probability, and whether it plays at ``depth``."""
+    beta_max = dr.max(beta)
+    return beta_max, dr.minimum(beta_max * dr.square(eta), 0.95), depth >= rr_depth
+
+
+def loop_settings(mi, setup):
+    """The path loop's plain settings: the depth limit (a UInt32), the iteration hint,
+    the Russian roulette depth and whether directly visible emitters are hidden."""
+    params = setup.params
+    return (mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF),
+            params.max_depth, params.rr_depth, setup.hide_emitters)
+
+
 @dr.syntax
 def trace_pass(mi, setup, layout: PassLayout):
     """Render one pass; returns each lane's time-averaged measurement (the variant's
-    Spectrum; RGB in spectral variants)."""
+    Spectrum; RGB in spectral variants) and its film position's offset from its
+    pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
     scene = setup.scene
     static = scene.static
-    sensor = scene.sensor
-    film = sensor.film()
-    params = setup.params
     mod = setup.modulation
     weight = setup.weight
+    if dr.hint(setup.analytic, mode="scalar"):  # time integrated, not sampled
+        from .analytic import trace_analytic_pass
 
-    streams = sampling.CorrelatedStreams(
-        mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth
-    )
+        return trace_analytic_pass(mi, setup, layout)
+
+    streams = lane_streams(mi, setup, layout)
 
     # ---- Time of each lane ----
     def exposure_fraction(index):
@@ -232,26 +295,17 @@ def trace_pass(mi, setup, layout: PassLayout):
     time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
 
     # ---- Camera ray (stage 0) ----
-    # Film positions are normalized over the crop window, as Mitsuba's sensors take them.
-    crop_size = film.crop_size()
-    px = mi.Float(layout.pixel % crop_size[0])
-    py = mi.Float(layout.pixel // crop_size[0])
-    u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
-    center = mi.Point2f((px + 0.5) / crop_size[0], (py + 0.5) / crop_size[1])
-    # the crop window seen from the pixel centre (pixels)
-    window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
-    window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
-    sampler = setup.film_sampler
-    pos = center + mi.Vector2f(
-        sampler.offset(mi, u_film.x, window_lo.x, window_hi.x) / crop_size[0],
-        sampler.offset(mi, u_film.y, window_lo.y, window_hi.y) / crop_size[1])
-    # the lens position and (spectral variants) the wavelengths, shared like the film
-    lens = (streams.get_2d(0, sampling.DIM_APERTURE), streams.get_1d(0, sampling.DIM_WAVELENGTH))
+    pos, film_offset, center, window_lo, window_hi, lens = film_position(
+        mi, setup, layout, streams)
     partner_fraction = (exposure_fraction(1 - layout.index)
                         if setup.projection is not None else None)
-    ray, ray_weight, camera_offset, first_hit, active = _camera_rays(
+    ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
         mi, setup, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
         lens)
+    if lane_pos is not None:  # a mapped partner's film position is its own
+        crop_size = setup.scene.sensor.film().crop_size()
+        film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
+                                  (lane_pos.y - center.y) * crop_size[1])
     light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                     if scene.light_motions else None)
 
@@ -279,78 +333,28 @@ def trace_pass(mi, setup, layout: PassLayout):
     bsdf_ctx = mi.BSDFContext()
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth = mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF)
-    max_iterations = params.max_depth
-    rr_depth = params.rr_depth
-    show_direct_emitters = not setup.hide_emitters
-    hide_direct_emitters = setup.hide_emitters
+    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
-        stage = depth + 1  # sampling stage of this hit's decisions
         si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
-        valid = active & si.is_valid()
-        length_hit = length + weight.F(dr.select(valid, si.t, 0.0))
+        numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
+        v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
+                  prev_si, prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth,
+                  hide_direct_emitters, weight.F, bsdf_ctx)
 
-        # ---- Emission from an emitter hit by the ray ----
-        # (null emitter pointers evaluate to zero)
-        emitter = si.emitter(static)
-        # hide_emitters, as in Mitsuba 3.9's path tracer: camera rays pass through
-        # emitters (the path goes on behind them, its length too)
-        through = (valid & (depth == 0) & (emitter != None)  # noqa: E711
-                   if hide_direct_emitters else mi.Bool(False))
-        hit_emitter = valid & ((depth > 0) | show_direct_emitters)
-        ds = mi.DirectionSample3f(static, si, prev_si)
-        em_pdf = dr.select(prev_bsdf_delta, 0.0,
-                           static.pdf_emitter_direction(prev_si, ds, hit_emitter & ~prev_bsdf_delta))
-        mis_hit = _mis_power(prev_bsdf_pdf, em_pdf)
-        Le = emitter.eval(si, hit_emitter)
-        L += dr.select(hit_emitter, beta * Le * mis_hit * weight(length_hit, t_rel), 0.0)
+        # ---- Modulated contributions: the emitter hit and the light sample ----
+        L += dr.select(v.hit_emitter, v.emitted * v.mis_hit * weight(v.length_hit, t_rel), 0.0)
+        L += dr.select(v.active_em, v.em_value * v.mis_em * weight(v.length_em, t_rel), 0.0)
 
-        active_next = valid & (depth + 1 < max_depth) & ~through
-        bsdf = si.bsdf(ray)
-
-        # ---- Next-event estimation ----
-        active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-        u_em = dr.select(depth == 0, u_em_first,
-                         streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)))
-        ds, em_weight = (
-            lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
-            if light_frames is not None
-            else static.sample_emitter_direction(si, u_em, False, active_em))
-        active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
-        shadow_ray = si.spawn_ray_to(ds.p)
-        active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
-        wo = si.to_local(ds.d)
-
-        # ---- BSDF evaluation and sampling ----
-        u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
-        u_dir = dr.select(depth == 0, u_dir_first,
-                          streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)))
-        bsdf_val, bsdf_pdf, bs, bsdf_weight = bsdf.eval_pdf_sample(
-            bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
-
-        mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
-        length_em = length_hit + weight.F(ds.dist)
-        L += dr.select(active_em, beta * bsdf_val * em_weight * mis_em
-                       * weight(length_em, t_rel), 0.0)
-
-        # ---- Continue the path (straight on through a hidden emitter) ----
-        ray = dr.select(through, si.spawn_ray(ray.d), si.spawn_ray(si.to_world(bs.wo)))
-        bounced = ~through
-        beta[bounced] *= bsdf_weight
-        eta[bounced] *= bs.eta
-        prev_si[bounced] = mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n)
-        prev_bsdf_pdf[bounced] = bs.pdf
-        prev_bsdf_delta[bounced] = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-        length = length_hit
-        u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
-        depth[valid & bounced] += 1
+        # ---- Continue the path ----
+        length = v.length_hit
+        ray, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth = advance(
+            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth)
         fresh = mi.Bool(False)
 
         # ---- Russian roulette ----
-        beta_max = dr.max(beta)
-        rr_prob = dr.minimum(beta_max * dr.square(eta), 0.95)
-        rr_active = depth >= rr_depth
+        beta_max, rr_prob, rr_active = roulette(beta, eta, depth, rr_depth)
         beta[rr_active] *= dr.rcp(rr_prob)
-        active = (active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)) | through
+        active = ((v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
+                  | v.through)
 
-    return _as_colour(mi, L, wavelengths)
+    return _as_colour(mi, L, wavelengths), film_offset

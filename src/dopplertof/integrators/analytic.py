@@ -1,0 +1,168 @@
+"""Analytic time integration: ``time_sampling_method="analytic"`` (biased by design).
+
+The Mitsuba 0.6 implementation's ``analytic`` mode, one of the paper's comparisons.
+Time is not sampled. Each sample traces two paths through the same film position and
+lens point: P1 at the exposure start and P2 at its end, P2 with P1's random numbers
+(light samples, BSDF samples, Russian roulette). Each contribution of P1 (emitter hit
+or light sample, with its MIS weight) is spread over the exposure assuming that along
+the exposure
+
+* its path length goes linearly from L1 (P1's) to L2 (P2's), so the low-pass phase
+  theta(t) = omega_d t + psi + k L(t), k = omega_g / c, is linear: a t + b with
+  a = omega_d + k (L2 - L1) / T and b = k L1 + psi;
+* its value goes linearly from C1 to rho C1, rho = C2 / C1 the ratio of P2's
+  contribution to P1's (both per unit of the same random numbers, so the pdf Jacobian
+  is in it; without the MIS weights), i.e. C1 (1 + c t) with c = (rho - 1) / T.
+
+The sample adds C1 * (g1 / 2) * (1/T) * integral over [0, T] of cos(a t + b) (1 + c t) dt,
+in closed form. Low-pass sinusoids only (the published code has no other form).
+
+Why it is biased: phase and amplitude are interpolated linearly between the two ends;
+a path that is lost at t = T (occluded, or missing the moved object) fades linearly to
+zero over the whole exposure; light that only P2 sees (visible at t = T but not at 0) is
+never counted. On the published moving Cornell box its image mean is 0.81 of the
+reference's. Exact where the path length and the contribution are linear in time and
+visibility does not change (the moving plane of tests/analytic.py, nearly).
+"""
+
+from __future__ import annotations
+
+import drjit as dr
+
+from ..modulation import SPEED_OF_LIGHT
+from ..scene import lights
+from ..scene.bodies import BodyFrames
+from .dtof_path import (_as_colour, _intersect, advance, film_position, lane_streams,
+                        loop_settings, roulette, shade, vertex_numbers)
+
+#: |phase change over the exposure| (rad) below which the closed forms use their series
+#: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
+#: below 1e-13 there)
+_SMALL_PHASE = 1e-2
+
+
+def cosine_moments(x, b):
+    """Integrals over s in [0, 1] of cos(x s + b) and s cos(x s + b), in the precision
+    of ``x`` and ``b`` (Dr.Jit arrays; series near x = 0, where the closed forms cancel)."""
+    h = 0.5 * x
+    h2 = h * h
+    small = dr.abs(x) < _SMALL_PHASE
+    sinc = dr.select(small, 1.0 - h2 * (1.0 / 6.0) + h2 * h2 * (1.0 / 120.0), dr.sin(h) / h)
+    mean_cos = dr.cos(b + h) * sinc  # (sin(x + b) - sin b) / x
+    mean_sin = dr.sin(b + h) * sinc  # (cos b - cos(x + b)) / x
+    # sum over n of x^n cos^(n)(b) / (n! (n + 2))
+    cos_b, sin_b = dr.cos(b), dr.sin(b)
+    x2 = x * x
+    series = (cos_b * (0.5 - x2 * (1.0 / 8.0) + x2 * x2 * (1.0 / 144.0))
+              - sin_b * x * (1.0 / 3.0 - x2 * (1.0 / 30.0)))
+    first_moment = dr.select(small, series, (dr.sin(x + b) - mean_sin) / x)
+    return mean_cos, first_moment
+
+
+class IntegratedWeight:
+    """The time average over the exposure of a contribution's low-pass sinusoidal
+    weight g1 * 0.5 cos(theta(t)), times its linear amplitude 1 + (rho - 1) t / T,
+    for path lengths L1 at the start and L2 at the end (phases in float64)."""
+
+    def __init__(self, mi, modulation):
+        F = mi.Float64
+        self.F = F
+        self.to_float32 = mi.Float
+        self.beat = dr.opaque(F, modulation.omega_d * modulation.exposure)  # rad per exposure
+        self.k_length = dr.opaque(F, modulation.omega_g / SPEED_OF_LIGHT)  # rad per metre
+        self.psi = dr.opaque(F, modulation.psi)
+        self.half_g1 = dr.opaque(mi.Float, 0.5 * modulation.g1)
+
+    def __call__(self, length_start, length_end, ratio):
+        F = self.F
+        x = self.beat + self.k_length * (F(length_end) - F(length_start))  # a T
+        b = self.k_length * F(length_start) + self.psi
+        mean_cos, first_moment = cosine_moments(x, b)
+        return self.half_g1 * (self.to_float32(mean_cos)
+                               + (ratio - 1.0) * self.to_float32(first_moment))
+
+
+def _ratio(value_end, value_start):
+    """rho per channel: zero where the start contributes nothing (nothing to scale)."""
+    return dr.select(value_start != 0.0, value_end / value_start, 0.0)
+
+
+@dr.syntax
+def trace_analytic_pass(mi, setup, layout):
+    """Render one pass with analytic time integration; returns each lane's
+    time-averaged measurement and film offset, as :func:`dtof_path.trace_pass` does."""
+    scene = setup.scene
+    static = scene.static
+    mod = setup.modulation
+    integrated = IntegratedWeight(mi, mod)
+    streams = lane_streams(mi, setup, layout)  # correlation depth 0: samples independent
+
+    # ---- Camera rays: one film position and lens point, at the exposure's two ends ----
+    pos, film_offset, _, _, _, lens = film_position(mi, setup, layout, streams)
+    t_start = dr.full(mi.Float, setup.shutter_open, dr.width(pos))
+    t_end = t_start + mod.exposure
+    ray1, ray_weight1, offset1 = setup.camera.ray(pos, t_start, *lens)
+    ray2, ray_weight2, offset2 = setup.camera.ray(pos, t_end, *lens)
+    span = (setup.shutter_open, setup.shutter_open + mod.exposure)
+    frames1 = BodyFrames(mi, scene.bodies, t_start, *span) if scene.bodies else None
+    frames2 = BodyFrames(mi, scene.bodies, t_end, *span) if scene.bodies else None
+    light_frames1 = (lights.LightFrames(mi, scene.light_motions, t_start)
+                     if scene.light_motions else None)
+    light_frames2 = (lights.LightFrames(mi, scene.light_motions, t_end)
+                     if scene.light_motions else None)
+    u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
+    u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
+    wavelengths = ray1.wavelengths  # of the camera ray, for the colour conversion
+
+    # ---- Loop state: P1 (start) and P2 (end) ----
+    L = mi.Spectrum(0.0)  # accumulated time-averaged measurement
+    beta1, beta2 = mi.Spectrum(ray_weight1), mi.Spectrum(ray_weight2)  # throughputs
+    length1, length2 = mi.Float(offset1), mi.Float(offset2)  # lengths from the camera (m)
+    depth1, depth2 = mi.UInt32(0), mi.UInt32(0)  # surface hits so far
+    active1, active2 = mi.Bool(True), mi.Bool(True)  # whether each path goes on
+    prev_si1, prev_si2 = dr.zeros(mi.Interaction3f), dr.zeros(mi.Interaction3f)
+    prev_pdf1, prev_pdf2 = mi.Float(1.0), mi.Float(1.0)  # last BSDF sample's pdf
+    prev_delta1, prev_delta2 = mi.Bool(True), mi.Bool(True)  # ... and whether a delta
+    eta1, eta2 = mi.Float(1.0), mi.Float(1.0)
+    fresh = mi.Bool(False)  # (no camera hit traced before the loop)
+    bsdf_ctx = mi.BSDFContext()
+
+    # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
+    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
+    while dr.hint(active1, max_iterations=max_iterations, label="dopplertof_analytic"):
+        si1 = _intersect(mi, static, frames1, ray1, active1, depth1, None, fresh)
+        si2 = _intersect(mi, static, frames2, ray2, active2, depth2, None, fresh)
+        numbers = vertex_numbers(streams, depth1, u_em_first, u_dir_first)  # P1's, for both
+        v1 = shade(mi, static, frames1, light_frames1, ray1, si1, active1, depth1, beta1,
+                   length1, prev_si1, prev_pdf1, prev_delta1, numbers, max_depth,
+                   hide_direct_emitters, mi.Float, bsdf_ctx)
+        v2 = shade(mi, static, frames2, light_frames2, ray2, si2, active2, depth2, beta2,
+                   length2, prev_si2, prev_pdf2, prev_delta2, numbers, max_depth,
+                   hide_direct_emitters, mi.Float, bsdf_ctx)
+
+        # ---- P1's contributions, integrated over the exposure towards P2's ----
+        # (where P2 has none, it fades out at P1's length: P2's has no meaning there)
+        rho_hit = _ratio(dr.select(v2.hit_emitter, v2.emitted, 0.0), v1.emitted)
+        L += dr.select(v1.hit_emitter, v1.emitted * v1.mis_hit * integrated(
+            v1.length_hit, dr.select(v2.hit_emitter, v2.length_hit, v1.length_hit), rho_hit), 0.0)
+        rho_em = _ratio(dr.select(v2.active_em, v2.em_value, 0.0), v1.em_value)
+        L += dr.select(v1.active_em, v1.em_value * v1.mis_em * integrated(
+            v1.length_em, dr.select(v2.active_em, v2.length_em, v1.length_em), rho_em), 0.0)
+
+        # ---- Continue both paths ----
+        length1, length2 = v1.length_hit, v2.length_hit
+        ray1, beta1, eta1, prev_si1, prev_pdf1, prev_delta1, depth1 = advance(
+            mi, si1, ray1, v1, beta1, eta1, prev_si1, prev_pdf1, prev_delta1, depth1)
+        ray2, beta2, eta2, prev_si2, prev_pdf2, prev_delta2, depth2 = advance(
+            mi, si2, ray2, v2, beta2, eta2, prev_si2, prev_pdf2, prev_delta2, depth2)
+
+        # ---- Russian roulette: P1's decides for both (their ratio stays) ----
+        beta_max1, rr_prob, rr_active = roulette(beta1, eta1, depth1, rr_depth)
+        beta_max2 = dr.max(beta2)
+        beta1[rr_active] *= dr.rcp(rr_prob)
+        beta2[rr_active] *= dr.rcp(rr_prob)
+        survives = ~rr_active | (numbers[3] < rr_prob)
+        active1 = (v1.active_next & survives & (beta_max1 != 0.0)) | v1.through
+        active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
+
+    return _as_colour(mi, L, wavelengths), film_offset

@@ -1,0 +1,211 @@
+"""The splat film (integrators/film.py): filter weights, their exact integrals and the
+normalization at the edges, unbiasedness against quadrature on every pixel (uniform and
+forced uneven sample counts), determinism, and the importance film kept as it was."""
+
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+from analytic import filter_1d, filtered_axis, plane_scene, reference
+from conftest import FIXTURES, PUBLISHED
+
+import dopplertof
+from dopplertof import allocation
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def film_with(kind, res=4):
+    d = plane_scene(4.0, 30.0, res=res)
+    d["sensor"]["film"]["rfilter"] = {"type": kind}
+    return dopplertof.load_dict(d).sensor.film()
+
+
+def splat_filter(kind):
+    from dopplertof.integrators.film import SplatFilter
+
+    return SplatFilter(film_with(kind))
+
+
+@pytest.mark.parametrize("kind,reach", [("box", 0), ("tent", 1), ("gaussian", 2)])
+def test_lane_weights_are_the_filter_and_integrate_to_the_cell_weights(kind, reach):
+    import mitsuba as mi
+
+    f = splat_filter(kind)
+    assert f.reach == reach and len(f.offsets) == (2 * reach + 1) ** 2
+    # a fine midpoint grid of offsets within the pixel
+    n = 400
+    u = (np.arange(n) + 0.5) / n - 0.5
+    dx, dy = (a.ravel() for a in np.meshgrid(u, u))
+    weights = f.lane_weights(mi, mi.Vector2f(dx, dy))
+    if reach == 0:
+        assert weights is None
+        return
+    for (ox, oy), w in zip(f.offsets, weights):
+        w = np.array(w)
+        # the weight of a sample at offset d from its own centre in pixel j + o
+        exact = filter_1d(kind, dx - ox) * filter_1d(kind, dy - oy)
+        assert np.allclose(w, exact, atol=2e-6)
+        assert w.mean() == pytest.approx(f.cell_integral(ox) * f.cell_integral(oy),
+                                         abs=2e-6)
+
+
+def test_tent_weights_are_a_partition_of_unity():
+    import mitsuba as mi
+
+    f = splat_filter("tent")
+    rng = np.random.default_rng(1)
+    d = rng.uniform(-0.5, 0.5, size=(2, 10_000))
+    total = sum(np.array(w) for w in f.lane_weights(mi, mi.Vector2f(*d)))
+    assert np.allclose(total, 1.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+def test_expected_weights_count_only_sources_inside_the_window(kind):
+    f = splat_filter(kind)
+    h, w = 5, 7
+    brute = np.zeros((h, w))
+    for y in range(h):
+        for x in range(w):
+            for ox, oy in f.offsets:  # source (y - oy, x - ox)
+                if 0 <= y - oy < h and 0 <= x - ox < w:
+                    brute[y, x] += f.cell_integral(ox) * f.cell_integral(oy)
+    assert np.allclose(f.expected_weights((h, w)), brute, rtol=1e-12)
+    interior = (f.cell_integral(0) + 2 * sum(f.cell_integral(k)
+                                             for k in range(1, f.reach + 1))) ** 2
+    assert f.expected_weights((h, w))[2, 3] == pytest.approx(interior, rel=1e-12)
+    # a corner receives from the sources on one side of it only, on both axes
+    corner = (f.cell_integral(0) + sum(f.cell_integral(k) for k in range(1, f.reach + 1))) ** 2
+    assert f.expected_weights((h, w))[0, 0] == pytest.approx(corner, rel=1e-12)
+
+
+def pixel_references(kind, res, h, offset):
+    return np.array([[reference(4.0, 30.0, hetero_frequency=h, hetero_offset=offset,
+                                film=(filtered_axis(kind, res, x), filtered_axis(kind, res, y)))
+                      for x in range(res)] for y in range(res)])
+
+
+def plane(kind, res, spp, **integrator):
+    d = plane_scene(4.0, 30.0, spp=spp, res=res, integrator=integrator)
+    d["sensor"]["film"]["rfilter"] = {"type": kind}
+    return dopplertof.load_dict(d)
+
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+@pytest.mark.parametrize("h,offset", [(0.0, 0.25), (1.0, 0.0)])
+def test_every_splat_pixel_matches_quadrature(kind, h, offset):
+    # A 4x4 film of the plane receding at 30 m/s: every pixel, corners and edges
+    # included, is the filter-weighted mean over the part of its support inside the
+    # film (a wrong edge normalization is off by 12-40% there).
+    expected = pixel_references(kind, 4, h, offset)
+    scene = plane(kind, 4, 1024, hetero_frequency=h, hetero_offset=offset)
+    image = np.mean([dopplertof.render(scene, seed=s)[..., 0] for s in range(2)], axis=0)
+    assert np.abs(image - expected).max() <= 2e-3 * np.abs(expected).max() + 2e-7
+
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+def test_adaptive_splat_matches_quadrature_with_uneven_counts(monkeypatch, kind):
+    # Counts forced to a checkerboard of 1024 and 2048 samples: each source pixel's
+    # sums must be divided by its own count before they are splatted (dividing the
+    # splatted sums by the target's count, or by the spp, is off by up to 50%).
+    def checkerboard(variance, spp, pilot, chunk):
+        y, x = np.indices(variance.shape)
+        return np.where((x + y) % 2 == 0, spp // 2, spp)
+
+    monkeypatch.setattr(allocation, "sample_counts", checkerboard)
+    expected = pixel_references(kind, 4, 1.0, 0.0)
+    scene = plane(kind, 4, 2048, hetero_frequency=1.0, adaptive_sampling=True)
+    image = np.mean([dopplertof.render(scene, seed=s)[..., 0] for s in range(2)], axis=0)
+    assert np.abs(image - expected).max() <= 2e-3 * np.abs(expected).max() + 2e-7
+
+
+def emitter_facing_camera(kind, normalization):
+    """A 6x5 film (crop 4x3 at (1, 1)) filled by an area light: every sample has the
+    same value, Le g1 C(0) at a vanishing frequency."""
+    import mitsuba as mi
+
+    d = plane_scene(4.0, 0.0, res=6, integrator={
+        "max_depth": 1, "w_g": 1e-9, "film_normalization": normalization})
+    d["sensor"]["film"].update(rfilter={"type": kind}, height=5, crop_offset_x=1,
+                               crop_offset_y=1, crop_width=4, crop_height=3)
+    del d["plane"], d["light"]
+    d["wall"] = {"type": "rectangle", "emitter": {"type": "area", "radiance": 2.0},
+                 "to_world": mi.ScalarTransform4f().translate([0, 0, 3]).rotate(
+                     [0, 1, 0], 180).scale(50)}
+    return dopplertof.load_dict(d)
+
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+def test_a_constant_image_everywhere_in_the_crop_window(kind):
+    # the sampled-weight normalization (a ratio) is exact for a constant; the expected
+    # one (unbiased) is right in the mean, up to how well the pixel's film positions
+    # integrate the filter (low-discrepancy sets: up to 2e-3 at 256 spp)
+    value = 2.0 * 0.5 * 0.5
+    ratio = dopplertof.render(emitter_facing_camera(kind, "weights"), spp=64, seed=1)
+    assert ratio.shape == (3, 4, 3)
+    assert np.allclose(ratio, value, rtol=1e-6)
+    expected = dopplertof.render(emitter_facing_camera(kind, "expected"), spp=256, seed=1)
+    assert np.allclose(expected, value, rtol=4e-3)
+    assert expected.mean() == pytest.approx(value, rel=1e-3)
+    assert not np.allclose(expected, value, rtol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+def test_splat_film_is_bitwise_independent_of_the_passes(kind):
+    scene = plane(kind, 5, 64, hetero_frequency=1.0)
+    a = dopplertof.render(scene, seed=3)
+    b = dopplertof.render(scene, seed=3, pass_chunks=1)
+    c = dopplertof.render(scene, seed=3, max_lanes=5 * 5 * 16)
+    assert np.array_equal(a, b) and np.array_equal(a, c)
+
+
+def test_box_splat_film_is_the_importance_film():
+    scene = plane("box", 3, 64, hetero_frequency=1.0)
+    a = dopplertof.render(scene, seed=2)
+    b = dopplertof.render(scene, seed=2, params={"film_sampling": "importance"})
+    assert np.array_equal(a, b)
+
+
+def test_film_parameters_are_checked():
+    scene = plane("tent", 2, 16)
+    with pytest.raises(ValueError, match="unknown film_sampling 'splatter'"):
+        dopplertof.render(scene, params={"film_sampling": "splatter"})
+    with pytest.raises(ValueError, match="unknown film_normalization"):
+        dopplertof.render(scene, params={"film_normalization": "sum"})
+
+
+def test_importance_film_reproduces_the_images_from_before_the_splat_film():
+    """The hashes of tools/image_hashes.py's renders, recorded before the splat film
+    existed (commit b1fb1c9), with film_sampling=importance added to every render."""
+    with open(os.path.join(FIXTURES, "images_before_splat.json")) as f:
+        before = json.load(f)
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    import image_hashes
+
+    if before["machine"] != image_hashes.machine():
+        pytest.skip("the hashes were recorded on another machine or with other versions: "
+                    f"{before['machine']}")
+    found = image_hashes.hashes({"film_sampling": "importance"})
+    assert found == before["images"]
+    assert PUBLISHED  # (the published scene is among them)
+
+
+def test_motion_mapped_pairs_splat_to_the_quadrature():
+    # A fast plane (300 m/s: 40% of a pixel per exposure), pairs followed on the body;
+    # the partner is splatted from its own film position, its density the pixel's cell
+    # (integrators/antithetic_map.py). Noisy (1.5% per pixel at 1024 spp): 16 seeds,
+    # every pixel |t| < 5 (15 degrees of freedom: 2e-3 family-wise false failures for
+    # 16 pixels) and their pooled z within 4.
+    d = plane_scene(4.0, 300.0, spp=1024, res=4, integrator={
+        "hetero_frequency": 1.0, "time_sampling_method": "antithetic",
+        "antithetic_mapping": "motion"})
+    d["sensor"]["film"]["rfilter"] = {"type": "tent"}
+    scene = dopplertof.load_dict(d)
+    expected = np.array([[reference(4.0, 300.0, hetero_frequency=1.0,
+                                    film=(filtered_axis("tent", 4, x), filtered_axis("tent", 4, y)))
+                          for x in range(4)] for y in range(4)])
+    images = np.array([dopplertof.render(scene, seed=s)[..., 0] for s in range(16)])
+    t = (images.mean(0) - expected) / (images.std(0, ddof=1) / 4)
+    assert np.abs(t).max() < 5 and abs(t.sum() / 4) < 4, t

@@ -1,0 +1,166 @@
+"""Hash the images of a fixed set of renders: a refactor must leave every one bitwise
+unchanged (same machine, same Dr.Jit and Mitsuba).
+
+    .venv/bin/python tools/image_hashes.py -o before.json
+    ... change the code ...
+    .venv/bin/python tools/image_hashes.py --compare before.json
+
+``-P name=value`` adds a render parameter to every configuration (e.g.
+``-P film_sampling=importance`` to compare the importance film with renders made before
+the splat film existed). The set covers every time-sampling method, the waveforms and
+the full-waveform mode, the variant families (RGB, spectral, mono), body, camera and
+light motion, the three filters, adaptive counts, a crop window, the motion mapping and
+a camera capture. About a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PUBLISHED = os.path.join(ROOT, "tests", "fixtures", "cornell_box_moving.xml")
+sys.path.insert(0, os.path.join(ROOT, "tests"))  # analytic.plane_scene
+
+
+def _digest(*arrays) -> str:
+    h = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype, a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:16]
+
+
+def configurations():
+    """(name, variant, scene factory, render keyword arguments)."""
+    import dopplertof
+
+    def published(**defines):
+        return lambda: dopplertof.load_file(PUBLISHED, resx="12", resy="10", **defines)
+
+    def plane(**kw):
+        from analytic import plane_scene
+
+        def make():
+            d = plane_scene(2.0, 30.0, res=3, **kw)
+            return dopplertof.load_dict(d)
+        return make
+
+    def with_filter(kind, crop=False):
+        def make():
+            import mitsuba as mi  # noqa: F401
+            from analytic import plane_scene
+
+            d = plane_scene(2.0, 30.0, res=6)
+            d["sensor"]["film"]["rfilter"] = {"type": kind}
+            if crop:
+                d["sensor"]["film"].update(crop_offset_x=1, crop_offset_y=2, crop_width=4,
+                                           crop_height=3)
+            return dopplertof.load_dict(d)
+        return make
+
+    rgb = "llvm_ad_rgb"
+    yield "published-scene", rgb, published(), {"spp": 32}
+    for method in ("auto", "uniform", "stratified", "antithetic", "antithetic_mirror"):
+        yield f"published-{method}", rgb, published(), {
+            "spp": 32, "params": {"time_sampling_method": method}}
+    yield "published-depth1", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "antithetic", "path_correlation_depth": 1}}
+    yield "published-K4", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "antithetic", "time_correlate_number": 4}}
+    yield "published-homodyne", rgb, published(), {
+        "spp": 32, "params": {"hetero_frequency": 0, "hetero_offset": 0.25}}
+    yield "published-motion-map", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "antithetic",
+                              "antithetic_mapping": "motion"}}
+    yield "published-adaptive", rgb, published(), {
+        "spp": 128, "params": {"adaptive_sampling": True}}
+    for wave in ("rectangular", "triangular", "trapezoidal"):
+        yield f"plane-{wave}", rgb, plane(), {
+            "spp": 64, "params": {"wave_function_type": wave, "hetero_frequency": 1}}
+    yield "plane-full-waveform", rgb, plane(), {
+        "spp": 64, "params": {"low_frequency_component_only": False}}
+    yield "plane-camera-motion", rgb, plane(camera_velocity=5.0), {"spp": 64}
+    yield "plane-light-motion", rgb, plane(light_velocity=-8.0), {"spp": 64}
+    for kind in ("box", "tent", "gaussian"):
+        yield f"filter-{kind}", rgb, with_filter(kind), {"spp": 32}
+    yield "filter-tent-crop", rgb, with_filter("tent", crop=True), {"spp": 32}
+    yield "spectral", "llvm_ad_spectral", plane(), {"spp": 32}
+    yield "mono", "llvm_ad_mono", plane(), {"spp": 32}
+
+
+def machine() -> str:
+    """What bitwise results depend on: CPU, Dr.Jit, Mitsuba and libLLVM."""
+    import platform
+
+    import drjit as dr
+    import mitsuba as mi
+
+    cpu = platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = {}
+            for line in f:
+                key, _, value = line.partition(":")
+                flags.setdefault(key.strip(), value.strip())
+        cpu = f"{flags.get('model name', cpu)} [{hashlib.sha256(flags.get('flags', '').encode()).hexdigest()[:8]}]"
+    except OSError:
+        pass
+    from dopplertof.backend import ensure_libllvm
+
+    llvm = os.path.basename(os.path.realpath(ensure_libllvm()))
+    return f"{cpu}; drjit {dr.__version__}; mitsuba {mi.__version__}; {llvm}"
+
+
+def hashes(extra_params: dict, only=None) -> dict:
+    import dopplertof
+
+    out = {}
+    for name, variant, make, kwargs in configurations():
+        if only and name not in only:
+            continue
+        dopplertof.set_variant(variant)
+        scene = make()
+        kwargs = dict(kwargs)
+        params = {**kwargs.pop("params", {}), **extra_params}
+        result = dopplertof.render_result(scene, seed=7, params=params, **kwargs)
+        out[name] = _digest(result.image)
+    dopplertof.set_variant("llvm_ad_rgb")
+    scene = dopplertof.load_file(PUBLISHED, resx="8", resy="8")
+    frame = dopplertof.capture(scene, spp=16, seed=3, params=extra_params or None)
+    out["capture"] = _digest(*(frame.captures[k] for k in sorted(frame.captures)),
+                             frame.velocity, frame.depth)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("-o", "--output", help="write the hashes (JSON)")
+    ap.add_argument("--compare", help="compare with hashes written before")
+    ap.add_argument("-P", action="append", default=[], metavar="NAME=VALUE")
+    args = ap.parse_args(argv)
+    extra = dict(item.split("=", 1) for item in args.P)
+    found = hashes(extra)
+    if args.output:
+        with open(args.output, "w") as f:
+            json.dump({"machine": machine(), "images": found}, f, indent=1, sort_keys=True)
+    if args.compare:
+        with open(args.compare) as f:
+            before = json.load(f)["images"]
+        changed = sorted(k for k in before if found.get(k) != before[k])
+        for k in changed:
+            print(f"changed: {k}")
+        print(f"{len(before) - len(changed)} of {len(before)} images bitwise unchanged")
+        return 1 if changed else 0
+    print(json.dumps(found, indent=1, sort_keys=True))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
