@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 #: JIT memory per lane of a pass (measured about 30; with a margin)
 BYTES_PER_LANE = 48
-#: host memory per pixel and channel: float64 sums, the pass's chunk sums, the image
-BYTES_PER_PIXEL_CHANNEL = 3 * 8 + 4
+#: host memory per pixel and channel besides the sums: the pass's chunk sums, the image
+BYTES_PER_PIXEL_CHANNEL = 8 + 4
 #: host memory per pixel for index arrays (int64)
 BYTES_PER_PIXEL = 4 * 8
 #: Dr.Jit arrays hold fewer than 2^32 entries
@@ -43,8 +43,9 @@ class Estimate:
     lanes_per_pass: int
     passes: int
     host_bytes: int
-    pass_bytes: int
+    pass_bytes: int  #: in Dr.Jit: a pass's lanes and the sums kept there
     seconds: float  #: rough
+    largest_array: int = 0  #: entries of the largest Dr.Jit array (a pass, the splat sums)
 
     @property
     def bytes(self) -> int:
@@ -58,15 +59,20 @@ class Estimate:
 
 
 def estimate(width: int, height: int, channels: int, spp: int, chunk: int,
-             pass_chunks: int, adaptive: bool = False) -> Estimate:
+             pass_chunks: int, adaptive: bool = False, columns: int | None = None,
+             device_columns: int = 0) -> Estimate:
+    """``columns``: float64 sums per pixel on the host (default ``channels``; the splat
+    film keeps one set per film offset); ``device_columns``: those kept in Dr.Jit too."""
     pixels = width * height
     n_chunks = -(-spp // chunk)
     lanes = pixels * chunk * pass_chunks
-    host = pixels * (channels * BYTES_PER_PIXEL_CHANNEL * (2 if adaptive else 1)
-                     + BYTES_PER_PIXEL)
+    columns = channels if columns is None else columns
+    host = pixels * (8 * columns + 8 * 2 * channels * adaptive
+                     + channels * BYTES_PER_PIXEL_CHANNEL + BYTES_PER_PIXEL)
     seconds = pixels * spp / (SAMPLES_PER_CORE_SECOND * (os.cpu_count() or 1))
     return Estimate(width, height, spp, chunk, lanes, -(-n_chunks // pass_chunks), host,
-                    lanes * BYTES_PER_LANE, seconds)
+                    lanes * BYTES_PER_LANE + 8 * pixels * device_columns, seconds,
+                    max(lanes, pixels * device_columns))
 
 
 def available_memory() -> int | None:
@@ -88,14 +94,15 @@ def check(est: Estimate, available: int | None = None) -> Estimate:
     """Refuse a render that cannot fit, naming the estimate and what to lower."""
     available = available_memory() if available is None else available
     too_big = available is not None and est.bytes > available
-    too_long = est.lanes_per_pass > MAX_LANES
+    too_long = est.largest_array > MAX_LANES
     if not (too_big or too_long):
         return est
     reasons = []
     if too_big:
         reasons.append(f"more than the {_gib(available)} available")
     if too_long:
-        reasons.append(f"a pass of {est.lanes_per_pass:.3g} samples, more than Dr.Jit's "
+        reasons.append(f"an array of {est.largest_array:.3g} entries (a pass of "
+                       f"{est.lanes_per_pass:.3g} samples), more than Dr.Jit's "
                        f"{MAX_LANES + 1:.3g} per array")
     lower_spp = (f"--spp below {est.chunk} (a pass holds min(spp, {est.chunk}) samples of "
                  "every pixel) or " if est.chunk > 2 and not
