@@ -107,3 +107,18 @@ def test_mitsuba_warnings_go_to_stderr_not_stdout(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "WARN" not in proc.stdout and "Monochrome" in proc.stderr
+
+
+def test_dict_scene_without_integrator_has_the_note():
+    import mitsuba as mi
+
+    scene = {"type": "scene",
+             "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4,
+                                                        "height": 4}},
+             "light": {"type": "point", "position": [0, 0, 0]},
+             "plane": {"type": "rectangle",
+                       "to_world": mi.ScalarTransform4f().translate([0, 0, 3])}}
+    notes = dopplertof.load_dict(scene).notes
+    assert len(notes) == 1 and "has no <integrator>" in notes[0] and "homodyne" in notes[0]
+    scene["integrator"] = {"type": "dopplertof"}
+    assert dopplertof.load_dict(scene).notes == ()

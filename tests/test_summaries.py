@@ -63,3 +63,9 @@ def test_rotating_body_with_the_inverse_square_calibration_is_flagged():
     assert "turning surface" not in format_summary(sine.summary)
     ball = frame("translating_sphere.xml")
     assert ball.summary["velocity"]["rotating_bodies"] == []
+
+
+def test_a_body_still_relative_to_the_camera_prints_truth_zero():
+    text = format_summary(frame("moving_camera.xml").summary)
+    assert body_line(text, "ball").endswith("truth 0 m/s")
+    assert "truth -5.2" in body_line(text, "static surfaces")  # the camera closes in

@@ -489,6 +489,17 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
     return summary
 
 
+#: speeds below this print as 0 in the summary lines (m/s)
+SPEED_RESOLUTION = 1e-3
+#: the static surfaces' 95th-percentile velocity error above which the multipath note is
+#: printed (m/s): salt-and-pepper, not Monte Carlo noise at the usual spp
+MULTIPATH_P95_M_S = 0.5
+
+
+def _speed(v: float) -> str:
+    return "0" if abs(v) < SPEED_RESOLUTION else f"{v:+.3g}"
+
+
 def body_lines(summary: dict) -> list:
     """Per body (and the static surfaces): the per-pixel velocity error over the pixels
     where both truth and measurement exist, and the spread of the truth; the meaning of
@@ -501,15 +512,16 @@ def body_lines(summary: dict) -> list:
         if not body["pixels"] or not err.get("pixels"):
             continue
         lo, hi = body["velocity_gt_p5_m_s"], body["velocity_gt_p95_m_s"]
-        truth = (f"truth {lo:+.3g} m/s" if abs(hi - lo) < 0.005 * max(abs(lo), abs(hi), 1e-9)
-                 else f"truth {lo:+.3g} to {hi:+.3g} m/s (5th-95th percentile)")
+        truth = (f"truth {_speed(lo)} m/s"
+                 if abs(hi - lo) < max(0.005 * max(abs(lo), abs(hi)), SPEED_RESOLUTION)
+                 else f"truth {_speed(lo)} to {_speed(hi)} m/s (5th-95th percentile)")
         lines.append(f"  {body['name']}: velocity error median {err['median_abs']:.3g} m/s, "
                      f"95th percentile {err['p95_abs']:.3g} m/s, mean {err['mean_signed']:+.3g}"
                      f" m/s over {err['pixels']} of {body['pixels']} pixels; {truth}")
     max_depth = summary.get("render_params", {}).get("max_depth", -1)
     if (static and bodies and (max_depth == -1 or max_depth > 2)
             and (static.get("velocity_error_m_s") or {}).get("p95_abs")
-            and static["velocity_error_m_s"]["p95_abs"] > 0.05):
+            and static["velocity_error_m_s"]["p95_abs"] > MULTIPATH_P95_M_S):
         lines.append(f"  note: {MULTIPATH_NOTE} (-P max_depth=2)")
     rotating = summary.get("velocity", {}).get("rotating_bodies")
     if rotating and summary["velocity"].get("calibration") == "inverse-square":
