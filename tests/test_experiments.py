@@ -159,7 +159,7 @@ def test_presets_reproduce_the_paper_grids(tmp_path):
 # ---- Running -----------------------------------------------------------------------------
 
 def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client):
-    out = tmp_path / "results"
+    out = tmp_path / "results" / "tiny"  # as in the README: the parent is missing too
     summary = run_sweep(tiny_config(), out, client=client, progress=False)
     assert summary.ok and summary.done == 5 and summary.skipped == 0
 

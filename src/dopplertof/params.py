@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
+from .hints import did_you_mean
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
 
@@ -97,7 +98,8 @@ class RenderParams:
         for name, value in values.items():
             if name not in known:
                 raise ParameterError(
-                    f"{where}: unknown parameter {name!r} (known: {', '.join(sorted(known))})"
+                    f"{where}: unknown parameter {name!r}{did_you_mean(name, known)} "
+                    f"(known: {', '.join(sorted(known))})"
                 )
             changes[name] = _coerce(name, value, _TYPES[name], where)
         return replace(base, **changes).validated(where)

@@ -175,6 +175,13 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     normalization = "expected" if offsets == 1 else p.film_normalization
     if normalization == "weights":
         columns += offsets
+    from . import budget  # refuse what cannot fit before allocating anything
+
+    cost = budget.check(budget.estimate(
+        width, height, channels_out, spp, chunk, pass_chunks, p.adaptive_sampling, columns,
+        device_columns=columns if splat is not None and offsets > 1 else 0))
+    if progress is not False and cost.seconds > budget.LONG_RENDER_SECONDS:
+        print(f"dopplertof: rendering {cost.describe()}", file=sys.stderr, flush=True)
     total = np.zeros((n_pixels, columns), dtype=np.float64)
     # adaptive sampling: the pilot's sums of samples and of squared group sums
     pilot_sums = np.zeros((n_pixels, channels_out)) if p.adaptive_sampling else None
