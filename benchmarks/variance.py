@@ -36,8 +36,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENE = os.path.join(HERE, "..", "tests", "fixtures", "cornell_box_moving.xml")
-FULL = 1 << 16
-METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+from dopplertof.sampling import FULL_CORRELATION as FULL  # noqa: E402
+from dopplertof.sampling import METHODS  # noqa: E402
 DEPTHS = (0, 1, 2, FULL)
 MAPPED_METHODS = ("antithetic", "antithetic_mirror")
 

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field, fields, replace
 
 from .hints import did_you_mean
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
+from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
+                       METHOD_NAMES, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -23,8 +24,6 @@ FILM_NORMALIZATIONS = ("expected", "weights")
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
 
-#: path_correlation_depth value meaning "the whole path"
-FULL_CORRELATION = 1 << 16
 
 
 class ParameterError(ValueError):
