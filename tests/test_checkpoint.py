@@ -35,6 +35,7 @@ def test_checkpoint_of_another_render_is_refused(tmp_path):
         dopplertof.render(other, spp=16, seed=1, checkpoint=ckpt)
 
 
+@pytest.mark.slow
 def test_cli_killed_render_resumes(tmp_path):
     """The CLI killed (SIGKILL) right after its first checkpoint is saved (no race: the
     process kills itself there); the same command then finishes with the image of an
