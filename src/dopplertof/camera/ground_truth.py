@@ -41,14 +41,16 @@ class GroundTruth:
 
 
 def camera_origin(scene) -> np.ndarray:
-    m = np.array(scene.sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
-    return m[:3, 3].copy()
+    from ..integrators.camera import rest_frame
+
+    return rest_frame(scene.sensor)[:3, 3].copy()
 
 
 def _forward(scene, camera, time: float) -> np.ndarray:
     """The sensor's viewing direction at ``time`` (unit, world space)."""
-    m = np.array(scene.sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
-    forward = m[:3, 2]
+    from ..integrators.camera import rest_forward
+
+    forward = rest_forward(scene.sensor)
     if camera is not None:
         forward = camera.relative_matrix(time)[:3, :3] @ forward
     return forward / np.linalg.norm(forward)
