@@ -62,7 +62,7 @@ def parse_start(items) -> dict:
 def run(args) -> int:
     import dopplertof
     from ..camera.output import prepare_folder
-    from ..cli import _overrides
+    from ..experiments.cli import parse_pairs
     from .fit import fit, format_fit, write_fit
 
     start = parse_start(args.start)
@@ -70,7 +70,7 @@ def run(args) -> int:
     dopplertof.set_variant(args.variant)
     result = fit(args.capture, start=start or None, spp=args.spp, seed=args.seed,
                  iterations=args.iterations, angular=args.angular,
-                 defines=_overrides(args.defines), progress=False if args.quiet else None)
+                 defines=parse_pairs(args.defines, "-D"), progress=False if args.quiet else None)
     paths = write_fit(result, args.output)
     print(format_fit(result))
     print(f"wrote {', '.join(paths)}")

@@ -469,7 +469,7 @@ def _cross_loss(state) -> float:
     return float(r_a @ r_b)
 
 
-def _metric(state, snr=0.25):
+def _metric(state, snr=0.5):
     """The Gauss-Newton metric from two Jacobians of independent noise: G = (J_A^T J_B +
     J_B^T J_A) / 2, whose expectation is J^T J of the expected Jacobian (J_A^T J_A would
     add the noise's energy, and shorten every step by it). The mask of the parameters
@@ -502,11 +502,11 @@ def _damped_step(state, damping, rcond=RCOND):
 
 
 def _trust(step, theta, fraction=0.5):
-    """The step shortened to at most ``fraction`` of |theta| (at least 1 m/s): noise in
-    weakly constrained directions cannot throw the motion far in one iteration."""
+    """The step with each component clipped to ``fraction`` of |theta| (at least
+    1 m/s): noise in a weakly constrained parameter can neither throw the motion far
+    in one iteration nor, through a common scale, stop the others."""
     limit = fraction * max(np.linalg.norm(theta), 1.0)
-    norm = np.linalg.norm(step)
-    return step if norm <= limit else step * (limit / norm)
+    return np.clip(step, -limit, limit)
 
 
 def _truncated_inverse(A, rcond):
