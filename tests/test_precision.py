@@ -12,7 +12,6 @@ import math
 import os
 import subprocess
 import sys
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -173,6 +172,8 @@ def test_summary_files_and_bitwise_images(tmp_path):
                  "velocity_std", "depth_std"):
         assert os.path.join(tmp_path, f"{name}.npy") in paths
     assert os.path.exists(tmp_path / "velocity_std.png")
+    se = np.load(tmp_path / "heterodyne_0_std_mc.npy")
+    assert se.shape == (4, 4) and np.all(se > 0)
     p = result.summary["precision"]
     assert p["mc_batches"] == 2 and len(p["bodies"]) == 1
     assert p["bodies"][0]["velocity_m_s"]["predicted_std_median"] > 0
@@ -202,3 +203,17 @@ def test_capture_cli_bad_batches_writes_nothing(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert "max_velocity_std must be a positive number" in r.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_capture_cli_writes_the_maps_and_counts_the_mask(tmp_path):
+    out = tmp_path / "out"
+    r = _cli("capture", demo_scene_path(), "-o", str(out), "-D", "res=8", "--spp", "16",
+             "--mc-batches", "2", "--noise", "--max-velocity-std", "50", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert "precision overall" in r.stdout
+    assert "NaN where the predicted std exceeds 50 m/s" in r.stdout
+    for name in ("velocity_std", "velocity_std_sensor", "depth_std_mc"):
+        assert (out / f"{name}.npy").exists() and (out / f"{name}.png").exists()
+    std = np.load(out / "velocity_std.npy")
+    velocity = np.load(out / "velocity.npy")
+    assert np.all(std[np.isfinite(velocity)] <= 50)

@@ -268,12 +268,15 @@ def _cmd_precision(args) -> int:
         study.check_points(scene, result, study.default_check_points(result, args.check),
                            noise=noise, seed=args.seed, params=params,
                            progress=False if args.quiet else None)
-    print(f"{os.path.basename(args.scene)}: {result.spp} spp pilots, noise "
+    print(f"{os.path.basename(args.scene)}: {result.spp} spp pilots; sensor: "
+          f"{noise.full_well:g} e- well, {noise.gain:g} e-/DN, "
           f"{'auto photon scale' if noise.photons_per_unit is None else 'fixed photon scale'}")
     print(study.format_study(result))
     if args.output:
+        scale = ("auto photon scale" if noise.photons_per_unit is None else
+                 f"{noise.photons_per_unit:.3g} photons/s per unit")
         study.write_map(args.output, result, f"{os.path.basename(args.scene)}: predicted "
-                        "velocity precision (sensor noise)")
+                        f"velocity precision (sensor: {noise.full_well:g} e- well, {scale})")
         io.write_json(os.path.splitext(args.output)[0] + ".json", result.describe())
         print(f"wrote {args.output}")
     return 0

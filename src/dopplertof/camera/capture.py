@@ -137,6 +137,14 @@ class CaptureResult:
     def depth_gt(self):
         return self.truth.depth
 
+    def sensor_model(self):
+        """(CaptureModel, unmodulated light g0 R (H, W)) of this frame, from its summary:
+        what a repetition of its sensor noise needs."""
+        mod = self.summary["modulation"]
+        model = rec.CaptureModel(mod["omega_g_rad_s"], mod["exposure_s"],
+                                 mod["hetero_frequency"], mod["waveform"])
+        return model, mod["g_0"] * self.radiance.mean(axis=-1, dtype=np.float64)
+
     def write(self, folder) -> list:
         """Write every array (.npy), its preview (.png), the side-by-side figure and
         summary.json into ``folder`` (created if missing); returns the paths."""
@@ -352,10 +360,7 @@ def reconstruct_noisy(result: CaptureResult, noise: NoiseModel) -> Reconstructio
     """The reconstruction of ``result``'s noise-free captures after drawing ``noise``
     (its own seed): a repetition of the sensor noise without rendering again."""
     s = result.summary
-    mod = s["modulation"]
-    model = rec.CaptureModel(mod["omega_g_rad_s"], mod["exposure_s"], mod["hetero_frequency"],
-                             mod["waveform"])
-    unmodulated = mod["g_0"] * result.radiance.mean(axis=-1, dtype=np.float64)
+    model, unmodulated = result.sensor_model()
     noisy, saturated, _ = apply_noise(result.rendered, unmodulated, model.exposure, noise)
     return _reconstruct(noisy, model, s["depth"]["unwrap_frequency_MHz"],
                         s["velocity"]["min_signal_fraction"], s["velocity"]["calibration"],

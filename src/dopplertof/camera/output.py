@@ -121,3 +121,5 @@ def write_uncertainty(uncertainty, path) -> None:
         if np.any(np.isfinite(data) & (data > 0)):
             figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
                                   note="grey: no value, zero, or first order fails (inf)")
+    for name, data in (uncertainty.capture_std_mc or {}).items():
+        io.write_npy(path(f"{name}_std_mc.npy"), data)

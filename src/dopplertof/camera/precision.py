@@ -201,6 +201,8 @@ class Uncertainty:
     depth_std: np.ndarray
     first_order_failed: np.ndarray  #: (H, W) bool
     mc_batches: int
+    #: name -> (H, W) Monte Carlo standard error of each capture (spread of the batches)
+    capture_std_mc: dict = None
 
     def maps(self) -> dict:
         return {k: getattr(self, k) for k in ("velocity_std_mc", "depth_std_mc",
@@ -240,10 +242,20 @@ def predict(rendered: dict, batches: dict | None, model: rec.CaptureModel, unwra
             out[f"{key}_std_{part}"] = _mark(std, valid, failed)
         total = np.sqrt(parts[f"{key}_mc"] + parts[f"{key}_sensor"])
         out[f"{key}_std"] = _mark(total, valid, failed)
-    has_value = np.isfinite(out["velocity_std"]) | np.isfinite(out["depth_std"]) | failed
-    return Uncertainty(**out, first_order_failed=failed & has_value
-                       & ~(np.isnan(out["velocity_std"]) & np.isnan(out["depth_std"])),
-                       mc_batches=len(next(iter(batches.values()))) if batches else 0)
+    no_value = np.isnan(out["velocity_std"]) & np.isnan(out["depth_std"])
+    return Uncertainty(**out, first_order_failed=failed & ~no_value,
+                       mc_batches=len(next(iter(batches.values()))) if batches else 0,
+                       capture_std_mc=capture_standard_errors(batches) if batches else {})
+
+
+def capture_standard_errors(batches: dict) -> dict:
+    """Per-pixel standard error of each capture's batch mean: std over the B batches
+    (ddof 1) / sqrt(B)."""
+    out = {}
+    for name, b in batches.items():
+        b = np.asarray(b, np.float64)
+        out[name] = (np.std(b, axis=0, ddof=1) / math.sqrt(b.shape[0])).astype(np.float32)
+    return out
 
 
 def _mark(std, valid, failed):
@@ -424,8 +436,11 @@ def repetition_check(scene, spp: int, mc_batches: int, source: str = "mc", noise
     "total": both at once (seed and noise seed vary together). Returns, for velocity
     and depth, :func:`spread_ratio` (the median over pixels of predicted / measured
     standard deviation; the prediction averaged over the repetitions for "mc" and
-    "total"), the pixels compared, and the medians of the predicted and measured
-    standard deviations."""
+    "total"), the pixels compared, the medians of the predicted and measured
+    standard deviations, and ``single_capture_median``: the median over pixels and
+    repetitions of one capture's own predicted / measured standard deviation (below 1
+    where the errors are heavy-tailed: a few seeds' outliers dominate the variance,
+    and the B batches of one capture rarely hold one)."""
     from dataclasses import replace
 
     from .capture import capture, reconstruct_noisy
@@ -459,7 +474,10 @@ def repetition_check(scene, spp: int, mc_batches: int, source: str = "mc", noise
         variance = np.mean(np.square(np.asarray(predicted[key], np.float64)), axis=0)
         ratio, pixels = spread_ratio(variance, values[key])
         measured = np.std(np.asarray(values[key], np.float64), axis=0, ddof=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            single = np.asarray(predicted[key], np.float64) / measured[None]
         out[key] = {"predicted_over_measured_median": ratio, "pixels": pixels,
+                    "single_capture_median": _median(single),
                     "predicted_std_median": _median(np.sqrt(variance)),
                     "measured_std_median": _median(measured)}
     return out

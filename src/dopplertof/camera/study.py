@@ -119,10 +119,7 @@ def predict_at(pilot, exposure: float, noise):
     CaptureResult (rendered at its own exposure); None where most lit pixels would
     saturate."""
     s = pilot.summary
-    mod = s["modulation"]
-    model = rec.CaptureModel(mod["omega_g_rad_s"], mod["exposure_s"], mod["hetero_frequency"],
-                             mod["waveform"])
-    unmodulated = mod["g_0"] * pilot.radiance.mean(axis=-1, dtype=np.float64)
+    model, unmodulated = pilot.sensor_model()
     captures = _rescaled(pilot.rendered, model, exposure, model.hetero_frequency)
     resolved = noise.scaled_for(unmodulated, exposure)
     valid = pilot.noise_free.velocity_reasons == rec.VALID
@@ -190,8 +187,8 @@ def precision_study(scene, w_g=None, exposure=None, *, spp: int = 64, steps: int
 def check_points(scene, study: StudyResult, points, *, noise=None, seed: int = 0,
                  params=None, progress=None) -> list:
     """Simulate grid points (i, j): a capture at that frequency and exposure and
-    CHECK_REPETITIONS sensor-noise draws. Reports the map's medians beside the measured
-    ones and, per pixel, predicted (from the pilot, rescaled) / measured standard
+    CHECK_REPETITIONS sensor-noise draws. Reports the map's medians, the predicted and
+    measured medians over the pixels where both exist and, per pixel, predicted (from the pilot, rescaled) / measured standard
     deviation, its median over pixels (:func:`.precision.spread_ratio`). Appends to
     ``study.checks``."""
     from .capture import capture, reconstruct_noisy
@@ -206,22 +203,23 @@ def check_points(scene, study: StudyResult, points, *, noise=None, seed: int = 0
                          progress=progress)
         runs = [reconstruct_noisy(result, replace(noise, seed=int(noise.seed) + 1 + k))
                 for k in range(CHECK_REPETITIONS)]
-        vs, ds = [r.velocity for r in runs], [r.depth for r in runs]
-        v = np.std(vs, axis=0, ddof=1)
-        dd = np.std(ds, axis=0, ddof=1)
         u = predict_at(study.pilots[i], t, noise)
-        ratio_v = prec.spread_ratio(u.velocity_std_sensor.astype(float) ** 2, vs)[0] \
-            if u is not None else None
-        ratio_d = prec.spread_ratio(u.depth_std_sensor.astype(float) ** 2, ds)[0] \
-            if u is not None else None
-        entry = {"w_g_MHz": f, "exposure_s": t,
-                 "velocity_std_predicted_m_s": float(study.velocity_std[i, j]),
-                 "velocity_std_measured_m_s": prec._median(v),
-                 "depth_std_predicted_m": float(study.depth_std[i, j]),
-                 "depth_std_measured_m": prec._median(dd),
-                 "velocity_predicted_over_measured_median": ratio_v,
-                 "depth_predicted_over_measured_median": ratio_d,
-                 "repetitions": CHECK_REPETITIONS}
+        entry = {"w_g_MHz": f, "exposure_s": t, "repetitions": CHECK_REPETITIONS,
+                 "map_velocity_std_m_s": float(study.velocity_std[i, j]),
+                 "map_depth_std_m": float(study.depth_std[i, j]),
+                 # the map extrapolates the motion at constant velocity; a scene whose
+                 # keyframes end at its shutter has its bodies stop there in the check
+                 "beyond_scene_shutter": bool(t > scene.shutter_interval * (1 + 1e-9))}
+        for key, unit in (("velocity", "m_s"), ("depth", "m")):
+            repeated = np.asarray([getattr(r, key) for r in runs], np.float64)
+            measured = np.std(repeated, axis=0, ddof=1)
+            predicted = (np.full(measured.shape, np.nan) if u is None else
+                         getattr(u, f"{key}_std_sensor").astype(np.float64))
+            both = np.isfinite(predicted) & np.isfinite(measured)  # the same pixels
+            entry[f"{key}_std_predicted_{unit}"] = prec._median(predicted[both])
+            entry[f"{key}_std_measured_{unit}"] = prec._median(measured[both])
+            entry[f"{key}_predicted_over_measured_median"] = (
+                prec.spread_ratio(predicted ** 2, repeated)[0] if u is not None else None)
         study.checks.append(entry)
     return study.checks
 
@@ -260,7 +258,9 @@ def format_study(study: StudyResult) -> str:
                      f"{c['depth_std_measured_m']:.3g} m ({c['repetitions']} noise draws); "
                      "per pixel predicted/measured: velocity "
                      f"{c['velocity_predicted_over_measured_median']:.3f}, depth "
-                     f"{c['depth_predicted_over_measured_median']:.3f} (median)")
+                     f"{c['depth_predicted_over_measured_median']:.3f} (median)"
+                     + ("; beyond the scene's shutter (its keyframes may stop the motion)"
+                        if c["beyond_scene_shutter"] else ""))
     return "\n".join(lines)
 
 
@@ -273,7 +273,7 @@ def write_map(path, study: StudyResult, title: str) -> None:
     from .figures import _pyplot
 
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.0, 5.2), dpi=120)
+    fig, ax = plt.subplots(figsize=(7.0, 5.2), dpi=100)
     data = np.ma.masked_invalid(study.velocity_std)
     finite = study.velocity_std[np.isfinite(study.velocity_std)]
     norm = colors.LogNorm(vmin=float(finite.min()), vmax=float(finite.max())) \
