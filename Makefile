@@ -4,7 +4,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 PYTHON ?= python3
 
-.PHONY: demo test setup llvm clean bench
+.PHONY: demo test quick setup llvm clean bench
 
 setup: $(STAMP) llvm
 
@@ -21,8 +21,12 @@ llvm: $(STAMP)
 demo: setup
 	$(VENV)/bin/dopplertof demo -o demo_out
 
+# the whole suite (what CI runs); `make quick`: the fast tier, for the edit-test loop
 test: setup
 	$(PY) -m pytest -q
+
+quick: setup
+	$(PY) -m pytest -q -m "not slow"
 
 bench: setup
 	$(PY) benchmarks/throughput.py

@@ -21,7 +21,7 @@ import argparse
 import numpy as np
 
 WEIGHT = 0.25  #: g1 C(0): the D-ToF image over the radiance at a vanishing frequency
-FILMS = (("splat", "expected"), ("splat", "weights"), ("importance", "expected"))
+FILMS = (("splat", "weights"), ("splat", "expected"), ("importance", "weights"))
 
 
 def scene(integrator, rfilter, res, spp):

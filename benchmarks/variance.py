@@ -19,6 +19,11 @@ with its equal-time value, and last the two lines of the beyond-the-paper sampli
     .venv/bin/python benchmarks/variance.py --quick    # 64x64, 256 spp, ref x64
     .venv/bin/python benchmarks/variance.py --quick --box-filter --hetero 1
     .venv/bin/python benchmarks/variance.py --hetero 1 --seed 2   # another realization
+    .venv/bin/python benchmarks/variance.py --film importance       # one pixel per sample
+
+Every render, the reference included, uses the film given by ``--film`` (default the
+splat film, as the renderer's default). The naive row of this table is our own naive
+sampling; benchmarks/published.py compares with the published implementation's renders.
 """
 
 from __future__ import annotations
@@ -31,8 +36,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENE = os.path.join(HERE, "..", "tests", "fixtures", "cornell_box_moving.xml")
-FULL = 1 << 16
-METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+from dopplertof.sampling import FULL_CORRELATION as FULL  # noqa: E402
+from dopplertof.sampling import METHODS  # noqa: E402
 DEPTHS = (0, 1, 2, FULL)
 MAPPED_METHODS = ("antithetic", "antithetic_mirror")
 
@@ -51,6 +56,8 @@ def main():
     p.add_argument("--variant", default="llvm_ad_rgb")
     p.add_argument("--seed", type=int, default=1,
                    help="seed of every measured render (the reference keeps its own)")
+    p.add_argument("--film", choices=("splat", "importance"), default="splat",
+                   help="film_sampling of every render (default: splat)")
     p.add_argument("--box-filter", action="store_true",
                    help="replace the scene's tent reconstruction filter by a box")
     args = p.parse_args()
@@ -68,14 +75,14 @@ def main():
                                        {"resx": res, "resy": res})
     else:
         scene = dopplertof.load_file(SCENE, {"resx": res, "resy": res})
-    print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, "
+    print(f"published moving Cornell box, {res}x{res}, max_depth 4, {spp} spp, {args.film} film, "
           f"reference {spp * args.ref_factor} spp (antithetic, full correlation)", flush=True)
 
     def render(h, method, depth, strat, n, seed, mapping=None, adaptive=False):
         params = dict(hetero_frequency=h, time_sampling_method=method,
                       path_correlation_depth=depth,
                       use_stratified_sampling_for_each_interval=strat,
-                      adaptive_sampling=adaptive)
+                      adaptive_sampling=adaptive, film_sampling=args.film)
         if mapping is not None:
             params["antithetic_mapping"] = mapping
         t = time.perf_counter()

@@ -30,17 +30,17 @@ def render_killed_then_resumed(monkeypatch, scene, checkpoint, die_after, **rend
 
     R = sys.modules["dopplertof.render"]  # the module (dopplertof.render is the function)
     calls = {"n": 0}
-    original = R._save_checkpoint
+    original = R.Checkpoint.save
 
-    def save_then_die(*args):
-        original(*args)
+    def save_then_die(self, *args):
+        original(self, *args)
         calls["n"] += 1
         if calls["n"] == die_after:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(R, "_save_checkpoint", save_then_die)
+    monkeypatch.setattr(R.Checkpoint, "save", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         dopplertof.render(scene, pass_chunks=1, checkpoint=checkpoint, **render_args)
-    monkeypatch.setattr(R, "_save_checkpoint", original)
+    monkeypatch.setattr(R.Checkpoint, "save", original)
     assert os.path.exists(checkpoint)
     return dopplertof.render(scene, pass_chunks=1, checkpoint=checkpoint, **render_args)

@@ -186,7 +186,7 @@ def test_bad_arguments(tmp_path, capsys, output, args, expected):
 @pytest.mark.parametrize("target,expected", [
     ("{dir}/out.jpg", "unknown output extension"),
     ("{dir}/out", "unknown output extension"),
-    ("{dir}/missing/out.npy", "output folder does not exist"),
+    ("{dir}/keep.npy/sub/out.npy", "keep.npy is a file"),
     ("{dir}", "unknown output extension"),
 ])
 def test_bad_output_paths(tmp_path, capsys, output, target, expected):

@@ -74,7 +74,7 @@ def test_capture_command_writes_everything(tmp_path, plane_xml):
     (["capture", "{xml}", "-o", "{dir}/o", "--hetero-frequency", "0.5"],
      "integer hetero_frequency"),
     (["capture", "{xml}", "-o", "{dir}/o", "--bits", "0"], "bits must be an integer"),
-    (["capture", "{xml}", "-o", "{dir}/nodir/o"], "parent of the output folder does not exist"),
+    (["capture", "{xml}", "-o", "{xml}/o"], "is a file"),
     (["capture", "{xml}", "-o", "{xml}"], "not a folder"),
 ])
 def test_capture_errors_are_one_line_exit_2(tmp_path, plane_xml, args, message):

@@ -45,7 +45,7 @@ def test_npy_equals_library_render(tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["render", "missing.xml", "-o", "{out}"], "scene file not found"),
     (["render", PUBLISHED, *SMALL, "-o", "{dir}/x.tiff"], "unknown output extension"),
-    (["render", PUBLISHED, *SMALL, "-o", "{dir}/nodir/x.npy"], "output folder does not exist"),
+    (["render", PUBLISHED, *SMALL, "-o", "{out}/x.npy"], "is not a folder"),
     (["render", PUBLISHED, "-D", "bogus=1", "-o", "{out}"], "unknown scene parameter 'bogus'"),
     (["render", PUBLISHED, "-D", "resx=8", "--spp", "3", "-o", "{out}"],
      "not a multiple of the group size"),

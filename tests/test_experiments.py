@@ -159,7 +159,7 @@ def test_presets_reproduce_the_paper_grids(tmp_path):
 # ---- Running -----------------------------------------------------------------------------
 
 def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client):
-    out = tmp_path / "results"
+    out = tmp_path / "results" / "tiny"  # as in the README: the parent is missing too
     summary = run_sweep(tiny_config(), out, client=client, progress=False)
     assert summary.ok and summary.done == 5 and summary.skipped == 0
 
@@ -224,7 +224,7 @@ def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client)
     rows = (tmp_path / "report" / "metrics.csv").read_text().splitlines()
     assert len(rows) == 1 + 4
     # antithetic time with the whole path shared beats uniform time with independent
-    # paths on a heterodyne image (DESIGN section 2), even at 8 spp
+    # paths on a heterodyne image (design.md section 2), even at 8 spp
     metrics = {r.split(",")[0]: float(r.split(",")[5]) for r in rows[1:]}
     best = metrics["time_sampling_method=antithetic__path_correlation_depth=full"]
     worst = metrics["time_sampling_method=uniform__path_correlation_depth=0"]

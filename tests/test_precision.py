@@ -38,10 +38,12 @@ def assert_within_10_percent(check, pixels=64):
         assert abs(check[key]["predicted_over_measured_median"] - 1) < 0.10, check
 
 
+@pytest.mark.slow
 def test_monte_carlo_prediction_on_the_moving_plane():
     assert_within_10_percent(prec.repetition_check(plane(), 32, 4, "mc", progress=False))
 
 
+@pytest.mark.slow
 def test_monte_carlo_and_sensor_with_a_light_off_the_camera_and_a_splatting_filter():
     # tent filter: every sample splats into 3x3 pixels, neighbours are correlated
     scene = plane(light_off=True, rfilter="tent")

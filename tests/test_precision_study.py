@@ -24,6 +24,7 @@ def plane():
     return dopplertof.load_dict(plane_scene(4.0, 10.0, spp=16, res=8))
 
 
+@pytest.mark.slow
 def test_map_is_checked_by_simulation_and_scales_with_frequency_and_exposure():
     scene = plane()
     result = study.precision_study(scene, (20.0, 60.0), (1.5e-3, 6e-3), spp=16, steps=2,
@@ -80,6 +81,7 @@ def test_cli_impossible_ranges(tmp_path, args, message):
     assert out.read_bytes() == b"keep"
 
 
+@pytest.mark.slow
 def test_cli_writes_the_map_and_its_numbers(tmp_path):
     from dopplertof.demo import demo_scene_path
 

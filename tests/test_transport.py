@@ -130,15 +130,19 @@ def test_crop_window_matches_stock_path_tracer():
     assert_agree(*render_both(stock_scene, ours_scene, blocks))
 
 
-@pytest.mark.parametrize("variant,channels", [("llvm_ad_spectral", 3), ("llvm_ad_mono", 1)])
-def test_spectral_and_mono_variants_match_stock(variant, channels):
+@pytest.mark.parametrize("variant,channels,rfilter", [
+    ("llvm_ad_spectral", 3, "box"), ("llvm_ad_spectral", 3, "gaussian"),
+    ("llvm_ad_mono", 1, "box")])
+def test_spectral_and_mono_variants_match_stock(variant, channels, rfilter):
     """Spectral variants sample wavelengths per path and convert each sample to RGB, as
-    Mitsuba's film does; mono variants give one channel."""
+    Mitsuba's film does (before splatting it, with a gaussian); mono variants give one
+    channel."""
     dopplertof.set_variant(variant)
     import mitsuba as mi
 
-    stock_scene = mi.load_dict(cornell({"type": "path", "max_depth": 3, "hide_emitters": True}))
-    ours_scene = dopplertof.load_dict(cornell(dtof(3, hide_emitters=True)))
+    stock_scene = mi.load_dict(cornell({"type": "path", "max_depth": 3, "hide_emitters": True},
+                                       rfilter))
+    ours_scene = dopplertof.load_dict(cornell(dtof(3, hide_emitters=True), rfilter))
     assert dopplertof.render(ours_scene, spp=4).shape == (16, 16, channels)
     assert_agree(*render_both(stock_scene, ours_scene, regions), rtol=0.01)
 

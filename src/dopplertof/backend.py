@@ -1,4 +1,4 @@
-"""Mitsuba variant choice and the libLLVM check (DESIGN section 6).
+"""Mitsuba variant choice and the libLLVM check (design.md section 6).
 
 The Mitsuba wheel's LLVM variants load the system's libLLVM at run time. Dr.Jit 1.5
 aborts the whole process inside LLVM 14 or 15 ("Cannot select ... fminimum"), so we
@@ -109,19 +109,64 @@ def set_variant(variant: str | None = None) -> str:
 
     if variant not in mi.variants():
         raise BackendError(f"variant {variant!r} is not in this Mitsuba build: {mi.variants()}")
+    if variant.startswith("cuda_") and not _has_cuda():
+        raise BackendError(f"variant {variant!r}: no CUDA device or driver was found on this "
+                           f"machine; the variants that work here: {working_variants(mi)}")
     try:
         mi.set_variant(variant)
-    except Exception as exc:  # CUDA without a GPU, most often
+    except Exception as exc:
+        if variant.startswith("cuda_"):
+            raise BackendError(f"variant {variant!r}: the CUDA backend did not start ({exc}); "
+                               f"the variants that work here: {working_variants(mi)}") from None
         raise BackendError(f"cannot use variant {variant!r}: {exc}") from None
-    if variant.startswith("cuda_"):
-        import drjit as dr
-
-        if not dr.has_backend(dr.JitBackend.CUDA):
-            raise BackendError(f"variant {variant!r} needs a CUDA GPU and driver; none found")
+    _log_to_stderr(mi)
     from . import integrators  # noqa: F401  registers the plugins for this variant
 
     integrators.register()
     return variant
+
+
+def _has_cuda() -> bool:
+    """Whether Dr.Jit finds a CUDA driver and device (without raising)."""
+    import drjit as dr
+
+    try:
+        return bool(dr.has_backend(dr.JitBackend.CUDA))
+    except Exception:
+        return False
+
+
+def working_variants(mi) -> str:
+    """The variants of this Mitsuba build that dopplertof can use on this machine."""
+    usable = [v for v in mi.variants() if v.startswith("llvm_") and "polarized" not in v]
+    return ", ".join(usable) if usable else "none (" + INSTALL_HINT.format(min=MIN_LLVM_MAJOR) + ")"
+
+
+_STDERR_APPENDER = []  # the one appender we installed (kept alive here)
+
+
+def _log_to_stderr(mi) -> None:
+    """Mitsuba's log messages (its WARN lines) go to stderr: stdout is for results."""
+    import sys
+
+    logger = mi.logger() if hasattr(mi, "logger") else mi.Thread.thread().logger()
+    if logger is None:
+        return
+    if _STDERR_APPENDER and logger.appender_count() == 1 \
+            and logger.appender(0) is _STDERR_APPENDER[0]:
+        return
+
+    class StderrAppender(mi.Appender):
+        def append(self, level, text):
+            sys.stderr.write(text.rstrip("\n") + "\n")
+
+        def log_progress(self, *args):
+            pass
+
+    appender = StderrAppender()
+    logger.clear_appenders()
+    logger.add_appender(appender)
+    _STDERR_APPENDER[:] = [appender]
 
 
 def require_variant():

@@ -7,23 +7,12 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
+from .experiments.cli import parse_pairs
+from .io import FOLDER_HELP
 
 
 class UsageError(Exception):
     pass
-
-
-def _overrides(pairs) -> dict:
-    """``["name=value", ...]`` (from -D or -P) as a dict."""
-    out = {}
-    for item in pairs or []:
-        if "=" not in item:
-            raise UsageError(f"-D expects name=value, got {item!r}")
-        name, value = item.split("=", 1)
-        if not name:
-            raise UsageError(f"-D expects name=value, got {item!r}")
-        out[name.strip()] = value
-    return out
 
 
 def _add_noise_options(n) -> None:
@@ -42,13 +31,15 @@ def _add_noise_options(n) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dopplertof",
-                                description="Doppler time-of-flight camera simulator")
+                                description="Doppler time-of-flight camera simulator",
+                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("render", help="render a D-ToF image of a scene")
     r.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
-    r.add_argument("-o", "--output", required=True, help="output file: .exr, .npy or .png")
+    r.add_argument("-o", "--output", required=True,
+                   help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's sampler)")
     r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     r.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
@@ -58,15 +49,16 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--checkpoint", metavar="FILE",
-                   help="save progress after every pass and resume from it after a kill")
+                   help="save progress after every pass and resume from it after a kill "
+                   f"(its folder {FOLDER_HELP})")
     r.add_argument("--sample-counts", metavar="FILE",
                    help="with -P adaptive_sampling=true: write the samples traced per pixel "
-                   "(.png map, .npy or .exr)")
+                   f"(.png map, .npy or .exr; its folder {FOLDER_HELP})")
 
     c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
                        "depth reconstruction, exact truth, previews and summary.json")
     c.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
-    c.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
+    c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP})")
     c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
                    "scene's sampler)")
     c.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -114,7 +106,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--check", type=int, default=3, metavar="N",
                    help="with ranges: simulate N grid points to check the map (default 3)")
     s.add_argument("-o", "--output", metavar="MAP.png",
-                   help="with ranges: the map (PNG) and its numbers beside it (.json)")
+                   help="with ranges: the map (PNG) and its numbers beside it (.json; its "
+                   f"folder {FOLDER_HELP})")
     s.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
                    help="set a <default> value of the scene (repeatable)")
     s.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
@@ -125,7 +118,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_noise_options(s.add_argument_group("sensor (the default noise model unless set)"))
 
     d = sub.add_parser("demo", help="one camera frame of the built-in moving Cornell box")
-    d.add_argument("-o", "--output", default="demo_out", help="output folder")
+    d.add_argument("-o", "--output", default="demo_out",
+                   help=f"output folder ({FOLDER_HELP}; default demo_out)")
     d.add_argument("--spp", type=int, default=DEMO_SPP, help=f"default {DEMO_SPP}")
     d.add_argument("--res", type=int, default=DEMO_RES, help=f"default {DEMO_RES}")
     d.add_argument("--variant", default=None)
@@ -133,12 +127,25 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true")
 
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
-    f.add_argument("-o", "--output", default="figures", help="output folder")
+    f.add_argument("-o", "--output", default="figures",
+                   help=f"output folder ({FOLDER_HELP}; default figures)")
     f.add_argument("--quick", action="store_true", help="small settings")
     from .experiments.cli import add_subcommands
 
     add_subcommands(sub)  # sweep, report, animate (each sets its own func)
     return p
+
+
+def _load_scene(args):
+    """Set the variant, load the scene with the -D values; say on stderr what the loader
+    assumed (stdout is for results)."""
+    import dopplertof
+
+    dopplertof.set_variant(args.variant)
+    scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
+    for note in scene.notes:
+        print(f"dopplertof: note: {note}", file=sys.stderr)
+    return scene
 
 
 def _cmd_render(args) -> int:
@@ -148,13 +155,12 @@ def _cmd_render(args) -> int:
     io.check_output_path(args.output)
     if args.sample_counts:
         io.check_output_path(args.sample_counts)
-    if args.checkpoint and not os.path.isdir(os.path.dirname(os.path.abspath(args.checkpoint))):
-        raise UsageError(f"checkpoint folder does not exist: {args.checkpoint}")
+    if args.checkpoint:
+        io.check_output_folder(os.path.dirname(os.path.abspath(args.checkpoint)))
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
-    dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
-    params = _overrides(args.params) or None
+    scene = _load_scene(args)
+    params = parse_pairs(args.params, "-P") or None
     if args.sample_counts and not dopplertof.RenderParams.from_mapping(
             params or {}, where="render parameters", base=scene.params).adaptive_sampling:
         raise UsageError("--sample-counts needs adaptive sample counts: add "
@@ -163,7 +169,9 @@ def _cmd_render(args) -> int:
                                       params=params,
                                       progress=False if args.quiet else None,
                                       checkpoint=args.checkpoint)
-    io.write_image(args.output, result.image, result.metadata)
+    io.write_image(args.output, result.image, result.metadata,
+                   **({"title": io.render_title(result.metadata)}
+                      if args.output.lower().endswith(".png") else {}))
     if args.sample_counts:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
@@ -196,15 +204,14 @@ def _cmd_capture(args) -> int:
         raise UsageError(f"scene file not found: {args.scene}")
     noise = _noise_model(args, args.noise)
     prepare_folder(args.output)
-    dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
+    scene = _load_scene(args)
 
     def report(spec, seconds):
         if not args.quiet:
             print(f"  {spec.name:<16} {seconds:6.1f} s", flush=True)
 
     result = dopplertof.capture(scene, spp=args.spp, seed=args.seed,
-                                params=_overrides(args.params) or None,
+                                params=parse_pairs(args.params, "-P") or None,
                                 hetero_frequency=args.hetero_frequency,
                                 unwrap_frequency=args.unwrap_frequency, noise=noise,
                                 min_signal_fraction=args.min_signal,
@@ -230,7 +237,6 @@ def _noise_model(args, default: bool):
 
 
 def _cmd_precision(args) -> int:
-    import dopplertof
     from . import io
     from .camera import study
 
@@ -251,9 +257,8 @@ def _cmd_precision(args) -> int:
     if args.check < 0:
         raise UsageError(f"--check must be >= 0, got {args.check}")
     noise = _noise_model(args, True)
-    dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, _overrides(args.defines))
-    params = _overrides(args.params) or None
+    scene = _load_scene(args)
+    params = parse_pairs(args.params, "-P") or None
 
     def report(i, f):
         if not args.quiet:

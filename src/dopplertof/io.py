@@ -3,6 +3,11 @@
 Every writer renders to a temporary file in the target folder and renames it into
 place, so that a failed or interrupted write never leaves a partial file and never
 replaces a good one.
+
+Output folders, one rule for every command: a missing output folder (and its missing
+parents) is created when the first file is written into it; before any work,
+:func:`check_output_folder` refuses a path that cannot become one (a file in the way,
+no write permission), so that bad input writes nothing, not even a folder.
 """
 
 from __future__ import annotations
@@ -21,28 +26,54 @@ class OutputError(ValueError):
     """An output path that cannot be written (unknown extension, missing folder...)."""
 
 
+#: what every command's --help says about its output folder
+FOLDER_HELP = "created, with missing parents, if missing"
+
+
+def check_output_folder(folder) -> str:
+    """Before any work: ``folder`` is an existing writable folder, or a missing one that
+    can be created (its nearest existing ancestor is a writable folder). Creates
+    nothing; the writers create it. Returns the absolute path."""
+    folder = os.path.abspath(os.fspath(folder))
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise OutputError(f"output path exists and is not a folder: {folder}")
+    existing = folder
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.path.isdir(existing):
+        raise OutputError(f"cannot create the output folder {folder}: {existing} is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"output folder is not writable: {existing}")
+    return folder
+
+
+def make_output_folder(folder) -> str:
+    """Check ``folder`` (:func:`check_output_folder`) and create it; returns its path."""
+    folder = check_output_folder(folder)
+    os.makedirs(folder, exist_ok=True)
+    return folder
+
+
 def check_output_path(path) -> str:
-    """Validate an output path before any work is done; returns its extension."""
+    """Validate an output file path before any work is done; returns its extension.
+    A missing folder is created when the file is written."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in FORMATS:
         raise OutputError(f"unknown output extension {ext or '(none)'!r} in {path}: "
                           f"use one of {', '.join(FORMATS)}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise OutputError(f"output folder does not exist: {folder}")
-    if not os.access(folder, os.W_OK):
-        raise OutputError(f"output folder is not writable: {folder}")
     if os.path.isdir(path):
         raise OutputError(f"output path is a folder: {path}")
+    check_output_folder(os.path.dirname(os.path.abspath(path)))
     return ext
 
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path`` (same extension); rename on success."""
+    """Yield a temporary path beside ``path`` (same extension); rename on success.
+    A missing folder is created first."""
     path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
+    folder = make_output_folder(os.path.dirname(os.path.abspath(path)))
     base, ext = os.path.splitext(os.path.basename(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
     os.close(fd)
@@ -100,6 +131,68 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
         bitmap.write(tmp)
 
 
+def measurement_title(kind: str, hetero_frequency: float, offset: float, w_g_mhz: float,
+                      detail: str = "") -> str:
+    """The title of a capture's preview: what was measured."""
+    return (f"{kind} capture, offset {offset:.4g}, h={hetero_frequency:.4g}, "
+            f"{w_g_mhz:.4g} MHz{detail}")
+
+
+def render_title(metadata: dict) -> str:
+    """The preview title of a render, from its metadata (h, offset, frequency, waveform)."""
+    import math
+
+    exposure = metadata["exposure_s"]
+    h = metadata["omega_d_rad_s"] * exposure / (2 * math.pi)
+    h = 0.0 if abs(h) < 1e-9 else h
+    offset = (metadata["psi_rad"] / (2 * math.pi)) % 1.0
+    kind = "homodyne" if h == 0 else "heterodyne"
+    waveform = metadata.get("params", {}).get("wave_function_type", "")
+    return measurement_title(kind, h, offset,
+                             metadata["omega_g_rad_s"] / (2 * math.pi * 1e6),
+                             f" {waveform}, {metadata['spp']} spp" if waveform else "")
+
+
+def robust_limit(data: np.ndarray, percentile: float = 99.5) -> float:
+    """A colour limit for |data| that thin features (silhouettes sweeping through pixels
+    during the exposure, one or two pixels wide) do not set: the ``percentile`` of |data|
+    after a 3x3 median filter, or of |data| itself when the filter leaves nothing."""
+    from scipy.ndimage import median_filter
+
+    values = np.abs(np.asarray(data, np.float64))
+    finite = np.isfinite(values)
+    if not finite.any():
+        return 1.0
+    smooth = median_filter(np.where(finite, values, 0.0), size=3, mode="nearest")
+    for candidate in (smooth[finite], values[finite]):
+        limit = float(np.percentile(candidate, percentile))
+        if limit > 0:
+            return limit
+    return 1.0
+
+
+#: "no signal" (NaN) in every preview: black hatching on a magenta that none of the colour
+#: maps used (RdBu, PuOr, viridis, gray) contains, so that it cannot pass for a value
+NO_SIGNAL_COLOUR = "#ff00ff"
+NO_SIGNAL_NOTE = "hatched magenta: NaN (nothing hit or signal too weak)"
+
+
+def no_signal_colours(cmap: str):
+    """The colour map ``cmap`` with NaN transparent: the hatching behind shows through."""
+    import matplotlib
+
+    return matplotlib.colormaps[cmap].with_extremes(bad=(0.0, 0.0, 0.0, 0.0))
+
+
+def show_no_signal(ax, shape) -> None:
+    """Hatch the area of an image of ``shape`` (drawn on ``ax`` above zorder 0)."""
+    from matplotlib.patches import Rectangle
+
+    h, w = shape[:2]
+    ax.add_patch(Rectangle((-0.5, -0.5), w, h, facecolor=NO_SIGNAL_COLOUR, edgecolor="black",
+                           hatch="////", linewidth=0, zorder=0))
+
+
 def preview_scalar(image: np.ndarray) -> np.ndarray:
     """The signed scalar a preview shows: the mean over channels."""
     img = np.asarray(image, dtype=np.float64)
@@ -119,17 +212,21 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
 
     data = preview_scalar(image)
     finite = data[np.isfinite(data)]
-    vmax = float(np.percentile(np.abs(finite), 99.5)) if finite.size else 1.0
-    vmax = vmax if vmax > 0 else 1.0
-    if not signed:
+    if signed:  # robust: the colour bar's arrows show what saturates
+        vmax = robust_limit(data)
+    else:
         vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / w + 0.6), dpi=120)
-    im = ax.imshow(data, cmap=cmap, vmin=-vmax if signed else 0.0, vmax=vmax,
-                   interpolation="nearest")
-    ax.set_title(title)
+    show_no_signal(ax, data.shape)
+    im = ax.imshow(np.ma.masked_invalid(data), cmap=no_signal_colours(cmap),
+                   vmin=-vmax if signed else 0.0, vmax=vmax, interpolation="nearest",
+                   zorder=1)
+    ax.set_title(title, fontsize=10)
     ax.set_axis_off()
-    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    saturated = finite.size and np.abs(finite).max() > vmax
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
+                       extend=("both" if signed else "max") if saturated else "neither")
     bar.set_label(label)
     fig.tight_layout()
     save_figure(fig, path, metadata)

@@ -4,7 +4,7 @@ One definition serves the renderer (Dr.Jit arrays) and the analysis (NumPy array
 every function takes the array namespace ``xp`` (``numpy`` or ``drjit``) that holds
 ``cos``, ``floor``, ``minimum``, ``maximum`` and ``abs``.
 
-Conventions (DESIGN section 1):
+Conventions (design.md section 1):
 
 * illumination  g(t) = g0 + g1 * wave(omega_g t)
 * sensor        s(t) = wave(omega_s t + psi)

@@ -1,6 +1,6 @@
 """Parameters of a D-ToF render: names, types, defaults and the derived quantities.
 
-Names and defaults follow the published implementation (DESIGN section 1). The same
+Names and defaults follow the published implementation (design.md section 1). The same
 parser serves the XML ``<integrator>`` and ``<sampler>`` elements, Mitsuba's
 ``Properties`` (when the plugin is built by Mitsuba itself), Python dicts and ``-D``
 style overrides, so that a name means the same everywhere and an unknown name is an
@@ -12,8 +12,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
+from .hints import did_you_mean
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
-from .sampling import ANALYTIC, ANTITHETIC_MAPPINGS, METHOD_NAMES, auto_sampling
+from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
+                       METHOD_NAMES, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -22,8 +24,6 @@ FILM_NORMALIZATIONS = ("expected", "weights")
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
 
-#: path_correlation_depth value meaning "the whole path"
-FULL_CORRELATION = 1 << 16
 
 
 class ParameterError(ValueError):
@@ -72,9 +72,10 @@ class RenderParams:
     #: "splat" (each sample weighted into every pixel its filter reaches, as Mitsuba's
     #: film) or "importance" (film positions drawn from the filter, one pixel each)
     film_sampling: str = "splat"
-    #: splat film: divide by the exact "expected" filter weight (unbiased) or by the
-    #: sampled "weights" (Mitsuba's ratio estimator)
-    film_normalization: str = "expected"
+    #: splat film: divide by the sampled "weights" (Mitsuba's ratio estimator; far less
+    #: noise on smooth surfaces, bias below measurement) or by the exact "expected"
+    #: filter weight (unbiased)
+    film_normalization: str = "weights"
     # ---- Execution (the published integrators' own; none changes the image) ----
     is_doppler_integrator: bool = True  #: no effect: this integrator is a D-ToF one
     block_size: int = 0  #: no effect: the published scalar variants' tile size
@@ -96,7 +97,8 @@ class RenderParams:
         for name, value in values.items():
             if name not in known:
                 raise ParameterError(
-                    f"{where}: unknown parameter {name!r} (known: {', '.join(sorted(known))})"
+                    f"{where}: unknown parameter {name!r}{did_you_mean(name, known)} "
+                    f"(known: {', '.join(sorted(known))})"
                 )
             changes[name] = _coerce(name, value, _TYPES[name], where)
         return replace(base, **changes).validated(where)

@@ -115,16 +115,9 @@ def _show_progress(progress) -> bool:
     return sys.stderr.isatty()
 
 
-def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
-                  progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
-                  pass_chunks: int | None = None, checkpoint=None) -> RenderResult:
-    """Render ``scene`` (a DopplerScene); see :func:`render`.
-
-    ``checkpoint`` (a path) saves the accumulated chunks after every pass and resumes
-    from them: the final image is bitwise the one of an uninterrupted render. It is
-    refused for a different render (scene, parameters, spp, seed, variant). A complete
-    checkpoint returns the image at once; delete the file when the output is safe.
-    """
+def _resolve(scene, spp, seed, params):
+    """The variant, the parameters (the scene's, overridden, ``auto`` resolved) and
+    the sample count of a render; checks what the kernel cannot."""
     from .backend import require_variant
 
     mi = require_variant()
@@ -141,88 +134,64 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
+    return mi, p, spp
 
-    film = scene.sensor.film()
-    width, height = (int(v) for v in film.crop_size())
-    n_pixels = width * height
-    setup = _make_setup(mi, scene, p, spp, int(seed))
 
-    # ---- Pass plan: whole chunks per pass ----
-    K = setup.group_size
-    chunk = min(spp, GROUPS_PER_CHUNK * K)
-    n_chunks = -(-spp // chunk)
-    pilot_chunks = (allocation.pilot_samples(spp, chunk) // chunk
-                    if p.adaptive_sampling else 0)
-    if pass_chunks is None:
-        pass_chunks = max(1, max_lanes // (n_pixels * chunk))
-        if p.samples_per_pass > 0:  # the published pass size, in whole chunks, within memory
-            pass_chunks = min(pass_chunks, -(-p.samples_per_pass // chunk))
-    pass_chunks = max(1, min(int(pass_chunks), n_chunks))
+class PassPlanner:
+    """How a render's samples are cut into passes of whole chunks (8 groups of K).
 
-    from tqdm import tqdm
+    Every pixel's samples form the same chunks whatever the passes; a pass traces a
+    range of chunk indices [first, end) of every pixel that has them."""
 
-    from .integrators.dtof_path import PassLayout, trace_pass
+    def __init__(self, spp: int, group_size: int, n_pixels: int, params: RenderParams,
+                 max_lanes: int, pass_chunks: int | None):
+        self.spp, self.group_size, self.n_pixels = spp, group_size, n_pixels
+        self.chunk = min(spp, GROUPS_PER_CHUNK * group_size)
+        self.n_chunks = -(-spp // self.chunk)
+        self.pilot_chunks = (allocation.pilot_samples(spp, self.chunk) // self.chunk
+                             if params.adaptive_sampling else 0)
+        if pass_chunks is None:
+            pass_chunks = max(1, max_lanes // (n_pixels * self.chunk))
+            if params.samples_per_pass > 0:  # the published pass size, in whole chunks
+                pass_chunks = min(pass_chunks, -(-params.samples_per_pass // self.chunk))
+        self.pass_chunks = max(1, min(int(pass_chunks), self.n_chunks))
 
-    channels_out = _spectrum_channels(mi)
-    # ---- Accumulators (float64, by source pixel) ----
-    # total: per pixel and film offset, each channel's sum of filter weight x value
-    # (importance film: one offset, weight 1), then, with film_normalization="weights",
-    # each offset's sum of weights
-    splat = setup.splat
-    offsets = 1 if splat is None else len(splat.offsets)
-    columns = offsets * channels_out
-    # (a box weighs every sample 1 in its own pixel: both normalizations are the count)
-    normalization = "expected" if offsets == 1 else p.film_normalization
-    if normalization == "weights":
-        columns += offsets
-    total = np.zeros((n_pixels, columns), dtype=np.float64)
-    # adaptive sampling: the pilot's sums of samples and of squared group sums
-    pilot_sums = np.zeros((n_pixels, channels_out)) if p.adaptive_sampling else None
-    squares = np.zeros_like(pilot_sums) if p.adaptive_sampling else None
-    counts = None
-    nonfinite = 0
-    next_chunk = 0
-    key = _render_key(scene, p.image_defining(), spp, seed, mi.variant(), chunk)
-    if checkpoint is not None:
-        saved = _load_checkpoint(checkpoint, key)
-        if saved is not None:
-            total, nonfinite, next_chunk, saved_pilot, saved_squares, saved_counts = saved
-            if p.adaptive_sampling:  # (the key holds the parameters: saved adaptively)
-                pilot_sums, squares = saved_pilot, saved_squares
-                counts = saved_counts if saved_counts.size else None
-    started = _time.perf_counter()
-    done = (min(spp, next_chunk * chunk) if counts is None
-            else float(np.minimum(counts, next_chunk * chunk).mean()))
-    bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
-               disable=not _show_progress(progress), leave=False, file=sys.stderr)
-    import drjit as dr
+    def uniform(self, next_chunk: int) -> list:
+        """Passes from ``next_chunk`` on, every pixel at spp. The last chunk may be
+        short: it gets a pass of its own, so that every pass sums chunks of one size."""
+        full_chunks = self.spp // self.chunk
+        plan = [(c0, min(full_chunks, c0 + self.pass_chunks))
+                for c0 in range(next_chunk, full_chunks, self.pass_chunks)]
+        if full_chunks < self.n_chunks and next_chunk <= full_chunks:
+            plan.append((full_chunks, self.n_chunks))
+        return plan
 
-    # the splat film's totals stay in Dr.Jit (float64, one array per column) between
-    # passes; the importance film's chunk sums are added on the host
-    weighted = splat is not None and offsets > 1
-    device_total = None  # column-major: column c of pixel p at c * n_pixels + p
-    if weighted:
-        device_total = (mi.Float64(total.T.ravel()) if next_chunk else
-                        dr.zeros(mi.Float64, columns * n_pixels))
+    def pilot(self, next_chunk: int) -> list:
+        """Passes over the adaptive pilot's chunks (every pixel has them)."""
+        return [(c0, min(self.pilot_chunks, c0 + self.pass_chunks))
+                for c0 in range(next_chunk, self.pilot_chunks, self.pass_chunks)]
 
-    def host_total():
-        if weighted:
-            return np.asarray(device_total).reshape(columns, n_pixels).T
-        return total
+    def adaptive(self, counts, next_chunk: int) -> list:
+        """Passes after the pilot, for per-pixel sample ``counts``."""
+        return _adaptive_plan(counts // self.chunk, max(next_chunk, self.pilot_chunks),
+                              self.pass_chunks * self.n_pixels)
 
-    def trace_chunks(first_chunk, end_chunk):
-        """Trace chunks [first_chunk, end_chunk) of every pixel that has them and add
-        them to the totals (and in the pilot, to ``pilot_sums`` and ``squares``)."""
-        nonlocal nonfinite, device_total
+    def lanes(self, mi, first_chunk: int, end_chunk: int, counts):
+        """The pass [first_chunk, end_chunk): its PassLayout, chunk size, and per pixel
+        with samples in it (pixel-major lanes) the pixel, its first lane and its lane
+        count, and each chunk's pixel."""
+        import drjit as dr
+
+        from .integrators.dtof_path import PassLayout
+
+        K, chunk, n_pixels = self.group_size, self.chunk, self.n_pixels
         s0 = first_chunk * chunk
         if counts is None:
-            s1 = min(spp, end_chunk * chunk)
-            samples = s1 - s0
+            samples = min(self.spp, end_chunk * chunk) - s0
             chunk_size = min(chunk, samples)
             layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), K)
-            block_pixel = np.repeat(np.arange(n_pixels), samples // chunk_size)
             pixels, per_pixel = np.arange(n_pixels), np.full(n_pixels, samples)
-            lanes = n_pixels * samples
+            block_pixel = np.repeat(pixels, samples // chunk_size)
         else:  # each pixel its own number of chunks: lanes from host arrays
             chunk_size = chunk
             per_pixel = np.clip(counts - s0, 0, (end_chunk - first_chunk) * chunk)
@@ -233,9 +202,63 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
             lane_sample = s0 + np.arange(lane_pixel.size) - first_lane
             layout = PassLayout.of_lanes(mi, lane_pixel, lane_sample, K)
             block_pixel = lane_pixel[::chunk]
-            lanes = lane_pixel.size
-        value, film_offset = trace_pass(mi, setup, layout)
-        dr.eval(value, film_offset if weighted else None)  # one path tracing kernel
+        return (layout, chunk_size, (pixels, np.cumsum(per_pixel) - per_pixel, per_pixel),
+                block_pixel)
+
+
+class Accumulator:
+    """A render's sums, by source pixel, deterministic whatever the passes.
+
+    ``total``: per pixel and film offset, each channel's sum of filter weight x value
+    (importance film: one offset, weight 1), then, with the sampled-weight
+    normalization, each offset's sum of weights. The splat film keeps it in Dr.Jit
+    between passes (integrators/film.py); the importance film's chunk sums are added
+    on the host in float64, in chunk order. In the adaptive pilot, each pixel's own
+    sums and sums of squared group sums (``pilot_sums``, ``squares``)."""
+
+    def __init__(self, mi, setup, n_pixels: int, channels: int, adaptive: bool):
+        self.mi, self.n_pixels, self.channels = mi, n_pixels, channels
+        self.splat = setup.splat
+        offsets = 1 if self.splat is None else len(self.splat.offsets)
+        self.columns = offsets * channels
+        # (a box weighs every sample 1 in its own pixel: both normalizations are the count)
+        self.normalization = ("expected" if offsets == 1
+                              else setup.params.film_normalization)
+        if self.normalization == "weights":
+            self.columns += offsets
+        #: whether samples are weighted into their neighbours (the splat film, wider than
+        #: a box): the sums then live on the device
+        self.weighted = self.splat is not None and offsets > 1
+        self.group_size = setup.group_size
+        self.adaptive = adaptive
+
+    def start(self):
+        """Zero sums (allocated here, after the budget check)."""
+        n, c = self.n_pixels, self.channels
+        self.restore(np.zeros((n, self.columns)), 0, np.zeros((n, c)) if self.adaptive else None,
+                     np.zeros((n, c)) if self.adaptive else None, fresh=True)
+
+    def restore(self, total, nonfinite, pilot_sums, squares, fresh=False):
+        import drjit as dr
+
+        self.total, self.nonfinite = total, nonfinite
+        self.pilot_sums, self.squares = pilot_sums, squares
+        self.device_total = None  # column-major: column c of pixel p at c * n_pixels + p
+        if self.weighted:
+            self.device_total = (dr.zeros(self.mi.Float64, self.columns * self.n_pixels)
+                                 if fresh else self.mi.Float64(total.T.ravel()))
+
+    def host_total(self):
+        if self.weighted:
+            return np.asarray(self.device_total).reshape(self.columns, self.n_pixels).T
+        return self.total
+
+    def add(self, value, film_offset, chunk_size: int, threads, block_pixel, pilot: bool):
+        """Add a pass's per-lane values (and film offsets) to the sums."""
+        import drjit as dr
+
+        mi, K, n_pixels = self.mi, self.group_size, self.n_pixels
+        dr.eval(value, film_offset if self.weighted else None)  # one path tracing kernel
         # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
         raw = [value[c] for c in range(_channels(value))]
         finite = dr.isfinite(raw[0])
@@ -247,91 +270,188 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         def chunk_sums(values):
             return [dr.block_sum(v, chunk_size, mode="evaluated") for v in values]
 
-        if weighted:  # the splat: per film offset, weight x value (and the weights)
-            device_total = splat.accumulate(
-                mi, device_total, raw, film_offset, pixels, np.cumsum(per_pixel) - per_pixel,
-                per_pixel, chunk_size, columns, normalization == "weights")
+        if self.weighted:  # the splat: per film offset, weight x value (and the weights)
+            self.device_total = self.splat.accumulate(
+                mi, self.device_total, raw, film_offset, *threads, chunk_size, self.columns,
+                self.normalization == "weights")
             sums = []
         else:
             sums = chunk_sums(channels)
-        pilot = squares is not None and first_chunk < pilot_chunks
         if pilot:  # the samples' sums, and the squared sums of the groups (K samples)
-            sums += chunk_sums(channels) if weighted else []
+            sums += chunk_sums(channels) if self.weighted else []
             sums += [dr.block_sum(dr.square(dr.block_sum(v, K, mode="evaluated")),
                                   chunk_size // K, mode="evaluated") for v in channels]
         dr.eval(dropped, sums)
-        nonfinite += int(dropped[0])
+        self.nonfinite += int(dropped[0])
         parts = np.empty((block_pixel.size, len(sums)))
         for i, v in enumerate(sums):
             parts[:, i] = np.asarray(v)
         # chunk order per pixel, whatever the passes: the image ignores pass sizes
         # (the importance film's sums are both its total and, in the pilot, the pixel's
         # own sums; the squared group sums come last)
+        c = self.channels
         for pixels_j, rows in (_chunk_columns(block_pixel, n_pixels) if sums else ()):
-            if not weighted:
-                total[pixels_j] += parts[rows, :columns]
+            if not self.weighted:
+                self.total[pixels_j] += parts[rows, :self.columns]
             if pilot:
-                pilot_sums[pixels_j] += parts[rows, :channels_out]
-                squares[pixels_j] += parts[rows, -channels_out:]
-        bar.update(lanes / n_pixels)
-        if checkpoint is not None:
-            _save_checkpoint(checkpoint, key, host_total(), nonfinite, end_chunk, pilot_sums,
-                             squares, counts)
+                self.pilot_sums[pixels_j] += parts[rows, :c]
+                self.squares[pixels_j] += parts[rows, -c:]
 
+    def image(self, per_pixel, shape) -> np.ndarray:
+        """float32 (H, W, C): the sums divided by ``per_pixel`` samples (and, splat
+        film, the filter's weights)."""
+        total = self.host_total()
+        if self.splat is None:
+            return (total / per_pixel[:, None]).astype(np.float32).reshape(*shape, -1)
+        return _develop_splat(self.splat, total, per_pixel, self.channels, shape,
+                              self.normalization).astype(np.float32)
+
+
+class Checkpoint:
+    """A render's accumulated state on disk, saved atomically after every pass.
+
+    Resumed only by the same render (``key``: scene, image-defining parameters, spp,
+    seed, variant, chunk size); anything else is a :class:`CheckpointError`."""
+
+    def __init__(self, path, key: str):
+        self.path, self.key = path, key
+
+    def load(self, accumulator: Accumulator):
+        """Restore ``accumulator`` from the file; returns (next chunk, counts or None),
+        or None when there is no file."""
+        saved = _load_checkpoint(self.path, self.key)
+        if saved is None:
+            return None
+        total, nonfinite, next_chunk, pilot_sums, squares, counts = saved
+        if not accumulator.adaptive:  # (the key holds the parameters)
+            pilot_sums = squares = None
+        accumulator.restore(total, nonfinite, pilot_sums, squares)
+        return next_chunk, (counts if counts.size else None)
+
+    def save(self, accumulator: Accumulator, next_chunk: int, counts) -> None:
+        _save_checkpoint(self.path, self.key, accumulator.host_total(),
+                         accumulator.nonfinite, next_chunk, accumulator.pilot_sums,
+                         accumulator.squares, counts)
+
+
+def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
+                  progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
+                  pass_chunks: int | None = None, checkpoint=None) -> RenderResult:
+    """Render ``scene`` (a DopplerScene); see :func:`render`.
+
+    ``checkpoint`` (a path) saves the accumulated chunks after every pass and resumes
+    from them: the final image is bitwise the one of an uninterrupted render. It is
+    refused for a different render (scene, parameters, spp, seed, variant). A complete
+    checkpoint returns the image at once; delete the file when the output is safe.
+    """
+    mi, p, spp = _resolve(scene, spp, seed, params)
+    width, height = (int(v) for v in scene.sensor.film().crop_size())
+    n_pixels = width * height
+    setup = _make_setup(mi, scene, p, spp, int(seed))
+    plan = PassPlanner(spp, setup.group_size, n_pixels, p, max_lanes, pass_chunks)
+    chunk = plan.chunk
+    channels = _spectrum_channels(mi)
+    sums = Accumulator(mi, setup, n_pixels, channels, p.adaptive_sampling)
+
+    _check_budget(width, height, channels, spp, plan, p, sums, progress)
+    sums.start()
+
+    # ---- Resume ----
+    counts, next_chunk = None, 0
+    saved = None
+    if checkpoint is not None:
+        saved_at = Checkpoint(checkpoint, _render_key(scene, p.image_defining(), spp, seed,
+                                                      mi.variant(), chunk))
+        restored = saved_at.load(sums)
+        if restored is not None:
+            next_chunk, counts = restored
+            counts = counts if p.adaptive_sampling else None
+        saved = saved_at
+    started = _time.perf_counter()
+
+    from tqdm import tqdm
+
+    from .integrators.dtof_path import trace_pass
+
+    done = (min(spp, next_chunk * chunk) if counts is None
+            else float(np.minimum(counts, next_chunk * chunk).mean()))
+    bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
+               disable=not _show_progress(progress), leave=False, file=sys.stderr)
     reached = next_chunk  # chunks of every pixel traced so far (where it has them)
 
-    def trace_pass_then_check_time(first_chunk, end_chunk):
-        """A pass, then the timeout: it stops the render after the pass it expires in."""
+    def run(passes):
+        """Trace the passes; the timeout stops the render after the pass it expires in."""
         nonlocal reached
-        trace_chunks(first_chunk, end_chunk)
-        reached = end_chunk
-        if p.timeout >= 0 and _time.perf_counter() - started > p.timeout:
-            raise _TimedOut
+        for first_chunk, end_chunk in passes:
+            layout, chunk_size, threads, block_pixel = plan.lanes(mi, first_chunk, end_chunk,
+                                                                  counts)
+            value, film_offset = trace_pass(mi, setup, layout)
+            sums.add(value, film_offset, chunk_size, threads, block_pixel,
+                     pilot=sums.squares is not None and first_chunk < plan.pilot_chunks)
+            bar.update(threads[2].sum() / n_pixels)
+            if saved is not None:
+                saved.save(sums, end_chunk, counts)
+            reached = end_chunk
+            if p.timeout >= 0 and _time.perf_counter() - started > p.timeout:
+                raise _TimedOut
 
     try:
         if not p.adaptive_sampling:
-            # The last chunk may be short: it gets a pass of its own, so that every
-            # pass sums chunks of one size.
-            full_chunks = spp // chunk
-            plan = [(c0, min(full_chunks, c0 + pass_chunks)) for c0 in
-                    range(next_chunk, full_chunks, pass_chunks)]
-            if full_chunks < n_chunks and next_chunk <= full_chunks:
-                plan.append((full_chunks, n_chunks))
-            for first_chunk, end_chunk in plan:
-                trace_pass_then_check_time(first_chunk, end_chunk)
+            run(plan.uniform(next_chunk))
         else:
             # ---- Pilot: the first chunks of every pixel ----
-            for c0 in range(next_chunk, pilot_chunks, pass_chunks):
-                trace_pass_then_check_time(c0, min(pilot_chunks, c0 + pass_chunks))
+            run(plan.pilot(next_chunk))
             # ---- Counts from the neighbours' pilot variance, then the rest ----
             if counts is None:
-                counts = _adaptive_counts(pilot_sums, squares, pilot_chunks * chunk, K, spp,
+                counts = _adaptive_counts(sums.pilot_sums, sums.squares,
+                                          plan.pilot_chunks * chunk, setup.group_size, spp,
                                           chunk, (height, width))
-            for first_chunk, end_chunk in _adaptive_plan(
-                    counts // chunk, max(next_chunk, pilot_chunks), pass_chunks * n_pixels):
-                trace_pass_then_check_time(first_chunk, end_chunk)
+            run(plan.adaptive(counts, next_chunk))
     except _TimedOut:
         pass
     finally:
         bar.close()
 
-    total = host_total()
-    # normalized by the samples taken: all of them, unless the timeout stopped the render
-    wanted = np.full(n_pixels, spp) if counts is None else counts
-    per_pixel = np.minimum(wanted, reached * chunk).astype(np.float64)
+    per_pixel, timed_out = _samples_taken(np.full(n_pixels, spp) if counts is None else counts,
+                                          spp, reached * chunk, p.timeout,
+                                          checkpoint is not None)
+    image = sums.image(per_pixel, (height, width))
+    metadata = _metadata(mi, setup, p, spp, seed, per_pixel, timed_out, sums.nonfinite,
+                         started)
+    if counts is None:
+        return RenderResult(image, metadata)
+    metadata["sample_counts"] = {"pilot": plan.pilot_chunks * chunk, "min": int(counts.min()),
+                                 "max": int(counts.max()), "mean": float(counts.mean())}
+    return RenderResult(image, metadata, counts.reshape(height, width))
+
+
+def _check_budget(width, height, channels, spp, plan, p, sums, progress) -> None:
+    """Refuse what cannot fit before allocating anything; announce long renders."""
+    from . import budget
+
+    cost = budget.check(budget.estimate(
+        width, height, channels, spp, plan.chunk, plan.pass_chunks, p.adaptive_sampling,
+        sums.columns, device_columns=sums.columns if sums.weighted else 0))
+    if progress is not False and cost.seconds > budget.LONG_RENDER_SECONDS:
+        print(f"dopplertof: rendering {cost.describe()}", file=sys.stderr, flush=True)
+
+
+def _samples_taken(wanted, spp: int, reached: int, timeout: float, resumable: bool):
+    """Samples per pixel to normalize by (float64): ``wanted``, unless the timeout
+    stopped the render after ``reached`` samples of every pixel; and whether it did."""
+    per_pixel = np.minimum(wanted, reached).astype(np.float64)
     timed_out = bool(np.any(per_pixel < wanted))
     if timed_out:
-        print(f"dopplertof: timeout of {p.timeout:g} s expired: stopped after "
-              f"{per_pixel.mean():g} of {spp} samples per pixel; the image is normalized by "
-              "the samples taken" + ("; the checkpoint resumes the render"
-                                     if checkpoint is not None else ""), file=sys.stderr)
-    if splat is None:
-        image = (total / per_pixel[:, None]).astype(np.float32).reshape(height, width, -1)
-    else:
-        image = _develop_splat(splat, total, per_pixel, channels_out, (height, width),
-                               normalization).astype(np.float32)
+        print(f"dopplertof: timeout of {timeout:g} s expired: stopped after "
+              f"{per_pixel.mean():g} of {spp} samples per pixel; the image is "
+              "normalized by the samples taken" + ("; the checkpoint resumes the render"
+                                                   if resumable else ""), file=sys.stderr)
+    return per_pixel, timed_out
+
+
+def _metadata(mi, setup, p, spp, seed, per_pixel, timed_out, nonfinite, started) -> dict:
     mod = setup.modulation
-    metadata = {
+    return {
         "measurement": "time-averaged correlation (1/T) * integral over the exposure; "
                        "multiply by exposure_s for the integrated value",
         "exposure_s": mod.exposure,
@@ -347,13 +467,6 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         "render_seconds": _time.perf_counter() - started,
         "params": {k: getattr(p, k) for k in RenderParams.names()},
     }
-    sample_counts = None
-    if counts is not None:
-        sample_counts = counts.reshape(height, width)
-        metadata["sample_counts"] = {"pilot": pilot_chunks * chunk, "min": int(counts.min()),
-                                     "max": int(counts.max()),
-                                     "mean": float(counts.mean())}
-    return RenderResult(image, metadata, sample_counts)
 
 
 def _chunk_columns(block_pixel, n_pixels: int):

@@ -1,4 +1,4 @@
-"""Time sampling and correlated random streams (DESIGN section 2).
+"""Time sampling and correlated random streams (design.md section 2).
 
 A pixel's samples come in groups of K that share a time stream, and in *path groups*
 of Kp consecutive samples (``path_correlate_number``, default K) that share a path
@@ -16,17 +16,41 @@ All functions work on Dr.Jit arrays of the current Mitsuba variant.
 
 from __future__ import annotations
 
-METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+import enum
+
+
+class TimeSampling(str, enum.Enum):
+    """The ``time_sampling_method`` names: the vocabulary of renderer, analysis,
+    experiments and benchmarks (a ``str``: members compare equal to their names)."""
+
+    UNIFORM = "uniform"  #: t = T u per sample
+    STRATIFIED = "stratified"  #: t_i = T (i + u_i) / K
+    ANTITHETIC = "antithetic"  #: shifted: t_i = T frac(u + i a) (a = 1/K for K > 2)
+    ANTITHETIC_MIRROR = "antithetic_mirror"  #: t_1 = T frac(1 - u + a)
+    ANALYTIC = "analytic"  #: integrated over the exposure (integrators/analytic.py; biased)
+    AUTO = "auto"  #: chosen from the beat count (:func:`auto_sampling`)
+
+    @property
+    def index(self) -> int:
+        """The kernel's number for a sampled method (its position in METHODS)."""
+        return METHODS.index(self.value)
+
+
+#: the sampled methods, in the kernel's order (``time_fraction``'s ``method``)
+METHODS = tuple(m.value for m in (TimeSampling.UNIFORM, TimeSampling.STRATIFIED,
+                                  TimeSampling.ANTITHETIC, TimeSampling.ANTITHETIC_MIRROR))
+
+#: time integrated over the exposure, not sampled (integrators/analytic.py; biased)
+ANALYTIC = TimeSampling.ANALYTIC.value
+
+#: accepted time_sampling_method names: the methods, ``analytic`` and ``auto``
+METHOD_NAMES = tuple(m.value for m in TimeSampling)
+
+#: path_correlation_depth meaning "the whole path" (more stages than any path has)
+FULL_CORRELATION = 1 << 16
 
 #: how an antithetic pair's partner is built (integrators/antithetic_map.py)
 ANTITHETIC_MAPPINGS = ("replay", "motion")
-
-#: time integrated over the exposure, not sampled (integrators/analytic.py; biased)
-ANALYTIC = "analytic"
-
-#: accepted time_sampling_method names: the methods, ``analytic`` and ``auto`` (see
-#: :func:`auto_sampling`)
-METHOD_NAMES = METHODS + (ANALYTIC, "auto")
 
 # ---- Dimension layout -------------------------------------------------------
 DIM_TIME = 0  #: the time sample
@@ -95,7 +119,7 @@ def auto_sampling(hetero_frequency: float) -> dict:
     n = round(h)
     if n >= 1 and abs(h - n) <= 0.3:
         return dict(time_sampling_method="antithetic", antithetic_shift=0.5 / n,
-                    path_correlation_depth=1 << 16,
+                    path_correlation_depth=FULL_CORRELATION,
                     use_stratified_sampling_for_each_interval=True,
                     antithetic_mapping="replay")
     return dict(time_sampling_method="stratified", path_correlation_depth=0,
@@ -281,7 +305,7 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
     K = group_size
 
     # ---- Primal numbers: one per group (antithetic) or per sample (others) ----
-    is_antithetic = method >= 2
+    is_antithetic = method >= TimeSampling.ANTITHETIC.index  # (and mirrored)
     if stratify and groups_per_pixel > 1:
         # Full time stratification across the groups of a pixel: the pixel's Sobol
         # sequence, per group for antithetic pairs (the group's film index when the
@@ -304,9 +328,9 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
     t_mirror = dr.select(index == 0, u, 1.0 - u + Float(antithetic_shift))
     t_mirror -= dr.floor(t_mirror)
 
-    t = dr.select(method == 0, t_uniform, t_stratified)
-    t = dr.select(method == 2, t_shifted, t)
-    t = dr.select(method == 3, t_mirror, t)
+    t = dr.select(method == TimeSampling.UNIFORM.index, t_uniform, t_stratified)
+    t = dr.select(method == TimeSampling.ANTITHETIC.index, t_shifted, t)
+    t = dr.select(method == TimeSampling.ANTITHETIC_MIRROR.index, t_mirror, t)
     return t
 
 
@@ -332,7 +356,9 @@ def check_sample_count(group_size: int, spp: int, path_group_size: int | None = 
 
 
 __all__ = [
+    "FULL_CORRELATION",
     "METHODS",
+    "TimeSampling",
     "CorrelatedStreams",
     "time_fraction",
     "method_index",

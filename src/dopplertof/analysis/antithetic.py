@@ -26,13 +26,14 @@ import math
 
 import numpy as np
 
+from ..sampling import METHODS
 from .quadrature import DEFAULT_ORDER, panel_rule
 from .signals import Sinusoid, TruncatedAttenuatedSinusoid
 
 TWO_PI = 2.0 * math.pi
 
-#: the renderer's time-sampling methods (DESIGN section 2) and their default shifts
-METHODS = ("uniform", "stratified", "antithetic", "antithetic_mirror")
+#: the renderer's time-sampling methods (``sampling.METHODS``, design.md section 2)
+#: and their default shifts
 DEFAULT_SHIFTS = {"uniform": 0.0, "stratified": 0.0, "antithetic": 0.5, "antithetic_mirror": 0.0}
 
 

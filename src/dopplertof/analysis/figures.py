@@ -14,14 +14,13 @@ import csv
 import io
 import json
 import math
-import os
 import pathlib
-import uuid
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import modulation
+from ..io import atomic_path, make_output_folder
 from . import antithetic, doppler, mis, waveforms
 from .signals import PeriodicWaveform, Sinusoid, TruncatedAttenuatedSinusoid
 
@@ -108,19 +107,10 @@ def _new_figure(settings, width, height):
 
 
 def _write_atomically(path: pathlib.Path, write):
-    """Call ``write(temporary_path)``, then move the result onto ``path`` in one step.
-
-    The temporary name is unique (pid and random token) but created by ``write`` itself,
-    so the file gets the usual permissions from the umask (mkstemp would give 0600).
-    """
-    temporary = str(path.parent / f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
-    try:
+    """Call ``write(temporary_path)``, then move the result onto ``path`` in one step
+    (the package's one atomic writer, :func:`dopplertof.io.atomic_path`)."""
+    with atomic_path(path) as temporary:
         write(temporary)
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise
     return path
 
 
@@ -612,8 +602,7 @@ def write_figures(outdir, quick: bool = False) -> list:
 
     Returns the paths written, figures first.  ``quick=True``: small grids, a few seconds.
     """
-    outdir = pathlib.Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = pathlib.Path(make_output_folder(outdir))
     settings = Settings.for_mode(quick)
     rows = antithetic.closed_form_table(closed_form_omegas(settings))
     study, slopes = convergence_rates(settings)

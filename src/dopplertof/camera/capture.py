@@ -51,8 +51,30 @@ CALIBRATION_NOTES = {
             "ignored (its first-order term cancels for sinusoids)",
     "inverse-square": "single-path model with brightness (d_mid / d(t))^2 (colocated point "
                       "light) solved per pixel with the reconstructed phase and depth; "
-                      "needs the true distance: unwrap depth beyond the wrap distance",
+                      "needs the true distance: unwrap depth beyond the wrap distance; a "
+                      "turning surface also changes brightness through its cosine, which it "
+                      "does not model (docs/camera.md, Brightness changes)",
 }
+
+#: the note when the inverse-square calibration meets a rotating body (numbers: docs/camera.md)
+ROTATION_NOTE = ("the inverse-square calibration does not model the brightness change of a "
+                 "turning surface (its cosine term): expect a velocity bias of several "
+                 "percent on {names} with this waveform (rectangular, examples/"
+                 "rotating_cube.xml: -12% median); the sinusoidal waveform has none (+0.3%)")
+
+
+def rotating_bodies(scene, base: RenderParams) -> list:
+    """Names of the bodies whose orientation changes during the exposure."""
+    from .ground_truth import mid_exposure
+
+    start, _, end = mid_exposure(scene, base)
+    names = []
+    for body in scene.bodies:
+        a = body.motion.relative_matrix(start)[:3, :3]
+        b = body.motion.relative_matrix(end)[:3, :3]
+        if not np.allclose(a, b, rtol=0, atol=1e-9):
+            names.append(", ".join(body.names))
+    return names
 
 
 class CaptureError(ValueError):
@@ -403,19 +425,48 @@ def _errors(recon: Reconstruction, truth: GroundTruth, depth_modulo):
     }
 
 
+#: name of the summary entry for the static surfaces (the pixels of no moving body)
+STATIC_SURFACES = "static surfaces"
+
+#: the note on static surfaces whose velocity error comes from multipath
+MULTIPATH_NOTE = ("the static surfaces' velocity error is multipath, not noise: light "
+                  "reflected off moving bodies reaches them along paths whose length changes; "
+                  "max_depth=2 (direct light only) removes it")
+
+#: what the truth means when the light is not at the camera
+LIGHT_OFF_CAMERA_NOTE = ("the camera measures half the rate of change (and half the length) "
+                         "of the whole path camera -> surface -> light; the truth is the "
+                         "distance from the camera along the pixel's ray and its rate of "
+                         "change, equal to it only for a light at the camera")
+
+
+def _region(name, on, recon: Reconstruction, truth: GroundTruth) -> dict:
+    """Per-pixel velocity error statistics over the pixels ``on`` (the same pixels for
+    truth and measurement), with the spread of the truth there."""
+    measured = recon.velocity[on & np.isfinite(recon.velocity)]
+    true = truth.velocity[on & np.isfinite(truth.velocity)]
+    return {
+        "name": name, "pixels": int(on.sum()),
+        "velocity_error_m_s": error_stats(recon.velocity[on], truth.velocity[on]),
+        "velocity_gt_median_m_s": float(np.median(true)) if true.size else None,
+        "velocity_gt_p5_m_s": float(np.percentile(true, 5)) if true.size else None,
+        "velocity_gt_p95_m_s": float(np.percentile(true, 95)) if true.size else None,
+        "velocity_median_m_s": float(np.median(measured)) if measured.size else None,
+        "velocity_abs_error_median_m_s": error_stats(
+            recon.velocity[on], truth.velocity[on])["median_abs"],
+    }
+
+
 def _bodies(scene, recon: Reconstruction, truth: GroundTruth):
-    out = []
-    for k, body in enumerate(scene.bodies):
-        on = truth.body == k
-        measured = recon.velocity[on & np.isfinite(recon.velocity)]
-        out.append({
-            "name": ", ".join(body.names), "pixels": int(on.sum()),
-            "velocity_gt_median_m_s": float(np.median(truth.velocity[on])) if on.any() else None,
-            "velocity_median_m_s": float(np.median(measured)) if measured.size else None,
-            "velocity_abs_error_median_m_s": error_stats(
-                recon.velocity[on], truth.velocity[on])["median_abs"],
-        })
-    return out
+    """One entry per moving body."""
+    return [_region(", ".join(body.names), truth.body == k, recon, truth)
+            for k, body in enumerate(scene.bodies)]
+
+
+def _static_surfaces(recon: Reconstruction, truth: GroundTruth):
+    """The same entry for the pixels that see a static surface (None when none does)."""
+    static = truth.body == -1
+    return _region(STATIC_SURFACES, static, recon, truth) if static.any() else None
 
 
 def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon, noise_free,
@@ -461,6 +512,7 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
                       "hetero_frequency; v = c Delta_omega / (2 omega_g)",
             "calibration": calibration,
             "calibration_note": CALIBRATION_NOTES[calibration],
+            "rotating_bodies": rotating_bodies(scene, base),
             "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
             "nan_when": {text.split(" (")[0].split(":")[0]: text
                          for text in rec.INVALID_REASONS.values()},
@@ -488,6 +540,7 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         "noise": noise_info,
         "errors": _errors(recon, truth, depth_modulo),
         "bodies": _bodies(scene, recon, truth),
+        "static_surfaces": _static_surfaces(recon, truth),
         "speed_of_light_m_s": SPEED_OF_LIGHT,
         "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),
                     "total": round(seconds, 3)},
@@ -496,6 +549,52 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
         summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
     return summary
+
+
+#: speeds below this print as 0 in the summary lines (m/s)
+SPEED_RESOLUTION = 1e-3
+#: the static surfaces' 95th-percentile velocity error above which the multipath note is
+#: printed (m/s): salt-and-pepper, not Monte Carlo noise at the usual spp
+MULTIPATH_P95_M_S = 0.5
+
+
+def _speed(v: float) -> str:
+    return "0" if abs(v) < SPEED_RESOLUTION else f"{v:+.3g}"
+
+
+def body_lines(summary: dict) -> list:
+    """Per body (and the static surfaces): the per-pixel velocity error over the pixels
+    where both truth and measurement exist, and the spread of the truth; the meaning of
+    the truth when the light is not at the camera; the multipath note."""
+    lines = []
+    bodies = summary["bodies"]
+    static = summary.get("static_surfaces")
+    for body in bodies + ([static] if static else []):
+        err = body.get("velocity_error_m_s") or {}
+        if not body["pixels"] or not err.get("pixels"):
+            continue
+        lo, hi = body["velocity_gt_p5_m_s"], body["velocity_gt_p95_m_s"]
+        truth = (f"truth {_speed(lo)} m/s"
+                 if abs(hi - lo) < max(0.005 * max(abs(lo), abs(hi)), SPEED_RESOLUTION)
+                 else f"truth {_speed(lo)} to {_speed(hi)} m/s (5th-95th percentile)")
+        lines.append(f"  {body['name']}: velocity error median {err['median_abs']:.3g} m/s, "
+                     f"95th percentile {err['p95_abs']:.3g} m/s, mean {err['mean_signed']:+.3g}"
+                     f" m/s over {err['pixels']} of {body['pixels']} pixels; {truth}")
+    max_depth = summary.get("render_params", {}).get("max_depth", -1)
+    if (static and bodies and (max_depth == -1 or max_depth > 2)
+            and (static.get("velocity_error_m_s") or {}).get("p95_abs")
+            and static["velocity_error_m_s"]["p95_abs"] > MULTIPATH_P95_M_S):
+        lines.append(f"  note: {MULTIPATH_NOTE} (-P max_depth=2)")
+    rotating = summary.get("velocity", {}).get("rotating_bodies")
+    if rotating and summary["velocity"].get("calibration") == "inverse-square":
+        lines.append("  note: " + ROTATION_NOTE.format(names=", ".join(rotating)))
+    light = summary.get("light") or {}
+    if light and not light.get("colocated", True):
+        offsets = [e["offset_from_camera_m"] for e in light.get("lights", [])
+                   if "offset_from_camera_m" in e]
+        where = (f" ({max(offsets):.3g} m from it)" if offsets else "")
+        lines.append(f"  note: the light is not at the camera{where}: {LIGHT_OFF_CAMERA_NOTE}")
+    return lines
 
 
 def format_summary(summary: dict, folder: str | None = None) -> str:
@@ -541,9 +640,5 @@ def format_summary(summary: dict, folder: str | None = None) -> str:
     nan = summary["velocity"]["nan_pixels"]
     if nan:
         lines.append("  velocity NaN: " + ", ".join(f"{n} px {why}" for why, n in nan.items()))
-    for body in summary["bodies"]:
-        if body["pixels"] and body["velocity_median_m_s"] is not None:
-            lines.append(f"  {body['name']}: truth {body['velocity_gt_median_m_s']:+.2f} m/s, "
-                         f"measured {body['velocity_median_m_s']:+.2f} m/s (median over "
-                         f"{body['pixels']} pixels)")
+    lines += body_lines(summary)
     return "\n".join(lines)

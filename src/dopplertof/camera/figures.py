@@ -1,16 +1,20 @@
 """PNG previews of capture products: one map per array, and the side-by-side figure.
 
 Every file is written atomically (:func:`dopplertof.io.atomic_path`). NaN pixels
-(nothing seen, or a signal too weak to reconstruct) are drawn in grey.
+(nothing seen, or a signal too weak to reconstruct) are hatched on a magenta outside every
+colour map (:data:`dopplertof.io.NO_SIGNAL_COLOUR`). Radiance is shown with one display
+gamma everywhere (:data:`RADIANCE_GAMMA`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..io import save_figure
+from ..io import NO_SIGNAL_NOTE, no_signal_colours, save_figure, show_no_signal
 
-NAN_COLOUR = "#b0b0b0"
+#: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
+RADIANCE_GAMMA = 2.2
+RADIANCE_GAMMA_LABEL = f"gamma {RADIANCE_GAMMA:g}"
 
 
 def _pyplot():
@@ -49,14 +53,14 @@ def radiance_scalar(radiance: np.ndarray) -> np.ndarray:
 
 
 def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
-    import matplotlib
-
-    colours = matplotlib.colormaps[cmap].with_extremes(bad=NAN_COLOUR)
+    colours = no_signal_colours(cmap)
     masked = np.ma.masked_invalid(np.asarray(data, np.float64))
+    show_no_signal(ax, masked.shape)
     if norm is not None:
-        im = ax.imshow(masked, cmap=colours, norm=norm, interpolation="nearest")
+        im = ax.imshow(masked, cmap=colours, norm=norm, interpolation="nearest", zorder=1)
     else:
-        im = ax.imshow(masked, cmap=colours, vmin=vmin, vmax=vmax, interpolation="nearest")
+        im = ax.imshow(masked, cmap=colours, vmin=vmin, vmax=vmax, interpolation="nearest",
+                       zorder=1)
     ax.set_title(title, fontsize=10)
     ax.set_axis_off()
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
@@ -65,12 +69,23 @@ def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
     return im
 
 
-def _radiance_norm(data):
+def radiance_top(*images) -> float:
+    """The radiance shown white: the 99.5th percentile over ``images`` (1 if none)."""
+    values = np.concatenate([np.asarray(a, np.float64).ravel() for a in images])
+    values = values[np.isfinite(values)]
+    top = float(np.percentile(values, 99.5)) if values.size else 1.0
+    return top if top > 0 else 1.0
+
+
+def radiance_norm(top: float):
+    """The radiance colour scale: 0 to ``top`` with the display gamma."""
     import matplotlib.colors as colors
 
-    finite = data[np.isfinite(data)]
-    top = float(np.percentile(finite, 99.5)) if finite.size else 1.0
-    return colors.PowerNorm(gamma=0.5, vmin=0.0, vmax=top if top > 0 else 1.0)
+    return colors.PowerNorm(gamma=1.0 / RADIANCE_GAMMA, vmin=0.0, vmax=top)
+
+
+def _radiance_norm(data):
+    return radiance_norm(radiance_top(data))
 
 
 def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=None,
@@ -98,7 +113,8 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
 def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
                   note: str | None = None, metadata: dict | None = None) -> None:
     """A positive map (standard deviations) on a log colour scale from its 0.5th to
-    99.5th percentile over the finite positive values; NaN, zero and inf are grey."""
+    99.5th percentile over the finite positive values; +inf shows as the top colour,
+    NaN and zero as no signal."""
     import matplotlib.colors as colors
 
     plt = _pyplot()
@@ -108,6 +124,7 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     lo = float(np.percentile(finite, 0.5)) if finite.size else 1e-3
     hi = float(np.percentile(finite, 99.5)) if finite.size else 1.0
     hi = hi if hi > lo else lo * 10
+    shown = np.where(np.isposinf(data), hi, shown)
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
     _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
@@ -122,7 +139,8 @@ def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> 
     data = radiance_scalar(radiance)
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.8), dpi=120)
-    _draw(ax, fig, data, title, "radiance (scene units, mean of RGB; gamma 0.5)", "gray",
+    _draw(ax, fig, data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
+          "gray",
           norm=_radiance_norm(data))
     fig.tight_layout()
     save_figure(fig, path, metadata)
@@ -140,7 +158,8 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
     fig, axes = plt.subplots(1, 4, figsize=(20, 3.9 * h / w + 1.0), dpi=110)
     limit = truth_limit(truth, velocity)
     err_limit = symmetric_limit(error)
-    _draw(axes[0], fig, rad, "radiance", "scene units, mean of RGB (gamma 0.5)", "gray",
+    _draw(axes[0], fig, rad, "radiance", f"scene units, mean of RGB ({RADIANCE_GAMMA_LABEL})",
+          "gray",
           norm=_radiance_norm(rad))
     _draw(axes[1], fig, velocity, "reconstructed radial velocity", "m/s (+ receding)",
           "RdBu_r", -limit, limit)
@@ -148,6 +167,6 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
           -limit, limit)
     _draw(axes[3], fig, error, "error (reconstructed - truth)", "m/s", "PuOr_r",
           -err_limit, err_limit)
-    fig.suptitle(title + "   (grey: NaN, no reliable signal)", fontsize=11)
+    fig.suptitle(f"{title}   ({NO_SIGNAL_NOTE})", fontsize=11)
     fig.tight_layout()
     save_figure(fig, path, metadata)

@@ -13,24 +13,15 @@ from .. import io
 from . import figures
 
 
-class OutputFolderError(ValueError):
-    """An output folder that cannot be used."""
+#: an output folder that cannot be used
+OutputFolderError = io.OutputError
 
 
 def prepare_folder(folder, create: bool = False) -> str:
     """Check (before any work) that ``folder`` can receive the outputs: an existing
-    writable folder, or a new one whose parent exists (created when ``create``)."""
-    folder = os.fspath(folder)
-    if os.path.exists(folder) and not os.path.isdir(folder):
-        raise OutputFolderError(f"output path exists and is not a folder: {folder}")
-    target = folder if os.path.isdir(folder) else os.path.dirname(os.path.abspath(folder))
-    if not os.path.isdir(target):
-        raise OutputFolderError(f"parent of the output folder does not exist: {target}")
-    if not os.access(target, os.W_OK):
-        raise OutputFolderError(f"output folder is not writable: {target}")
-    if create:
-        os.makedirs(folder, exist_ok=True)
-    return folder
+    writable folder or one that can be created with its parents (created when
+    ``create``); see :func:`dopplertof.io.check_output_folder`."""
+    return io.make_output_folder(folder) if create else io.check_output_folder(folder)
 
 
 def write_result(result, folder) -> list:
@@ -50,8 +41,8 @@ def write_result(result, folder) -> list:
             continue
         image = result.captures[name]
         io.write_npy(path(f"{name}.npy"), image)
-        title = (f"{record['kind']} capture, offset {record['hetero_offset']:g}, "
-                 f"h={record['hetero_frequency']:g}, {record['w_g_MHz']:g} MHz{noisy}")
+        title = io.measurement_title(record["kind"], record["hetero_frequency"],
+                                     record["hetero_offset"], record["w_g_MHz"], noisy)
         io.write_png(path(f"{name}.png"), image, title=title,
                      label="time-averaged correlation (scene units)", metadata=record)
 
@@ -70,11 +61,11 @@ def write_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
                           cmap="RdBu_r", vmax=v_limit, symmetric=True,
-                          note="grey: NaN (nothing hit or signal too weak)")
+                          note=io.NO_SIGNAL_NOTE)
     error = recon.velocity - truth.velocity
     figures.write_map(path("velocity_error.png"), error, "velocity error (reconstructed - truth)",
                       "m/s", cmap="PuOr_r", symmetric=True,
-                      note="grey: NaN (nothing hit or signal too weak)")
+                      note=io.NO_SIGNAL_NOTE)
 
     depth_info = summary["depth"]
     wrap_note = (f"wraps every {depth_info['wrap_distance_m']:.3f} m"
@@ -91,7 +82,7 @@ def write_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
-                          vmin=d_lo, vmax=d_hi, note=f"{note}; grey: NaN")
+                          vmin=d_lo, vmax=d_hi, note=f"{note}; {io.NO_SIGNAL_NOTE}")
 
     figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
                              truth.velocity, f"{os.path.basename(summary['scene'])}: "
@@ -120,6 +111,7 @@ def write_uncertainty(uncertainty, path) -> None:
         io.write_npy(path(f"{name}.npy"), data)
         if np.any(np.isfinite(data) & (data > 0)):
             figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
-                                  note="grey: no value, zero, or first order fails (inf)")
+                                  note=f"{io.NO_SIGNAL_NOTE}; top colour: also first order "
+                                  "fails (inf)")
     for name, data in (uncertainty.capture_std_mc or {}).items():
         io.write_npy(path(f"{name}_std_mc.npy"), data)

@@ -2,7 +2,7 @@
 
 Pure NumPy: every function takes scalar sensor images (H, W) and the modulation, and
 knows nothing of the renderer. Conventions are those of :mod:`dopplertof.modulation`
-(DESIGN sections 1 and 4); ``docs/camera.md`` derives every formula below.
+(design.md sections 1 and 4); ``docs/camera.md`` derives every formula below.
 
 A capture at sensor offset o (psi = 2 pi o) of a single path whose length grows
 linearly, L(t) = L0 + L' t, measures the low-pass value
@@ -100,11 +100,16 @@ class CaptureModel:
         if not (self.exposure > 0 and math.isfinite(self.exposure)):
             raise ReconstructionError(f"exposure must be > 0 s, got {self.exposure}")
         h = self.hetero_frequency
-        if not math.isfinite(h) or h == 0 or abs(h - round(h)) > 1e-9:
+        needs = ("velocity needs heterodyne captures with a non-zero integer hetero_frequency "
+                 f"(beat periods per exposure, e.g. 1 or 2), got {h:g}")
+        if h == 0:
             raise ReconstructionError(
-                "velocity needs heterodyne captures with a non-zero integer hetero_frequency "
-                f"(beat periods per exposure), got {h:g}: with a fraction of a period "
-                "the heterodyne/homodyne ratio depends on depth")
+                f"{needs}: 0 is homodyne (sensor and light at one frequency), which carries "
+                "no velocity; the capture renders the homodyne images itself")
+        if not math.isfinite(h) or abs(h - round(h)) > 1e-9:
+            raise ReconstructionError(
+                f"{needs}: with a fraction of a period the heterodyne/homodyne ratio depends "
+                "on depth")
         if abs(_antiderivative_table(self.waveform)[2]) > 1e-9:
             raise ReconstructionError(f"the correlation of waveform {self.waveform!r} has a "
                                       "non-zero mean: the ratio inversion does not hold")

@@ -228,7 +228,7 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
     tasks = plan_animation(scene, output, frames, frame_period=frame_period, start=start,
                            spp=spp, seed=seed, defines=defines, params=params,
                            variant=variant, previews=previews)
-    os.makedirs(output, exist_ok=True)
+    io.make_output_folder(output)
     pending = []
     for task in tasks:
         if is_complete(task.folder, task.hash, task.outputs):
@@ -283,6 +283,7 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     from PIL import Image
 
     from .. import io
+    from ..camera.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
 
     load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
     velocity = [load(t, "velocity.npy") for t in tasks]
@@ -290,26 +291,24 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     radiance = [np.asarray(load(t, "radiance.npy"), np.float64) for t in tasks]
     radiance = [r.mean(axis=-1) if r.ndim == 3 else r for r in radiance]
     vlim = _velocity_limit(truth, velocity)
-    rmax = max(float(np.percentile(r[np.isfinite(r)], 99.5)) if np.isfinite(r).any() else 0.0
-               for r in radiance) or 1.0
+    norm = radiance_norm(radiance_top(*radiance))
     images = []
     for task, rad, vel, gt in zip(tasks, radiance, velocity, truth):
         fig = Figure(figsize=(9.6, 3.4), dpi=90, layout="constrained")
         FigureCanvasAgg(fig)
         axes = fig.subplots(1, 3)
-        shown = axes[0].imshow(np.clip(rad / rmax, 0, 1) ** (1 / 2.2), cmap="gray",
-                               vmin=0, vmax=1, interpolation="nearest")
-        axes[0].set_title("radiance (gamma 2.2)", fontsize=9)
+        shown = axes[0].imshow(rad, cmap="gray", norm=norm, interpolation="nearest")
+        axes[0].set_title(f"radiance ({RADIANCE_GAMMA_LABEL})", fontsize=9)
         for ax, data, title in ((axes[1], vel, "reconstructed radial velocity"),
                                 (axes[2], gt, "true radial velocity")):
-            cmap = _velocity_cmap()
-            shown = ax.imshow(np.ma.masked_invalid(data), cmap=cmap, vmin=-vlim, vmax=vlim,
-                              interpolation="nearest")
+            io.show_no_signal(ax, data.shape)
+            shown = ax.imshow(np.ma.masked_invalid(data), cmap=io.no_signal_colours("RdBu_r"),
+                              vmin=-vlim, vmax=vlim, interpolation="nearest", zorder=1)
             ax.set_title(title, fontsize=9)
         for ax in axes:
             ax.set_axis_off()
         bar = fig.colorbar(shown, ax=list(axes[1:]), shrink=0.85)
-        bar.set_label("m/s (+ receding, − approaching; grey: none)", fontsize=8)
+        bar.set_label("m/s (+ receding, − approaching; hatched magenta: NaN)", fontsize=8)
         fig.suptitle(f"frame {task.index}: exposure {task.shutter_open * 1e3:.4g}–"
                      f"{task.shutter_close * 1e3:.4g} ms", fontsize=10)
         fig.canvas.draw()
@@ -320,9 +319,3 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
         images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
                        duration=duration, loop=0)
     return path
-
-
-def _velocity_cmap():
-    import matplotlib
-
-    return matplotlib.colormaps["RdBu_r"].with_extremes(bad="#b0b0b0")

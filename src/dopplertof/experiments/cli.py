@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..io import FOLDER_HELP
+
 
 def _int_at_least(minimum: int, wording: str):
     """An argparse type: an integer >= ``minimum``."""
@@ -48,7 +50,7 @@ def _seed_list(text: str) -> tuple:
     return seeds
 
 
-def _pairs(items, flag: str) -> dict:
+def parse_pairs(items, flag: str) -> dict:
     out = {}
     for item in items or []:
         name, sep, value = item.partition("=")
@@ -79,7 +81,7 @@ def add_subcommands(subparsers) -> None:
         description="Render every point of a sweep grid as one Dask task. A rerun skips "
                     "what is complete.")
     s.add_argument("config", nargs="?", help="sweep configuration (.toml)")
-    s.add_argument("-o", "--output", required=True, help="results folder")
+    s.add_argument("-o", "--output", required=True, help=f"results folder ({FOLDER_HELP})")
     s.add_argument("--preset", choices=PRESETS, help="one of the paper's experiments")
     s.add_argument("--scene", help="scene file of a --preset")
     s.add_argument("--spp", type=_positive_int, help="samples per pixel of a --preset")
@@ -100,7 +102,7 @@ def add_subcommands(subparsers) -> None:
                               description="Read a sweep results folder; write figures, "
                                           "metrics.csv and summary.md.")
     r.add_argument("results", help="results folder of `dopplertof sweep`")
-    r.add_argument("-o", "--output", required=True, help="report folder")
+    r.add_argument("-o", "--output", required=True, help=f"report folder ({FOLDER_HELP})")
     r.set_defaults(func=cmd_report)
 
     a = subparsers.add_parser(
@@ -109,7 +111,7 @@ def add_subcommands(subparsers) -> None:
                     "frame runs the camera pipeline; velocity.gif is written beside them.")
     a.add_argument("scene", help="Mitsuba 3 XML scene with <animation> keyframes")
     a.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
-    a.add_argument("-o", "--output", required=True, help="frames folder")
+    a.add_argument("-o", "--output", required=True, help=f"frames folder ({FOLDER_HELP})")
     a.add_argument("--frame-period", type=_seconds, metavar="SECONDS",
                    help="time between exposure starts (default: the exposure T)")
     a.add_argument("--start", type=_seconds, metavar="SECONDS",
@@ -136,7 +138,7 @@ def _sweep_config(args):
     from .config import ConfigError, load_config
     from .presets import preset_config
 
-    defines = _pairs(args.defines, "-D")
+    defines = parse_pairs(args.defines, "-D")
     if args.preset:
         if args.config:
             raise ConfigError("give a configuration file or --preset, not both")
@@ -203,8 +205,8 @@ def cmd_animate(args) -> int:
 
     summary = run_animation(args.scene, args.output, args.frames,
                             frame_period=args.frame_period, start=args.start, spp=args.spp,
-                            seed=args.seed, defines=_pairs(args.defines, "-D"),
-                            params=_pairs(args.params, "-P"), variant=args.variant,
+                            seed=args.seed, defines=parse_pairs(args.defines, "-D"),
+                            params=parse_pairs(args.params, "-P"), variant=args.variant,
                             previews=args.previews, fps=args.fps, scheduler=args.scheduler,
                             workers=args.workers, retries=args.retries,
                             progress=_progress(args))

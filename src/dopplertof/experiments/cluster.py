@@ -65,13 +65,52 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     if n < 1:
         raise ClusterError(f"--workers must be >= 1, got {n}")
     threads = max(MIN_DRJIT_THREADS, (os.cpu_count() or 1) // n)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+    _start_resource_tracker_quietly()
+    with _workers_ignore_ctrl_c():
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
     try:
         with Client(cluster) as c:
             yield c, threads
     finally:
         cluster.close()
+
+
+def _start_resource_tracker_quietly() -> None:
+    """Start multiprocessing's resource tracker (the workers share it) with its stderr on
+    /dev/null. After Ctrl-C the workers busy rendering are killed at shutdown, and the
+    tracker, which then removes the semaphores they held, would print a two-line
+    UserWarning about them after our one-line "interrupted"."""
+    from multiprocessing import resource_tracker
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    saved = os.dup(2)
+    try:
+        sys.stderr.flush()
+        os.dup2(devnull, 2)
+        resource_tracker.ensure_running()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Start processes that ignore SIGINT (a child inherits an ignored signal): Ctrl-C
+    reaches every process of the terminal's group, and only this one should act on it,
+    by shutting the workers down, rather than each worker printing its traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def show_progress(progress) -> bool:

@@ -35,6 +35,7 @@ try:  # Python 3.11+
 except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
+from ..hints import did_you_mean
 from ..params import FULL_CORRELATION, ParameterError, RenderParams
 
 #: grid and fixed keys besides the render parameters
@@ -188,7 +189,8 @@ def config_from_mapping(data: dict, base_dir: str = ".", source: str = "<config>
         raise ConfigError(f"{source}: expected a table at the top level")
     unknown = [k for k in data if k not in TOP_LEVEL_KEYS]
     if unknown:
-        raise ConfigError(f"{source}: unknown key {unknown[0]!r} "
+        raise ConfigError(f"{source}: unknown key {unknown[0]!r}"
+                          f"{did_you_mean(unknown[0], TOP_LEVEL_KEYS)} "
                           f"(expected: {', '.join(TOP_LEVEL_KEYS)})")
     scene = data.get("scene")
     if not isinstance(scene, str) or not scene.strip():

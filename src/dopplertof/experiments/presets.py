@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 
-from ..sampling import METHODS
+from ..sampling import FULL_CORRELATION, METHODS
 from .config import ConfigError, ReferenceConfig, SweepConfig, typed_value
 
 PRESETS = ("reference", "time-sampling", "no-further-stratification", "antithetic-shift")
@@ -68,7 +68,7 @@ def preset_config(preset: str, scene, *, spp: int | None = None,
         ref_spp = typed_value("spp", reference_spp or DEFAULT_REFERENCE_SPP,
                               f"{where}: reference spp")
         reference = ReferenceConfig(spp=ref_spp, params={
-            "time_sampling_method": "antithetic", "path_correlation_depth": 1 << 16})
+            "time_sampling_method": "antithetic", "path_correlation_depth": FULL_CORRELATION})
         if reference.seed in seeds:
             raise ConfigError(f"{where}: seed {reference.seed} is the reference's seed")
         methods = ("uniform", "antithetic") if quick else METHODS
@@ -79,7 +79,7 @@ def preset_config(preset: str, scene, *, spp: int | None = None,
                         typed_value("path_correlation_depth", d, where) for d in depths),
                     **frequency_offset_grid(quick)}
         elif preset == "no-further-stratification":
-            fixed["path_correlation_depth"] = 1 << 16
+            fixed["path_correlation_depth"] = FULL_CORRELATION
             grid = {"time_sampling_method": methods,
                     "use_stratified_sampling_for_each_interval": (True, False),
                     **frequency_offset_grid(quick)}

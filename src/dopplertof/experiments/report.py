@@ -508,9 +508,7 @@ def write_report(results, output) -> Report:
     if not runs:
         raise ReportError(f"{results}: no completed grid point yet "
                           f"({len(missing)} task(s) incomplete); run the sweep first")
-    if os.path.exists(output) and not os.path.isdir(output):
-        raise ReportError(f"report path exists and is not a folder: {output}")
-    os.makedirs(output, exist_ok=True)
+    io.make_output_folder(output)
     report = Report(output=output, runs=len(runs), missing=missing,
                     with_errors=sum(r.relative_mse is not None for r in runs))
     suffix = f" — {config.get('name', 'sweep')}"

@@ -85,13 +85,10 @@ def plan_sweep(config: SweepConfig, output: str) -> list[RenderTask]:
 
 
 def check_output_folder(output: str) -> str:
-    output = os.path.abspath(output)
-    if os.path.exists(output) and not os.path.isdir(output):
-        raise ConfigError(f"output path exists and is not a folder: {output}")
-    parent = os.path.dirname(output)
-    if not os.path.isdir(parent):
-        raise ConfigError(f"the parent of the output folder does not exist: {parent}")
-    return output
+    """The absolute results folder, checked before any work (created when written)."""
+    from .. import io
+
+    return io.check_output_folder(output)
 
 
 def pending_tasks(tasks, clean: bool = True) -> list:
@@ -138,7 +135,7 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     started = time.perf_counter()
     output = check_output_folder(os.fspath(output))
     tasks = plan_sweep(config, output)
-    os.makedirs(output, exist_ok=True)
+    io.make_output_folder(output)
     write_sweep_json(config, tasks, output)
     pending = pending_tasks(tasks)
     summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,

@@ -2,10 +2,10 @@
 
 A unidirectional path tracer (next-event estimation and BSDF sampling combined with
 MIS, Russian roulette) in which every contribution is weighted by the modulation of
-its own full path length at its own sample time (DESIGN section 1). Doppler shifts
+its own full path length at its own sample time (design.md section 1). Doppler shifts
 are not added by hand: they follow because path lengths depend on time.
 
-Time-path sampling (DESIGN section 2) decides each lane's time and which of its
+Time-path sampling (design.md section 2) decides each lane's time and which of its
 random numbers it shares with the other samples of its group.
 """
 

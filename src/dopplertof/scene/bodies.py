@@ -5,8 +5,8 @@ its own time. Each moving body therefore lives in an ``mi.Scene`` of its own, at
 reference pose; a ray at time t is tested against the static scene and, moved by the
 inverse of the body's motion at t, against each body. The nearest hit wins, and its
 surface interaction is computed once, with the ray of the scene that won, then moved
-back to world space (DESIGN section 3). A body's swept bounding box over the exposure
-lets rays that cannot hit it skip it.
+back to world space (docs/design.md section 3). A ray tests each body's own bounding
+box in the body's frame at the lane's time, so that rays that cannot hit it skip it.
 
 This module is the one place that knows how motion is traced, so that upstream
 instance motion can replace it when Mitsuba ships it.

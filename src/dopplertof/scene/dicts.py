@@ -19,10 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..hints import did_you_mean
 from ..params import ParameterError, RenderParams
 from .motion import Keyframes, Motion, MotionError
 from .scene import SceneError, build
-from .xml import CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS
+from .xml import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
+                  SAMPLER_NAMES)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
@@ -190,7 +192,9 @@ def load_dict(scene: dict):
                                  tuple(k for k, _ in shapes)))
     return build(mi, static_scene, bodies, params, "<dict>",
                  repr(static) + repr(list(groups.items())) + repr((sensor_kf, light_kfs)),
-                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs)
+                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
+                 has_integrator=any(isinstance(v, dict) and v.get("type") in DTOF_INTEGRATORS
+                                    for v in scene.values()))
 
 
 def _correlated_sampler_replaced(key, value: dict, sampler_values: dict) -> dict:
@@ -201,8 +205,9 @@ def _correlated_sampler_replaced(key, value: dict, sampler_values: dict) -> dict
         return value
     unknown = set(sampler) - set(CORRELATED_SAMPLER_PARAMS) - {"type", "sample_count", "seed"}
     if unknown:
-        raise SceneError(f"<dict>[{key!r}]: unknown parameter {sorted(unknown)[0]!r} of "
-                         "the correlated sampler")
+        name = sorted(unknown)[0]
+        raise SceneError(f"<dict>[{key!r}]: unknown parameter {name!r} of the correlated "
+                         f"sampler{did_you_mean(name, SAMPLER_NAMES)}")
     sampler_values.update({k: v for k, v in sampler.items() if k in CORRELATED_SAMPLER_PARAMS})
     plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
     return dict(value, sampler=dict(plain, type="independent"))

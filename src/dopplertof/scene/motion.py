@@ -1,4 +1,4 @@
-"""Keyframed rigid motion of a body (DESIGN section 3).
+"""Keyframed rigid motion of a body (design.md section 3).
 
 A body's shapes are loaded once, in a scene of their own, at the pose of the first
 keyframe (the *reference pose*). At time t the body is that geometry moved by the

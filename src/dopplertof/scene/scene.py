@@ -22,6 +22,7 @@ class DopplerScene:
     fingerprint: str = ""  #: hash of the resolved scene description (checkpoints compare it)
     sensor_motion: object = None  #: Motion of the camera (None: static)
     light_motions: tuple = ()  #: (index in static.emitters(), Motion) of moving lights
+    notes: tuple = ()  #: what the loader assumed (e.g. default integrator), for the user
 
     @property
     def sensor(self):
@@ -41,8 +42,19 @@ class DopplerScene:
         return replace(self, params=params)
 
 
+def default_integrator_note(source: str) -> str:
+    """What a scene without a D-ToF integrator renders with."""
+    p = RenderParams()
+    depth = "unbounded" if p.max_depth == -1 else p.max_depth
+    return (f"{source} has no <integrator>: using the D-ToF defaults, a homodyne capture "
+            f"(hetero_frequency 0, sensor offset 0) at w_g {p.w_g:g} MHz, "
+            f"{p.wave_function_type} waveform, max_depth {depth}, time sampling "
+            f"{p.time_sampling_method}")
+
+
 def build(mi, static, bodies, params: RenderParams, source: str,
-          description: str = "", sensor_keyframes=None, light_keyframes=()) -> DopplerScene:
+          description: str = "", sensor_keyframes=None, light_keyframes=(),
+          has_integrator: bool = True) -> DopplerScene:
     """Checks shared by the XML and dict loaders; camera and light motions.
 
     ``light_keyframes`` is ``[(emitter id, Keyframes or "sensor"), ...]``; "sensor"
@@ -74,5 +86,6 @@ def build(mi, static, bodies, params: RenderParams, source: str,
     import hashlib
 
     fingerprint = hashlib.sha256(description.encode()).hexdigest() if description else ""
+    notes = () if has_integrator else (default_integrator_note(source),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
-                        sensor_motion, tuple(light_motions))
+                        sensor_motion, tuple(light_motions), notes)

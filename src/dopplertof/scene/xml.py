@@ -26,6 +26,7 @@ import xml.parsers.expat
 import numpy as np
 
 from ..params import ParameterError, RenderParams
+from ..hints import did_you_mean
 from .motion import Keyframes, MotionError, Motion
 from .scene import SceneError, build
 from .transforms import TransformError, compose
@@ -34,6 +35,8 @@ DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
 CORRELATED_SAMPLER_PARAMS = ("time_correlate_number", "path_correlate_number",
                              "use_stratified_sampling_for_each_interval")
+#: every parameter name of the correlated sampler
+SAMPLER_NAMES = ("sample_count", "seed") + CORRELATED_SAMPLER_PARAMS
 TRANSFORM_OPS = ("matrix", "translate", "rotate", "scale", "lookat")
 
 
@@ -43,6 +46,7 @@ class _Doc:
     def __init__(self, text: str, source: str):
         self.source = source
         self.lines: dict[int, int] = {}
+        self.overridden: dict[int, list] = {}  #: element id -> [(name, value)] from overrides
         stack: list[ET.Element] = []
         self.root = None
         parser = xml.parsers.expat.ParserCreate()
@@ -68,6 +72,15 @@ class _Doc:
         line = self.lines.get(id(elem))
         return f"{self.source}:{line}" if line else self.source
 
+    def copy(self, elem):
+        """A deep copy of ``elem`` whose elements keep the source lines of the original."""
+        twin = copy.deepcopy(elem)
+        for a, b in zip(elem.iter(), twin.iter()):
+            for table in (self.lines, self.overridden):
+                if id(a) in table:
+                    table[id(b)] = table[id(a)]
+        return twin
+
 
 def _substitute(doc: _Doc, overrides: dict) -> None:
     """Resolve ``$name`` from <default> values and overrides; drop <default>."""
@@ -85,7 +98,8 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
     for name, value in overrides.items():
         if name not in values and name not in used:
             declared = ", ".join(sorted(values)) or "none"
-            raise SceneError(f"{doc.source}: unknown scene parameter {name!r} "
+            raise SceneError(f"{doc.source}: unknown scene parameter {name!r}"
+                             f"{did_you_mean(name, set(values) | used)} "
                              f"(declared defaults: {declared})")
         values[name] = str(value)
 
@@ -98,6 +112,9 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
                 if m.group(1) not in values:
                     raise SceneError(f"{doc.where(el)}: undefined parameter ${m.group(1)} "
                                      "(declare it with <default> or pass -D)")
+                if m.group(1) in overrides:
+                    doc.overridden.setdefault(id(el), []).append(
+                        (m.group(1), values[m.group(1)]))
                 return values[m.group(1)]
 
             el.set(key, re.sub(r"\$(\w+)", repl, v))
@@ -176,8 +193,10 @@ def _sensor(doc: _Doc) -> tuple[dict, ET.Element | None]:
     params = {k: v for k, v in values.items() if k in CORRELATED_SAMPLER_PARAMS}
     unknown = set(values) - set(params) - {"sample_count", "seed"}
     if unknown:
-        raise SceneError(f"{doc.where(sampler)}: unknown parameter {sorted(unknown)[0]!r} of the "
-                         f"correlated sampler (known: sample_count, "
+        name = sorted(unknown)[0]
+        raise SceneError(f"{doc.where(sampler)}: unknown parameter {name!r} of the correlated "
+                         f"sampler{did_you_mean(name, SAMPLER_NAMES)}"
+                         f" (known: sample_count, "
                          f"{', '.join(CORRELATED_SAMPLER_PARAMS)})")
     for child in list(sampler):
         if child.get("name") in CORRELATED_SAMPLER_PARAMS:
@@ -287,7 +306,7 @@ def _split_observers(doc: _Doc):
                 # no placement of its own: at the camera's rest pose
                 placed = [t for t in sensor.findall("transform") if t.get("name") == "to_world"]
                 if placed:
-                    el.insert(0, copy.deepcopy(placed[0]))
+                    el.insert(0, doc.copy(placed[0]))
             if sensor_kf is not None:
                 lights.append((ident, "sensor"))
             continue
@@ -316,7 +335,7 @@ def _split_bodies(doc: _Doc):
         if shape.find("emitter") is not None:
             raise SceneError(f"{doc.where(anim)}: moving area emitters are not supported yet")
         kf = _keyframes(doc, shape, anim)
-        body_shape = copy.deepcopy(shape)
+        body_shape = doc.copy(shape)
         body_shape.remove(body_shape.find("animation"))
         body_shape.insert(0, _matrix_element(kf.matrix_array()[0]))
         groups.setdefault(kf, []).append((body_shape, shape.get("id", "shape")))
@@ -324,8 +343,9 @@ def _split_bodies(doc: _Doc):
     return list(groups.items())
 
 
-def _body_document(root: ET.Element, shapes) -> str:
+def _body_document(doc: _Doc, shapes) -> ET.Element:
     """A scene holding the shapes and the top-level objects they reference."""
+    root = doc.root
     top = {el.get("id"): el for el in root if el.get("id")}
     body = ET.Element("scene", {"version": root.get("version", "3.0.0")})
     needed, todo = [], list(_referenced_ids(shapes))
@@ -336,22 +356,57 @@ def _body_document(root: ET.Element, shapes) -> str:
             todo.extend(_referenced_ids([top[ident]]))
     for el in root:  # keep document order: references must precede use
         if el in needed:
-            body.append(copy.deepcopy(el))
+            body.append(doc.copy(el))
     for s in shapes:
         body.append(s)
-    return ET.tostring(body, encoding="unicode")
+    return body
 
 
-def _load_string(mi, text: str, source: str, base_dir: str):
+def _element_at(doc: _Doc, root: ET.Element, text: str, column: int):
+    """The element of ``root`` (serialized as the one line ``text``) that Mitsuba's
+    parser names by ``column``, mapped back to the user's file: the last element that
+    starts at or before it, else the nearest one before it with a source line."""
+    starts = []
+    parser = xml.parsers.expat.ParserCreate()
+    parser.StartElementHandler = lambda tag, attrs: starts.append(parser.CurrentByteIndex)
+    parser.Parse(text.encode("utf-8"), True)
+    elements = list(root.iter())
+    k = max((i for i, start in enumerate(starts) if start < column), default=0)
+    for el in reversed(elements[:k + 1]):
+        if id(el) in doc.lines:
+            return el
+    return None
+
+
+def _mitsuba_error(doc: _Doc, root: ET.Element, text: str, error: Exception) -> str:
+    """Mitsuba's message about a rewritten document, in terms of the user's file."""
+    detail = " ".join(str(error).split()) or "load failed"
+    detail = re.sub(r"^RuntimeError:\s*", "", detail)
+    detail = re.sub(r"\[[\w.]+:\d+\]\s*", "", detail)  # [parser.cpp:451]
+    location = r"(?:(?:Error while loading|While loading|At) string\s*)?\(line 1, col (\d+)\):?\s*"
+    at = re.search(location, detail)
+    detail = re.sub(location, "", detail).strip() or "load failed"
+    if not at:
+        return f"{doc.source}: {detail}"
+    el = _element_at(doc, root, text, int(at.group(1)))
+    if el is None:
+        return f"{doc.source}: {detail}"
+    given = doc.overridden.get(id(el))
+    origin = ("; from " + ", ".join(f"-D {name}={value}" for name, value in given)
+              if given else "")
+    return f"{doc.where(el)}: {detail}{origin}"
+
+
+def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
+    """Load ``root`` (the document or a body's) with Mitsuba; errors name the user's file
+    and line."""
+    text = ET.tostring(root, encoding="unicode")
     resolver = mi.file_resolver()
     resolver.prepend(base_dir)
     try:
-        return mi.load_string(text)
+        return mi.load_string(text), text
     except Exception as e:  # Mitsuba reports XML problems as RuntimeError
-        msg = str(e).strip().splitlines()
-        detail = next((line for line in reversed(msg) if line.strip()), "load failed")
-        detail = re.sub(r"^\s*(Error while loading|RuntimeError:)\s*", "", detail)
-        raise SceneError(f"{source}: {detail.strip()}") from None
+        raise SceneError(_mitsuba_error(doc, root, text, e)) from None
     finally:
         # drop the directory we added (first entry)
         try:
@@ -372,6 +427,7 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
                          f"got <{doc.root.tag}>")
     _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
+    has_integrator = bool(doc.root.findall("integrator"))
     integ = _integrator_params(doc)
     sampler_params, _ = _sensor(doc)
     sensor_kf, light_kfs = _split_observers(doc)
@@ -386,21 +442,20 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
             except ParameterError as e:
                 raise SceneError(str(e)) from None
 
-    static_text = ET.tostring(doc.root, encoding="unicode")
-    static = _load_string(mi, static_text, source, base_dir)
+    static, static_text = _load_string(mi, doc, doc.root, base_dir)
     description = [static_text]
     bodies = []
     from .bodies import MovingBody
 
     for kf, shapes in body_groups:
         elems = [s for s, _ in shapes]
-        body_text = _body_document(doc.root, elems)
-        body_scene = _load_string(mi, body_text, source, base_dir)
+        body_scene, body_text = _load_string(mi, doc, _body_document(doc, elems), base_dir)
         description += [body_text, repr(kf)]
         bodies.append(MovingBody(body_scene, Motion(kf), tuple(n for _, n in shapes)))
     description += [repr(sensor_kf), repr(light_kfs)]
     return build(mi, static, bodies, params, source, "\n".join(description),
-                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs)
+                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
+                 has_integrator=has_integrator)
 
 
 def load_file(path, overrides: dict | None = None):
