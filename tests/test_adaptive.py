@@ -135,6 +135,7 @@ def test_adaptive_render_resumes_bitwise(tmp_path, monkeypatch, die_after):
     assert np.array_equal(resumed, reference_image)
 
 
+@pytest.mark.slow
 def test_too_few_samples_is_a_one_line_cli_error(tmp_path):
     out = tmp_path / "img.npy"
     run = subprocess.run(
@@ -147,6 +148,7 @@ def test_too_few_samples_is_a_one_line_cli_error(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_cli_writes_the_sample_counts(tmp_path):
     out, counts = tmp_path / "img.npy", tmp_path / "counts.npy"
     base = [sys.executable, "-m", "dopplertof.cli", "render", PUBLISHED, "-D", "resx=12",

@@ -19,6 +19,7 @@ def quick_outputs(tmp_path_factory):
     return outdir, write_figures(outdir, quick=True)
 
 
+@pytest.mark.slow
 def test_every_expected_file_is_written(quick_outputs):
     outdir, written = quick_outputs
     assert [p.name for p in written] == list(FIGURE_FILES) + list(DATA_FILES)
@@ -29,6 +30,7 @@ def test_every_expected_file_is_written(quick_outputs):
     assert sorted(p.name for p in outdir.iterdir()) == sorted(FIGURE_FILES + DATA_FILES)
 
 
+@pytest.mark.slow
 def test_closed_forms_csv(quick_outputs):
     outdir, _ = quick_outputs
     with open(outdir / "closed_forms.csv", newline="") as stream:
@@ -46,6 +48,7 @@ def test_closed_forms_csv(quick_outputs):
     assert len(set(per_method.values())) == 1 and per_method["uniform"] >= 8
 
 
+@pytest.mark.slow
 def test_rates_json_has_the_fitted_slopes(quick_outputs):
     outdir, _ = quick_outputs
     rates = json.loads((outdir / "rates.json").read_text())
@@ -57,6 +60,7 @@ def test_rates_json_has_the_fitted_slopes(quick_outputs):
     assert rates["expected_slopes"] == {"uniform": -1.0, "periodic": -2.0, "stratified": -3.0}
 
 
+@pytest.mark.slow
 def test_rewrite_replaces_files_and_leaves_no_temporaries(quick_outputs):
     outdir, _ = quick_outputs
     (outdir / "closed_forms.csv").write_text("stale")

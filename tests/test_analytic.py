@@ -57,6 +57,7 @@ def test_exposure_from_time_parameter_overrides_shutter():
     assert scene.params.modulation(scene.shutter_interval).exposure == 0.001
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("waveform", ["sinusoidal", "triangular"])
 def test_full_waveform_matches_low_pass(waveform):
     """Full-waveform mode (float64 phases) agrees with low-pass mode and with its own

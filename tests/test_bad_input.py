@@ -224,15 +224,18 @@ def test_scene_that_is_not_xml(tmp_path, capsys, output):
     assert_clean_failure(code, err, "scene", output, before)
 
 
-def test_nonfinite_samples_are_dropped_and_counted():
+@pytest.mark.parametrize("rfilter", ["box", "tent"])  # (tent: the splat film's own kernel)
+def test_nonfinite_samples_are_dropped_and_counted(rfilter):
     """A NaN that reaches the renderer (dict scenes are not checked) is dropped per sample,
     counted in the metadata, and leaves the image finite."""
     import dopplertof
     from analytic import plane_scene
 
     d = plane_scene(5.0, 0.0, spp=16, res=4)
+    d["sensor"]["film"]["rfilter"] = {"type": rfilter}
     d["white"] = {"type": "diffuse",
                   "reflectance": {"type": "rgb", "value": [float("nan"), 0.5, 0.5]}}
     result = dopplertof.render_result(dopplertof.load_dict(d), seed=0)
     assert np.all(np.isfinite(result.image))
     assert result.metadata["nonfinite_samples_dropped"] == 4 * 4 * 16
+    assert np.all(result.image == 0)  # every sample met the NaN: nothing of them is left

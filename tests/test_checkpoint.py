@@ -1,10 +1,8 @@
 """Resumable renders: a killed render resumes to the bitwise-identical image."""
 
-import os
 import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -37,24 +35,31 @@ def test_checkpoint_of_another_render_is_refused(tmp_path):
         dopplertof.render(other, spp=16, seed=1, checkpoint=ckpt)
 
 
+@pytest.mark.slow
 def test_cli_killed_render_resumes(tmp_path):
-    """SIGKILL the CLI once the checkpoint exists; the same command then finishes with the
-    image of an uninterrupted run."""
+    """The CLI killed (SIGKILL) right after its first checkpoint is saved (no race: the
+    process kills itself there); the same command then finishes with the image of an
+    uninterrupted run."""
     out, ckpt = tmp_path / "img.npy", tmp_path / "img.ckpt"
-    args = [sys.executable, "-m", "dopplertof.cli", "render", PUBLISHED, "-D", "resx=96",
-            "-D", "resy=96", "--spp", "512", "--seed", "2", "--quiet", "-o", str(out),
-            "--checkpoint", str(ckpt)]
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while not ckpt.exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.05)
-    killed = proc.poll() is None
-    if killed:
-        os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    args = ["render", PUBLISHED, "-D", "resx=96", "-D", "resy=96", "--spp", "512", "--seed",
+            "2", "--quiet", "-o", str(out), "--checkpoint", str(ckpt)]
+    die_after_first_save = (
+        "import os, signal, sys\n"
+        "import dopplertof.cli\n"
+        "R = sys.modules['dopplertof.render']\n"
+        "save = R.Checkpoint.save\n"
+        "def save_then_die(self, *a):\n"
+        "    save(self, *a)\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+        "R.Checkpoint.save = save_then_die\n"
+        "sys.exit(dopplertof.cli.main(sys.argv[1:]))\n")
+    proc = subprocess.run([sys.executable, "-c", die_after_first_save, *args],
+                          capture_output=True, timeout=300)
+    killed = proc.returncode == -signal.SIGKILL
     assert killed and ckpt.exists() and not out.exists()
     assert [p.name for p in tmp_path.iterdir()] == [ckpt.name]  # no partial files
-    done = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    done = subprocess.run([sys.executable, "-m", "dopplertof.cli", *args], capture_output=True,
+                          text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert not ckpt.exists()
     scene = dopplertof.load_file(PUBLISHED, {"resx": 96, "resy": 96})

@@ -17,10 +17,10 @@ PUBLISHED_DIR = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "
                                               "fixtures", "published"))
 EXPOSURE = 0.0015  # the m06 files hold 1 + T * value
 
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(  # slow: renders of the published scene
     not os.path.isdir(PUBLISHED_DIR),
     reason=f"the published renders are not here ({PUBLISHED_DIR} is absent: it sits beside "
-           "the repository in CI)")
+           "the repository in CI)")]
 
 
 def published_path(name):

@@ -41,6 +41,7 @@ def test_every_example_is_shown_in_the_readme_with_a_command():
     assert set(EXAMPLES) <= shown, set(EXAMPLES) - shown
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", readme_commands(), ids=lambda a: " ".join(a[:2]))
 def test_readme_commands_on_the_examples_run(argv, tmp_path, capsys):
     out = run_readme_command(argv, tmp_path)
@@ -89,6 +90,7 @@ def test_rotating_cube_turns_both_ways(tmp_path, capsys):
 
 @pytest.mark.parametrize("waveform", ["sinusoidal", "rectangular", "triangular",
                                       "trapezoidal"])
+@pytest.mark.slow
 def test_waveforms_scene_takes_every_waveform(waveform, tmp_path, capsys):
     summary = _capture("waveforms.xml", tmp_path, "-D", f"waveform={waveform}")
     assert summary["modulation"]["waveform"] == waveform

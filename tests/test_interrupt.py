@@ -8,6 +8,8 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SPHERE = os.path.join(ROOT, "examples", "translating_sphere.xml")
 
@@ -20,6 +22,7 @@ def _group_alive(pgid) -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_animate_is_one_line_and_stops_the_workers(tmp_path):
     out = tmp_path / "frames"
     # renders long enough (tens of seconds a frame) to be interrupted in the middle

@@ -66,16 +66,14 @@ class RenderSetup:
 def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
     import drjit as dr
 
-    from .integrators.camera import Camera, PinholeProjection, is_pinhole
+    from .integrators.camera import Camera, PinholeProjection, is_pinhole, rest_forward
     from .integrators.dtof_path import ModulationWeight
     from .integrators.film import FilmSampler, SplatFilter
 
     sensor = scene.sensor
     mod = params.modulation(scene.shutter_interval)
     K = params.time_correlate_number
-    to_world = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)
-    forward = to_world[:3, 2, 0]
-    forward = forward / np.linalg.norm(forward)
+    forward = rest_forward(sensor)
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
     weight = ModulationWeight(mi, mod)
     analytic = params.time_sampling_method == sampling.ANALYTIC

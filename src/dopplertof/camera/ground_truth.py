@@ -41,8 +41,19 @@ class GroundTruth:
 
 
 def camera_origin(scene) -> np.ndarray:
-    m = np.array(scene.sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
-    return m[:3, 3].copy()
+    from ..integrators.camera import rest_frame
+
+    return rest_frame(scene.sensor)[:3, 3].copy()
+
+
+def _forward(scene, camera, time: float) -> np.ndarray:
+    """The sensor's viewing direction at ``time`` (unit, world space)."""
+    from ..integrators.camera import rest_forward
+
+    forward = rest_forward(scene.sensor)
+    if camera is not None:
+        forward = camera.relative_matrix(time)[:3, :3] @ forward
+    return forward / np.linalg.norm(forward)
 
 
 def mid_exposure(scene, params=None) -> tuple[float, float, float]:
@@ -68,7 +79,7 @@ def ground_truth(scene, params=None) -> GroundTruth:
     import drjit as dr
 
     from ..backend import require_variant
-    from ..integrators.camera import Camera
+    from ..integrators.camera import Camera, is_pinhole
     from ..scene.bodies import BodyFrames, intersect
 
     mi = require_variant()
@@ -96,7 +107,8 @@ def ground_truth(scene, params=None) -> GroundTruth:
     def as_numpy(v):
         return np.stack([np.asarray(v[i], dtype=np.float64) for i in range(3)], axis=-1)
 
-    p, n, d = as_numpy(si.p), as_numpy(si.n), as_numpy(ray.d)
+    p, n = as_numpy(si.p), as_numpy(si.n)
+    d = np.broadcast_to(as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     body = np.asarray(body, dtype=np.int64)
     hit = body > -2
@@ -104,6 +116,13 @@ def ground_truth(scene, params=None) -> GroundTruth:
     exposure = end - start
     if camera is not None:
         origin = (camera.relative_matrix(mid) @ np.append(origin, 1.0))[:3]
+    centre = origin  # (the camera centre at mid-exposure, for the result)
+    if not is_pinhole(sensor):
+        # rays from different points (orthographic): each pixel's distance is measured
+        # from where its ray crosses the camera's plane, as the renderer's path lengths
+        forward = _forward(scene, camera, mid)
+        o = np.broadcast_to(as_numpy(ray.o), p.shape)
+        origin = o - (((o - origin) @ forward) / (d @ forward))[:, None] * d
 
     depth = np.where(hit, np.linalg.norm(p - origin, axis=-1), np.nan)
     u = np.zeros_like(p)
@@ -117,7 +136,8 @@ def ground_truth(scene, params=None) -> GroundTruth:
     u_origin = np.zeros(3)
     d_rate = np.zeros_like(d)
     if camera is not None:
-        u_origin = body_velocity(camera, origin[None], mid, exposure)[0]
+        u_origin = body_velocity(camera, np.atleast_2d(origin), mid, exposure)
+        u_origin = u_origin[0] if origin.ndim == 1 else u_origin
         d_rate = body_velocity(camera, origin + d, mid, exposure) - u_origin
     s_along = np.where(hit, depth, 0.0)[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -129,7 +149,7 @@ def ground_truth(scene, params=None) -> GroundTruth:
     shape2 = (height, width)
     return GroundTruth(depth.reshape(shape2), radial.reshape(shape2), point.reshape(shape2),
                        body.reshape(shape2), d.reshape(height, width, 3),
-                       n.reshape(height, width, 3), mid, origin)
+                       n.reshape(height, width, 3), mid, centre)
 
 
 def light_colocation(scene, tolerance: float = 1e-3) -> dict:

@@ -20,6 +20,18 @@ def is_pinhole(sensor) -> bool:
     return sensor.class_name() == PINHOLE_CLASS
 
 
+def rest_frame(sensor) -> np.ndarray:
+    """The sensor's rest pose, camera to world (4x4, float64): its centre is column 3,
+    its viewing direction column 2 (Mitsuba's cameras look along local +z)."""
+    return np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
+
+
+def rest_forward(sensor) -> np.ndarray:
+    """The sensor's viewing direction at rest (unit, world space)."""
+    forward = rest_frame(sensor)[:3, 2]
+    return forward / np.linalg.norm(forward)
+
+
 class Camera:
     """Camera rays of one sensor, possibly moving (``motion``: a scene Motion or None)."""
 
@@ -62,7 +74,7 @@ class PinholeProjection:
         self.mi = mi
         self.motion = motion
         self.near_clip = near_clip
-        to_world = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4, -1)[..., 0]
+        to_world = rest_frame(sensor)
         to_camera = np.linalg.inv(to_world)
         pos = mi.Point2f([p[0] for p in self.PROBES], [p[1] for p in self.PROBES])
         ray, _ = sensor.sample_ray(mi.Float(0.0), 0.5, pos, mi.Point2f(0.5, 0.5))
