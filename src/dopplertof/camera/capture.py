@@ -290,7 +290,6 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
                 scene, int(spp), capture_seed, spec.params(base), mc_batches, progress)
             if spec.kind != "radiance":
                 batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
-            result = None
         else:
             result = render_result(scene, spp=int(spp), seed=capture_seed,
                                    params=spec.params(base), progress=progress)
