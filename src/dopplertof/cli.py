@@ -15,6 +15,20 @@ class UsageError(Exception):
     pass
 
 
+def _add_noise_options(n) -> None:
+    n.add_argument("--photons-per-unit", type=float, metavar="K", help="photons/s at a pixel "
+                   "per unit of rendered value (default: the brightest pixel fills half the "
+                   "full well)")
+    n.add_argument("--quantum-efficiency", type=float, metavar="QE", help="default 0.4")
+    n.add_argument("--read-noise", type=float, metavar="E", help="electrons rms, default 5")
+    n.add_argument("--full-well", type=float, metavar="E", help="electrons, default 20000")
+    n.add_argument("--gain", type=float, metavar="E_PER_DN", help="electrons per DN, default 5")
+    n.add_argument("--bits", type=int, help="ADC bits, default 12")
+    n.add_argument("--ambient", type=float, metavar="PHOTONS_PER_S",
+                   help="unmodulated background photons/s per pixel, default 0")
+    n.add_argument("--noise-seed", type=int, metavar="S", help="default 0")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dopplertof",
                                 description="Doppler time-of-flight camera simulator",
@@ -62,19 +76,46 @@ def _parser() -> argparse.ArgumentParser:
                    "fraction of the image's 99th percentile (default 0.01)")
     c.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
+    u = c.add_argument_group("precision (predicted per-pixel standard deviations)")
+    u.add_argument("--mc-batches", type=int, metavar="B",
+                   help="render every capture as B independent batches and write "
+                   "velocity_std*.npy / depth_std*.npy (Monte Carlo and sensor noise)")
+    u.add_argument("--max-velocity-std", type=float, metavar="M_S",
+                   help="velocity is NaN where its predicted standard deviation is larger "
+                   "(implies --mc-batches 8)")
+    u.add_argument("--max-depth-std", type=float, metavar="M",
+                   help="depth is NaN where its predicted standard deviation is larger")
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
     n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")
-    n.add_argument("--photons-per-unit", type=float, metavar="K", help="photons/s at a pixel "
-                   "per unit of rendered value (default: the brightest pixel fills half the "
-                   "full well)")
-    n.add_argument("--quantum-efficiency", type=float, metavar="QE", help="default 0.4")
-    n.add_argument("--read-noise", type=float, metavar="E", help="electrons rms, default 5")
-    n.add_argument("--full-well", type=float, metavar="E", help="electrons, default 20000")
-    n.add_argument("--gain", type=float, metavar="E_PER_DN", help="electrons per DN, default 5")
-    n.add_argument("--bits", type=int, help="ADC bits, default 12")
-    n.add_argument("--ambient", type=float, metavar="PHOTONS_PER_S",
-                   help="unmodulated background photons/s per pixel, default 0")
-    n.add_argument("--noise-seed", type=int, metavar="S", help="default 0")
+    _add_noise_options(n)
+
+    s = sub.add_parser("precision", help="predicted velocity/depth precision of a camera "
+                       "configuration; with ranges, a map over frequency x exposure")
+    s.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    s.add_argument("--w-g", default=None, metavar="MHZ|LO:HI",
+                   help="modulation frequency in MHz, or a range (default: the scene's)")
+    s.add_argument("--exposure", default=None, metavar="S|LO:HI",
+                   help="exposure in seconds, or a range (default: the scene's)")
+    s.add_argument("--steps", type=int, default=6, help="grid steps per range (default 6)")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel of each pilot "
+                   "frame (default 64)")
+    s.add_argument("--mc-batches", type=int, default=4, metavar="B",
+                   help="independent batches of the pilots (default 4)")
+    s.add_argument("--hetero-frequency", type=float, metavar="H",
+                   help="beat periods per exposure (default: the scene's, else 1)")
+    s.add_argument("--check", type=int, default=3, metavar="N",
+                   help="with ranges: simulate N grid points to check the map (default 3)")
+    s.add_argument("-o", "--output", metavar="MAP.png",
+                   help="with ranges: the map (PNG) and its numbers beside it (.json; its "
+                   f"folder {FOLDER_HELP})")
+    s.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="set a <default> value of the scene (repeatable)")
+    s.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
+                   help="override an integrator parameter")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    s.add_argument("--quiet", action="store_true", help="no progress")
+    _add_noise_options(s.add_argument_group("sensor (the default noise model unless set)"))
 
     d = sub.add_parser("demo", help="one camera frame of the built-in moving Cornell box")
     d.add_argument("-o", "--output", default="demo_out",
@@ -159,13 +200,11 @@ _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
 
 def _cmd_capture(args) -> int:
     import dopplertof
-    from .camera import NoiseModel, format_summary, prepare_folder
+    from .camera import format_summary, prepare_folder
 
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
-    noise_args = {field: getattr(args, opt) for opt, field in _NOISE_OPTIONS.items()
-                  if getattr(args, opt) is not None}
-    noise = NoiseModel(**noise_args) if (args.noise or noise_args) else None
+    noise = _noise_model(args, args.noise)
     prepare_folder(args.output)
     scene = _load_scene(args)
 
@@ -178,9 +217,75 @@ def _cmd_capture(args) -> int:
                                 hetero_frequency=args.hetero_frequency,
                                 unwrap_frequency=args.unwrap_frequency, noise=noise,
                                 min_signal_fraction=args.min_signal,
-                                progress=False if args.quiet else None, on_capture=report)
+                                progress=False if args.quiet else None, on_capture=report,
+                                mc_batches=args.mc_batches,
+                                max_velocity_std=args.max_velocity_std,
+                                max_depth_std=args.max_depth_std)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
+    from .camera.precision import format_precision
+
+    if result.uncertainty is not None:
+        print(format_precision(result.summary))
+    return 0
+
+
+def _noise_model(args, default: bool):
+    from .camera import NoiseModel
+
+    noise_args = {field: getattr(args, opt) for opt, field in _NOISE_OPTIONS.items()
+                  if getattr(args, opt) is not None}
+    return NoiseModel(**noise_args) if (default or noise_args) else None
+
+
+def _cmd_precision(args) -> int:
+    from . import io
+    from .camera import study
+
+    if not os.path.isfile(args.scene):
+        raise UsageError(f"scene file not found: {args.scene}")
+    w_g = (None if args.w_g is None else
+           study.parse_range(args.w_g, "--w-g (MHz)", 1e-3, 1e5))
+    exposure = (None if args.exposure is None else
+                study.parse_range(args.exposure, "--exposure (s)", 1e-7, 10.0))
+    ranged = isinstance(w_g, tuple) or isinstance(exposure, tuple)
+    if ranged and not args.output:
+        raise UsageError("ranges need -o MAP.png for the precision map")
+    if args.output:
+        if not args.output.lower().endswith(".png"):
+            raise UsageError(f"the precision map is a PNG: -o must end in .png, got "
+                             f"{args.output}")
+        io.check_output_path(args.output)
+    if args.check < 0:
+        raise UsageError(f"--check must be >= 0, got {args.check}")
+    noise = _noise_model(args, True)
+    scene = _load_scene(args)
+    params = parse_pairs(args.params, "-P") or None
+
+    def report(i, f):
+        if not args.quiet:
+            print(f"  pilot {i + 1}: {f:.4g} MHz", flush=True)
+
+    result = study.precision_study(scene, w_g, exposure, spp=args.spp,
+                                   steps=args.steps if ranged else 2,
+                                   hetero_frequency=args.hetero_frequency, noise=noise,
+                                   mc_batches=args.mc_batches, seed=args.seed, params=params,
+                                   progress=False if args.quiet else None, on_pilot=report)
+    if ranged and args.check:
+        study.check_points(scene, result, study.default_check_points(result, args.check),
+                           noise=noise, seed=args.seed, params=params,
+                           progress=False if args.quiet else None)
+    print(f"{os.path.basename(args.scene)}: {result.spp} spp pilots; sensor: "
+          f"{noise.full_well:g} e- well, {noise.gain:g} e-/DN, "
+          f"{'auto photon scale' if noise.photons_per_unit is None else 'fixed photon scale'}")
+    print(study.format_study(result))
+    if args.output:
+        scale = ("auto photon scale" if noise.photons_per_unit is None else
+                 f"{noise.photons_per_unit:.3g} photons/s per unit")
+        study.write_map(args.output, result, f"{os.path.basename(args.scene)}: predicted "
+                        f"velocity precision (sensor: {noise.full_well:g} e- well, {scale})")
+        io.write_json(os.path.splitext(args.output)[0] + ".json", result.describe())
+        print(f"wrote {args.output}")
     return 0
 
 
@@ -206,6 +311,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         commands = {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
+                    "precision": _cmd_precision,
                     "figures": _cmd_figures}
         return commands[args.command](args) if args.command in commands else args.func(args)
     except KeyboardInterrupt:

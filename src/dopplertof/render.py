@@ -241,14 +241,15 @@ class Accumulator:
 
         self.total, self.nonfinite = total, nonfinite
         self.pilot_sums, self.squares = pilot_sums, squares
-        self.device_total = None  # column-major: column c of pixel p at c * n_pixels + p
+        self.device_total = None  # one Float64 array over the pixels per column
         if self.weighted:
-            self.device_total = (dr.zeros(self.mi.Float64, self.columns * self.n_pixels)
-                                 if fresh else self.mi.Float64(total.T.ravel()))
+            self.device_total = [dr.zeros(self.mi.Float64, self.n_pixels) if fresh
+                                 else self.mi.Float64(np.ascontiguousarray(column))
+                                 for column in total.T]
 
     def host_total(self):
         if self.weighted:
-            return np.asarray(self.device_total).reshape(self.columns, self.n_pixels).T
+            return np.stack([np.asarray(t) for t in self.device_total], axis=-1)
         return self.total
 
     def add(self, value, film_offset, chunk_size: int, threads, block_pixel, pilot: bool):
@@ -270,7 +271,7 @@ class Accumulator:
 
         if self.weighted:  # the splat: per film offset, weight x value (and the weights)
             self.device_total = self.splat.accumulate(
-                mi, self.device_total, raw, film_offset, *threads, chunk_size, self.columns,
+                mi, self.device_total, raw, film_offset, *threads, chunk_size,
                 self.normalization == "weights")
             sums = []
         else:

@@ -37,6 +37,7 @@ from ..params import RenderParams
 from . import reconstruct as rec
 from .ground_truth import GroundTruth, ground_truth, light_colocation
 from .noise import NoiseModel, apply_noise
+from . import precision as prec
 
 #: illumination frequency of the radiance capture, MHz (1 Hz)
 RADIANCE_FREQUENCY_MHZ = 1e-6
@@ -139,6 +140,8 @@ class CaptureResult:
     noise_free: Reconstruction | None  #: from ``rendered`` when noise is on
     truth: GroundTruth
     summary: dict = field(default_factory=dict)
+    #: predicted standard deviations (precision.Uncertainty) with mc_batches, else None
+    uncertainty: object = None
 
     @property
     def velocity(self):
@@ -155,6 +158,14 @@ class CaptureResult:
     @property
     def depth_gt(self):
         return self.truth.depth
+
+    def sensor_model(self):
+        """(CaptureModel, unmodulated light g0 R (H, W)) of this frame, from its summary:
+        what a repetition of its sensor noise needs."""
+        mod = self.summary["modulation"]
+        model = rec.CaptureModel(mod["omega_g_rad_s"], mod["exposure_s"],
+                                 mod["hetero_frequency"], mod["waveform"])
+        return model, mod["g_0"] * self.radiance.mean(axis=-1, dtype=np.float64)
 
     def write(self, folder) -> list:
         """Write every array (.npy), its preview (.png), the side-by-side figure and
@@ -210,7 +221,9 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
             hetero_frequency: float | None = None, unwrap_frequency: float | None = None,
             noise: NoiseModel | bool | None = None, min_signal_fraction: float | None = None,
             velocity_calibration: str = "auto", common_random_numbers: bool = True,
-            progress: bool | None = None, on_capture=None) -> CaptureResult:
+            progress: bool | None = None, on_capture=None, mc_batches: int | None = None,
+            max_velocity_std: float | None = None,
+            max_depth_std: float | None = None) -> CaptureResult:
     """Render every capture of one D-ToF frame, reconstruct velocity and depth, and
     compare them with the exact truth.
 
@@ -226,6 +239,11 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
     as on_capture(spec, seconds) after each render.
+    mc_batches: render every capture as this many independent batches (seeds
+    precision.batch_seeds) and predict per-pixel standard deviations of velocity and
+    depth (Monte Carlo from the batches, sensor from the noise model; result.uncertainty,
+    summary "precision"). max_velocity_std, max_depth_std: NaN where the predicted total
+    standard deviation is larger (implies mc_batches=8 when not given).
     """
     from ..render import render_result
 
@@ -256,25 +274,41 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
             raise CaptureError("min_signal_fraction must be a number in [0, 1), got "
                                f"{min_signal_fraction}")
 
+    max_velocity_std = prec.check_limit("max_velocity_std", max_velocity_std)
+    max_depth_std = prec.check_limit("max_depth_std", max_depth_std)
+    if mc_batches is None and (max_velocity_std or max_depth_std):
+        mc_batches = prec.DEFAULT_MC_BATCHES
+    if mc_batches is not None:
+        mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
+
     specs = plan_captures(base.w_g, h, unwrap)
-    rendered, records, radiance = {}, [], None
+    rendered, records, radiance, batches = {}, [], None, {}
     for index, spec in enumerate(specs):
         capture_seed = int(seed) if common_random_numbers else int(seed) + index
-        result = render_result(scene, spp=int(spp), seed=capture_seed, params=spec.params(base),
-                               progress=progress)
-        image = result.image
+        if mc_batches:
+            image, stack, seconds, dropped = prec.render_batches(
+                scene, int(spp), capture_seed, spec.params(base), mc_batches, progress)
+            if spec.kind != "radiance":
+                batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
+        else:
+            result = render_result(scene, spp=int(spp), seed=capture_seed,
+                                   params=spec.params(base), progress=progress)
+            image = result.image
+            seconds = result.metadata["render_seconds"]
+            dropped = result.metadata["nonfinite_samples_dropped"]
         if spec.kind == "radiance":
             radiance = image
         else:
             rendered[spec.name] = image.mean(axis=-1, dtype=np.float64).astype(np.float32)
-        seconds = result.metadata["render_seconds"]
         records.append({
             "order": index, "name": spec.name, "file": f"{spec.name}.npy", "kind": spec.kind,
             "w_g_MHz": spec.frequency_mhz, "hetero_frequency": spec.hetero_frequency,
             "hetero_offset": spec.hetero_offset, "seed": capture_seed, "spp": int(spp),
             "render_seconds": round(seconds, 3),
-            "nonfinite_samples_dropped": result.metadata["nonfinite_samples_dropped"],
+            "nonfinite_samples_dropped": dropped,
         })
+        if mc_batches:
+            records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
         if on_capture is not None:
             on_capture(spec, seconds)
 
@@ -293,11 +327,27 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     else:
         reconstruction = clean
 
+    uncertainty = limit_counts = None
+    if mc_batches:
+        variances = (prec.capture_variances(rendered, unmodulated, exposure, noise)
+                     if noise is not None else None)
+        uncertainty = prec.predict(rendered, batches, model, unwrap, calibration, clean.depth,
+                                   variances, clean.velocity_reasons == rec.VALID,
+                                   clean.depth_reasons == rec.VALID)
+        limit_counts = prec.apply_limits(reconstruction, uncertainty, max_velocity_std,
+                                         max_depth_std)
+
     summary = _summary(scene, base, spp, seed, model, unwrap, calibration, records,
                        reconstruction, noise_free, truth, noise_info, min_signal_fraction,
                        common_random_numbers, _time.perf_counter() - started)
+    if uncertainty is not None:
+        summary["precision"] = prec.precision_summary(
+            uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
+            None if unwrap is not None else model.wrap_distance,
+            {"max_velocity_std_m_s": max_velocity_std, "max_depth_std_m": max_depth_std,
+             "masked_pixels": limit_counts})
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
-                         summary)
+                         summary, uncertainty)
 
 
 def _homodyne_set(captures, prefix):
@@ -325,6 +375,17 @@ def _reconstruct(captures, model, unwrap, min_signal_fraction, calibration, satu
         velocity = np.where(saturated, np.nan, velocity)
         depth = np.where(saturated, np.nan, depth)
     return Reconstruction(velocity, v_reasons, depth, d_reasons, amplitude)
+
+
+def reconstruct_noisy(result: CaptureResult, noise: NoiseModel) -> Reconstruction:
+    """The reconstruction of ``result``'s noise-free captures after drawing ``noise``
+    (its own seed): a repetition of the sensor noise without rendering again."""
+    s = result.summary
+    model, unmodulated = result.sensor_model()
+    noisy, saturated, _ = apply_noise(result.rendered, unmodulated, model.exposure, noise)
+    return _reconstruct(noisy, model, s["depth"]["unwrap_frequency_MHz"],
+                        s["velocity"]["min_signal_fraction"], s["velocity"]["calibration"],
+                        saturated)
 
 
 # ---- Summary ---------------------------------------------------------------------------

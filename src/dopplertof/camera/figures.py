@@ -110,6 +110,30 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
     save_figure(fig, path, metadata)
 
 
+def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
+                  note: str | None = None, metadata: dict | None = None) -> None:
+    """A positive map (standard deviations) on a log colour scale from its 0.5th to
+    99.5th percentile over the finite positive values; +inf shows as the top colour,
+    NaN and zero as no signal."""
+    import matplotlib.colors as colors
+
+    plt = _pyplot()
+    data = np.asarray(data, np.float64)
+    shown = np.where(np.isfinite(data) & (data > 0), data, np.nan)
+    finite = shown[np.isfinite(shown)]
+    lo = float(np.percentile(finite, 0.5)) if finite.size else 1e-3
+    hi = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+    hi = hi if hi > lo else lo * 10
+    shown = np.where(np.isposinf(data), hi, shown)
+    h, w = data.shape
+    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
+    _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
+    if note:
+        fig.text(0.5, 0.01, note, ha="center", va="bottom", fontsize=8, color="#444444")
+    fig.tight_layout(rect=(0, 0.03 if note else 0, 1, 1))
+    save_figure(fig, path, metadata)
+
+
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
     plt = _pyplot()
     data = radiance_scalar(radiance)

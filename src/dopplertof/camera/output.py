@@ -87,5 +87,31 @@ def write_result(result, folder) -> list:
     figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
                              truth.velocity, f"{os.path.basename(summary['scene'])}: "
                              f"{summary['spp_per_capture']} spp per capture{noisy}")
+    if getattr(result, "uncertainty", None) is not None:
+        write_uncertainty(result.uncertainty, path)
     io.write_json(path("summary.json"), summary)
     return written
+
+
+_STD_TITLES = {
+    "velocity_std_mc": ("velocity: predicted standard deviation, Monte Carlo", "m/s"),
+    "depth_std_mc": ("depth: predicted standard deviation, Monte Carlo", "m"),
+    "velocity_std_sensor": ("velocity: predicted standard deviation, sensor noise", "m/s"),
+    "depth_std_sensor": ("depth: predicted standard deviation, sensor noise", "m"),
+    "velocity_std": ("velocity: predicted standard deviation, total", "m/s"),
+    "depth_std": ("depth: predicted standard deviation, total", "m"),
+}
+
+
+def write_uncertainty(uncertainty, path) -> None:
+    """The predicted standard deviations (.npy) and their log-scale previews (.png);
+    ``path(name)`` gives a file's path in the output folder."""
+    for name, data in uncertainty.maps().items():
+        title, unit = _STD_TITLES[name]
+        io.write_npy(path(f"{name}.npy"), data)
+        if np.any(np.isfinite(data) & (data > 0)):
+            figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
+                                  note=f"{io.NO_SIGNAL_NOTE}; top colour: also first order "
+                                  "fails (inf)")
+    for name, data in (uncertainty.capture_std_mc or {}).items():
+        io.write_npy(path(f"{name}_std_mc.npy"), data)

@@ -72,8 +72,10 @@ INVALID_REASONS = {
        "percentile): nothing seen, or too little light to divide by",
     2: "heterodyne/homodyne ratio outside the range the model can invert",
     3: "a tap saturated (full well or ADC maximum)",
+    4: "predicted standard deviation above the trust limit (max_velocity_std or "
+       "max_depth_std)",
 }
-VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED = 0, 1, 2, 3
+VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED, TOO_UNCERTAIN = 0, 1, 2, 3, 4
 
 
 class ReconstructionError(ValueError):

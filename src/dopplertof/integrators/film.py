@@ -187,17 +187,32 @@ class SplatFilter:
         (Vector2f). None for a box: a sample then weighs 1 in its own pixel only."""
         if self.reach == 0:
             return None
-        n = self.reach
-        wx = {k: self.eval_1d(delta.x - k) for k in range(-n, n + 1)}
-        wy = {k: self.eval_1d(delta.y - k) for k in range(-n, n + 1)}
+        wx, wy = self.axis_weights(delta.x), self.axis_weights(delta.y)
         return [wy[oy] * wx[ox] for ox, oy in self.offsets]
 
+    def axis_weights(self, d):
+        """e(d - k) for every neighbour k = -n..n (a dict), ``d`` a lane's offset from
+        its pixel's centre on one axis (Dr.Jit Float). The gaussian's five exponentials
+        come from two: exp(-a (d - k)^2) = exp(-a d^2) exp(2 a d k) exp(-a k^2)."""
+        n = self.reach
+        if self.kind != "GaussianFilter":
+            return {k: self.eval_1d(d - k) for k in range(-n, n + 1)}
+        a = self._alpha
+        centre, step = dr.exp(-dr.square(d) * a), dr.exp(d * (2.0 * a))
+        powers = {0: centre}
+        for k in range(1, n + 1):
+            powers[k] = powers[k - 1] * step
+        back = dr.rcp(step)
+        for k in range(1, n + 1):
+            powers[-k] = powers[-k + 1] * back
+        return {k: dr.maximum(0.0, powers[k] * math.exp(-a * k * k) - self._bias)
+                for k in range(-n, n + 1)}
+
     def accumulate(self, mi, totals, values, film_offset, pixel, first_lane, lanes,
-                   chunk_size: int, columns: int, with_weights: bool):
-        """Add a pass's samples to ``totals``, a Float64 array of ``columns`` x pixels
-        (column-major: column c of pixel p at c * pixels + p; the columns offset-major,
-        then channel; then, ``with_weights``, one per offset for the sums of weights).
-        Returns the new array.
+                   chunk_size: int, with_weights: bool):
+        """Add a pass's samples to ``totals``: one Float64 array over the pixels per
+        column (offset-major, then channel; then, ``with_weights``, one per offset for
+        the sums of weights). Returns the new list.
 
         One thread per pixel with samples in the pass (host arrays ``pixel``,
         ``first_lane``, ``lanes``: its lanes are consecutive). Each chunk of
@@ -206,12 +221,12 @@ class SplatFilter:
         on how the samples were cut into passes; every lane is read once, its weights
         computed there, and no two threads write one pixel (no atomics).
         Lanes with a non-finite value count as zero."""
-        n = self.reach
         channels = len(values)
-        n_pixels = dr.width(totals) // columns
-        pixel = mi.UInt32(pixel)
+        n_pixels = dr.width(totals[0])
+        every_pixel = len(pixel) == n_pixels and np.array_equal(pixel, np.arange(n_pixels))
+        index = mi.UInt32(pixel)
         first, count = mi.UInt32(first_lane), mi.UInt32(lanes)
-        acc = [dr.gather(mi.Float64, totals, pixel + c * n_pixels) for c in range(columns)]
+        acc = list(totals) if every_pixel else [dr.gather(mi.Float64, t, index) for t in totals]
 
         def add_sample(k, part):
             lane = first + k
@@ -220,10 +235,8 @@ class SplatFilter:
             for v in f[1:]:
                 finite &= dr.isfinite(v)
             f = [dr.select(finite, v, 0.0) for v in f]
-            dx = dr.gather(mi.Float, film_offset.x, lane)
-            dy = dr.gather(mi.Float, film_offset.y, lane)
-            wx = {j: self.eval_1d(dx - j) for j in range(-n, n + 1)}
-            wy = {j: self.eval_1d(dy - j) for j in range(-n, n + 1)}
+            wx = self.axis_weights(dr.gather(mi.Float, film_offset.x, lane))
+            wy = self.axis_weights(dr.gather(mi.Float, film_offset.y, lane))
             part = list(part)
             for m, (ox, oy) in enumerate(self.offsets):
                 w = wy[oy] * wx[ox]
@@ -238,16 +251,19 @@ class SplatFilter:
             # ---- One chunk: float32 sums in lane order, then into the float64 totals ----
             end = k + chunk_size
             k, part = dr.while_loop(
-                state=(k, [mi.Float(0.0) for _ in range(columns)]),
+                state=(k, [mi.Float(0.0) for _ in acc]),
                 cond=lambda k, part: k < end, body=add_sample, labels=("k", "part"),
                 label="splat_chunk")
             return k, [a + mi.Float64(p) for a, p in zip(acc, part)]
 
         _, acc = dr.while_loop(state=(mi.UInt32(0), acc), cond=lambda k, acc: k < count,
                                body=add_chunk, labels=("k", "acc"), label="splat")
-        out = dr.copy(totals)
-        for c, a in enumerate(acc):
-            dr.scatter(out, a, pixel + c * n_pixels)
+        dr.eval(acc)  # the loop once (its symbolic outputs, scattered, reran it per column)
+        if every_pixel:
+            return acc
+        out = [dr.copy(t) for t in totals]
+        for t, a in zip(out, acc):
+            dr.scatter(t, a, index)
         dr.eval(out)
         return out
 
