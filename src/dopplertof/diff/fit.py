@@ -50,7 +50,7 @@ FIT_CAPTURES = ("heterodyne_0", "heterodyne_0.25")
 RCOND = 0.05
 
 #: default samples per pixel of the fit's renders
-FIT_SPP = 128
+FIT_SPP = 256
 
 
 class FitError(ValueError):
