@@ -10,7 +10,7 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene
-from dopplertof.camera import CaptureError, NoiseModel, ReconstructionError, capture
+from dopplertof.tof import CaptureError, NoiseModel, ReconstructionError, capture
 from dopplertof.modulation import SPEED_OF_LIGHT
 
 

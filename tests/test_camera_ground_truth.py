@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import dopplertof
-from dopplertof.camera import capture, ground_truth
+from dopplertof.tof import capture, ground_truth
 
 T = 0.0015
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dopplertof.camera import NoiseError, NoiseModel, apply_noise
+from dopplertof.tof import NoiseError, NoiseModel, apply_noise
 
 T = 0.0015
 SHAPE = (300, 300)  # 90000 pixels: the sample variance is within ~1% (4 sigma ~ 2%)

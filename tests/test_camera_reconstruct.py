@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from dopplertof.camera import reconstruct as rec
+from dopplertof.tof import reconstruct as rec
 from dopplertof.modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation
 
 OMEGA_G = 2 * math.pi * 30e6

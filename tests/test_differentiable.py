@@ -102,7 +102,7 @@ def test_mitsuba_parameter_reflectance_channel_by_channel():
 @pytest.fixture(scope="module")
 def published():
     import dopplertof
-    from dopplertof.camera.ground_truth import ground_truth
+    from dopplertof.tof.ground_truth import ground_truth
 
     dopplertof.set_variant("llvm_ad_rgb")
     scene = dopplertof.load_file(PUBLISHED, {"resx": 24, "resy": 24, "max_depth": 3})

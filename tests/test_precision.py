@@ -18,10 +18,10 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene
-from dopplertof.camera import NoiseModel, capture
-from dopplertof.camera import precision as prec
-from dopplertof.camera import reconstruct as rec
-from dopplertof.camera.capture import _reconstruct
+from dopplertof.tof import NoiseModel, capture
+from dopplertof.tof import precision as prec
+from dopplertof.tof import reconstruct as rec
+from dopplertof.tof.capture import _reconstruct
 from dopplertof.demo import demo_scene_path
 
 def plane(res=8, light_off=False, rfilter="box"):
@@ -104,7 +104,7 @@ def test_propagation_with_correlated_captures_against_brute_force():
     for record in s["captures"]:
         if record["kind"] == "radiance":
             continue
-        spec = [c for c in dopplertof.camera.plan_captures(30.0, 1.0) if c.name == record["name"]][0]
+        spec = [c for c in dopplertof.tof.plan_captures(30.0, 1.0) if c.name == record["name"]][0]
         batches[record["name"]] = np.stack([render_result(
             scene, spp=8, seed=b, params=spec.params(base)).image.mean(-1)
             for b in record["batch_seeds"]])

@@ -15,9 +15,9 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene
-from dopplertof.camera import NoiseModel
-from dopplertof.camera import study
-from dopplertof.camera.precision import PrecisionError
+from dopplertof.tof import NoiseModel
+from dopplertof.tof import study
+from dopplertof.tof.precision import PrecisionError
 
 
 def plane():

@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from dopplertof import io
-from dopplertof.camera import figures
+from dopplertof.tof import figures
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SPHERE = os.path.join(ROOT, "examples", "translating_sphere.xml")

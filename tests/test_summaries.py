@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import dopplertof
-from dopplertof.camera import format_summary
+from dopplertof.tof import format_summary
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

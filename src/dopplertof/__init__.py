@@ -59,12 +59,12 @@ def load_dict(scene_dict: dict):
 
 def capture(scene, spp=None, seed=0, **kwargs):
     """One D-ToF camera frame: every capture, velocity and depth reconstruction and the
-    exact truth (see :func:`dopplertof.camera.capture`). ``scene`` is a DopplerScene or
+    exact truth (see :func:`dopplertof.tof.capture`). ``scene`` is a DopplerScene or
     the path of an XML scene. Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
     ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
     import os
 
-    from .camera import capture as _capture
+    from .tof import capture as _capture
 
     if isinstance(scene, (str, os.PathLike)):
         scene = load_file(scene)

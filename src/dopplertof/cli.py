@@ -200,7 +200,7 @@ _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
 
 def _cmd_capture(args) -> int:
     import dopplertof
-    from .camera import format_summary, prepare_folder
+    from .tof import format_summary, prepare_folder
 
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
@@ -223,7 +223,7 @@ def _cmd_capture(args) -> int:
                                 max_depth_std=args.max_depth_std)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
-    from .camera.precision import format_precision
+    from .tof.precision import format_precision
 
     if result.uncertainty is not None:
         print(format_precision(result.summary))
@@ -231,7 +231,7 @@ def _cmd_capture(args) -> int:
 
 
 def _noise_model(args, default: bool):
-    from .camera import NoiseModel
+    from .tof import NoiseModel
 
     noise_args = {field: getattr(args, opt) for opt, field in _NOISE_OPTIONS.items()
                   if getattr(args, opt) is not None}
@@ -240,7 +240,7 @@ def _noise_model(args, default: bool):
 
 def _cmd_precision(args) -> int:
     from . import io
-    from .camera import study
+    from .tof import study
 
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")

@@ -2,7 +2,7 @@
 
 The scene ships with the package (data/cornell_demo.xml): the short box approaches
 the camera and the tall box recedes, at 10 m/s each, under a point light at the
-camera. The demo runs the capture pipeline (dopplertof.camera): homodyne and
+camera. The demo runs the capture pipeline (dopplertof.tof): homodyne and
 heterodyne captures, velocity and depth reconstruction, ground truth, previews and
 summary.json, and prints the summary.
 """
@@ -24,7 +24,7 @@ def run_demo(outdir: str, spp: int = DEMO_SPP, res: int = DEMO_RES, variant=None
              progress=None, noise=None, quiet: bool = False) -> dict:
     """Capture one frame of the demo scene into ``outdir``; returns the summary."""
     import dopplertof
-    from .camera import format_summary, prepare_folder
+    from .tof import format_summary, prepare_folder
 
     if isinstance(res, bool) or not isinstance(res, int) or res < 1:
         raise ValueError(f"res must be a positive integer, got {res!r}")

@@ -45,7 +45,7 @@ class RenderSetup:
     scene: object
     params: RenderParams
     modulation: object
-    weight: object
+    modulation_weight: object  #: integrators.dtof_path.ModulationWeight: w(L, t)
     seed: object
     correlation_depth: object
     method: object
@@ -75,7 +75,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
     K = params.time_correlate_number
     forward = rest_forward(sensor)
     near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
-    weight = ModulationWeight(mi, mod)
+    modulation_weight = ModulationWeight(mi, mod)
     analytic = params.time_sampling_method == sampling.ANALYTIC
     splat = params.film_sampling == "splat"
     projection = None
@@ -86,7 +86,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
                 f"{sensor.class_name()}")
         projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
     return RenderSetup(
-        scene=scene, params=params, modulation=mod, weight=weight,
+        scene=scene, params=params, modulation=mod, modulation_weight=modulation_weight,
         seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
         # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
         # (analytic: a sample's two paths share everything, and samples nothing)
@@ -94,7 +94,7 @@ def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderS
                                     else min(params.path_correlation_depth, 1 << 30)),
         method=dr.opaque(mi.UInt32, 0 if analytic
                          else sampling.method_index(params.time_sampling_method)),
-        antithetic_shift=dr.opaque(weight.F, mod.antithetic_shift),
+        antithetic_shift=dr.opaque(modulation_weight.F, mod.antithetic_shift),
         group_size=K, groups_per_pixel=spp // K, path_group_size=params.path_group_size,
         stratify=params.use_stratified_sampling_for_each_interval,
         shutter_open=scene.shutter_open,

@@ -61,7 +61,7 @@ def parse_start(items) -> dict:
 
 def run(args) -> int:
     import dopplertof
-    from ..camera.output import prepare_folder
+    from ..tof.output import prepare_folder
     from ..experiments.cli import parse_pairs
     from .fit import fit, format_fit, write_fit
 

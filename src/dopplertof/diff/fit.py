@@ -144,7 +144,7 @@ def load_capture(folder, defines=None) -> CaptureData:
 
 
 def _capture_params(data: CaptureData, name: str):
-    from ..camera.capture import CaptureSpec
+    from ..tof.capture import CaptureSpec
 
     r = data.records[name]
     return CaptureSpec(name, r["kind"], r["w_g_MHz"], r["hetero_frequency"],
@@ -159,7 +159,7 @@ def _scene_with(scene, motions):
 
 
 def _truth(scene, motions, params):
-    from ..camera.ground_truth import ground_truth
+    from ..tof.ground_truth import ground_truth
 
     return ground_truth(_scene_with(scene, [_plain(m) for m in motions]), params)
 
@@ -526,7 +526,7 @@ def _or_none(values):
 def write_fit(result: FitResult, folder) -> list:
     """fit.json and convergence.png into ``folder`` (created if missing; atomic)."""
     from .. import io
-    from ..camera.output import prepare_folder
+    from ..tof.output import prepare_folder
 
     folder = prepare_folder(folder, create=True)
     paths = [os.path.join(folder, "fit.json"), os.path.join(folder, "convergence.png")]

@@ -345,7 +345,7 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
     scene = dscene._traced(motion_vars)
     setup = _make_setup(mi, scene, dscene.params, spp, int(seed))
     variables = {**motion_vars,
-                 **_ModulationVariables(mi, setup.weight, setup.modulation, names).variables}
+                 **_ModulationVariables(mi, setup.modulation_weight, setup.modulation, names).variables}
     # ---- Mitsuba scene parameters: the value plus x (channel c: x on c only), at 0 ----
     touched = []
     if name is not None and name not in variables:

@@ -3,7 +3,7 @@
 Frame k is an exposure of length T (the scene's, from ``time`` or its shutter) that
 starts at ``start + k * frame_period`` (by default ``start`` is the scene's
 ``shutter_open`` and the period is T: back-to-back exposures). Each frame runs the
-camera pipeline (:func:`dopplertof.camera.capture`: homodyne and heterodyne captures,
+camera pipeline (:func:`dopplertof.tof.capture`: homodyne and heterodyne captures,
 radiance, velocity and depth reconstruction, exact truth) and writes into
 ``frames/frame_0000/`` and so on; the driver then writes ``velocity.gif`` (radiance,
 reconstructed and true radial velocity, side by side, one colour scale for the whole
@@ -124,7 +124,7 @@ def load_frame_scene(path: str, defines: dict, shutter_open: float, shutter_clos
 def run_frame_task(task: FrameTask) -> dict:
     """Render and reconstruct one frame into its folder (runs on a worker)."""
     from .. import io
-    from ..camera import capture
+    from ..tof import capture
 
     started = time.perf_counter()
     begin_task(task.folder)
@@ -283,7 +283,7 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     from PIL import Image
 
     from .. import io
-    from ..camera.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
+    from ..tof.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
 
     load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
     velocity = [load(t, "velocity.npy") for t in tasks]

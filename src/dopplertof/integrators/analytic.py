@@ -115,7 +115,7 @@ def trace_analytic_pass(mi, setup, layout):
     wavelengths = ray1.wavelengths  # of the camera ray, for the colour conversion
 
     # ---- Loop state: P1 (start) and P2 (end) ----
-    L = mi.Spectrum(0.0)  # accumulated time-averaged measurement
+    measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
     beta1, beta2 = mi.Spectrum(ray_weight1), mi.Spectrum(ray_weight2)  # throughputs
     length1, length2 = mi.Float(offset1), mi.Float(offset2)  # lengths from the camera (m)
     depth1, depth2 = mi.UInt32(0), mi.UInt32(0)  # surface hits so far
@@ -143,10 +143,10 @@ def trace_analytic_pass(mi, setup, layout):
         # ---- P1's contributions, integrated over the exposure towards P2's ----
         # (where P2 has none, it fades out at P1's length: P2's has no meaning there)
         rho_hit = _ratio(dr.select(v2.hit_emitter, v2.emitted, 0.0), v1.emitted)
-        L += dr.select(v1.hit_emitter, v1.emitted * v1.mis_hit * integrated(
+        measured += dr.select(v1.hit_emitter, v1.emitted * v1.mis_hit * integrated(
             v1.length_hit, dr.select(v2.hit_emitter, v2.length_hit, v1.length_hit), rho_hit), 0.0)
         rho_em = _ratio(dr.select(v2.active_em, v2.em_value, 0.0), v1.em_value)
-        L += dr.select(v1.active_em, v1.em_value * v1.mis_em * integrated(
+        measured += dr.select(v1.active_em, v1.em_value * v1.mis_em * integrated(
             v1.length_em, dr.select(v2.active_em, v2.length_em, v1.length_em), rho_em), 0.0)
 
         # ---- Continue both paths ----
@@ -165,4 +165,4 @@ def trace_analytic_pass(mi, setup, layout):
         active1 = (v1.active_next & survives & (beta_max1 != 0.0)) | v1.through
         active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
 
-    return _as_colour(mi, L, wavelengths), film_offset
+    return _as_colour(mi, measured, wavelengths), film_offset

@@ -273,7 +273,7 @@ def trace_pass(mi, setup, layout: PassLayout):
     scene = setup.scene
     static = scene.static
     mod = setup.modulation
-    weight = setup.weight
+    modulation = setup.modulation_weight  # w(L, t) of a contribution
     if dr.hint(setup.analytic, mode="scalar"):  # time integrated, not sampled
         from .analytic import trace_analytic_pass
 
@@ -291,7 +291,7 @@ def trace_pass(mi, setup, layout: PassLayout):
         )
 
     t_frac = exposure_fraction(layout.index)
-    t_rel = t_frac * weight.F(mod.exposure)  # since exposure start, float64 in full mode
+    t_rel = t_frac * modulation.F(mod.exposure)  # since exposure start, float64 in full mode
     time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
 
     # ---- Camera ray (stage 0) ----
@@ -320,9 +320,9 @@ def trace_pass(mi, setup, layout: PassLayout):
     wavelengths = ray.wavelengths  # of the camera ray, for the colour conversion
 
     # ---- Loop state ----
-    L = mi.Spectrum(0.0)  # accumulated modulated measurement
+    measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
     beta = mi.Spectrum(ray_weight)  # path throughput
-    length = weight.F(camera_offset)  # path length from the camera to the ray origin (m)
+    length = modulation.F(camera_offset)  # path length from the camera to the ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
     # (active: whether the path goes on; set by the camera rays)
     prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
@@ -339,11 +339,13 @@ def trace_pass(mi, setup, layout: PassLayout):
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth,
-                  hide_direct_emitters, weight.F, bsdf_ctx)
+                  hide_direct_emitters, modulation.F, bsdf_ctx)
 
         # ---- Modulated contributions: the emitter hit and the light sample ----
-        L += dr.select(v.hit_emitter, v.emitted * v.mis_hit * weight(v.length_hit, t_rel), 0.0)
-        L += dr.select(v.active_em, v.em_value * v.mis_em * weight(v.length_em, t_rel), 0.0)
+        measured += dr.select(v.hit_emitter,
+                              v.emitted * v.mis_hit * modulation(v.length_hit, t_rel), 0.0)
+        measured += dr.select(v.active_em,
+                              v.em_value * v.mis_em * modulation(v.length_em, t_rel), 0.0)
 
         # ---- Continue the path ----
         length = v.length_hit
@@ -357,4 +359,4 @@ def trace_pass(mi, setup, layout: PassLayout):
         active = ((v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
                   | v.through)
 
-    return _as_colour(mi, L, wavelengths), film_offset
+    return _as_colour(mi, measured, wavelengths), film_offset
