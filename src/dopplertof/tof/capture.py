@@ -256,7 +256,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     _check_spp_seed(base, spp, seed)
     exposure = base.exposure(scene.shutter_interval)
     h = _resolve_hetero_frequency(base, exposure, hetero_frequency)
-    model = rec.CaptureModel(2 * math.pi * base.w_g * 1e6, exposure, h, base.wave_function_type)
+    model = rec.CaptureModel.of(base.modulation(scene.shutter_interval), h)
     unwrap = _check_unwrap(unwrap_frequency, base.w_g)
     calibration = rec.resolve_calibration(velocity_calibration, model.waveform)
     if noise is True:

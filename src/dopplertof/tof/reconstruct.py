@@ -114,6 +114,14 @@ class CaptureModel:
             raise ReconstructionError(f"the correlation of waveform {self.waveform!r} has a "
                                       "non-zero mean: the ratio inversion does not hold")
 
+    @classmethod
+    def of(cls, modulation, hetero_frequency: float) -> "CaptureModel":
+        """The captures of a render's modulation (``params.Modulation``: the one
+        description of the renderer's modulation) with heterodyne captures at
+        ``hetero_frequency`` beat periods per exposure."""
+        return cls(modulation.omega_g, modulation.exposure, hetero_frequency,
+                   modulation.waveform)
+
     @property
     def omega_d(self) -> float:
         """omega_s - omega_g of the heterodyne captures (rad/s)."""
