@@ -54,7 +54,6 @@ def configurations():
 
     def with_filter(kind, crop=False):
         def make():
-            import mitsuba as mi  # noqa: F401
             from analytic import plane_scene
 
             d = plane_scene(2.0, 30.0, res=6)

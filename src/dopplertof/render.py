@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import allocation, sampling
+from . import allocation
 from .params import RenderParams
 from .sampling import check_sample_count
 
@@ -38,73 +38,11 @@ class RenderResult:
     sample_counts: np.ndarray | None = None
 
 
-@dataclass
-class RenderSetup:
-    """Everything the path tracing kernel reads, resolved for one render."""
+def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int):
+    """The integrator of one render (integrators.dtof_path.DopplerToFPath)."""
+    from .integrators.dtof_path import DopplerToFPath
 
-    scene: object
-    params: RenderParams
-    modulation: object
-    modulation_weight: object  #: integrators.dtof_path.ModulationWeight: w(L, t)
-    seed: object
-    correlation_depth: object
-    method: object
-    antithetic_shift: object
-    group_size: int
-    groups_per_pixel: int
-    path_group_size: int  #: Kp, samples sharing one path stream
-    stratify: bool
-    shutter_open: float
-    film_sampler: object  #: integrators.film.FilmSampler: film positions in a pixel
-    splat: object  #: integrators.film.SplatFilter, or None for the importance film
-    camera: object  #: integrators.camera.Camera
-    projection: object  #: PinholeProjection when pairs use the motion mapping, else None
-    hide_emitters: bool
-    analytic: bool = False  #: time_sampling_method "analytic" (integrators/analytic.py)
-
-
-def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int) -> RenderSetup:
-    import drjit as dr
-
-    from .integrators.camera import Camera, PinholeProjection, is_pinhole, rest_forward
-    from .integrators.dtof_path import ModulationWeight
-    from .integrators.film import FilmSampler, SplatFilter
-
-    sensor = scene.sensor
-    mod = params.modulation(scene.shutter_interval)
-    K = params.time_correlate_number
-    forward = rest_forward(sensor)
-    near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
-    modulation_weight = ModulationWeight(mi, mod)
-    analytic = params.time_sampling_method == sampling.ANALYTIC
-    splat = params.film_sampling == "splat"
-    projection = None
-    if params.antithetic_mapping == "motion":
-        if not is_pinhole(sensor):
-            raise ValueError(
-                "antithetic_mapping='motion' needs a pinhole perspective sensor, got "
-                f"{sensor.class_name()}")
-        projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
-    return RenderSetup(
-        scene=scene, params=params, modulation=mod, modulation_weight=modulation_weight,
-        seed=dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
-        # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
-        # (analytic: a sample's two paths share everything, and samples nothing)
-        correlation_depth=dr.opaque(mi.UInt32, 0 if params.path_group_size == 1 or analytic
-                                    else min(params.path_correlation_depth, 1 << 30)),
-        method=dr.opaque(mi.UInt32, 0 if analytic
-                         else sampling.method_index(params.time_sampling_method)),
-        antithetic_shift=dr.opaque(modulation_weight.F, mod.antithetic_shift),
-        group_size=K, groups_per_pixel=spp // K, path_group_size=params.path_group_size,
-        stratify=params.use_stratified_sampling_for_each_interval,
-        shutter_open=scene.shutter_open,
-        film_sampler=FilmSampler.uniform() if splat else FilmSampler(sensor.film()),
-        splat=SplatFilter(sensor.film()) if splat else None,
-        camera=Camera(mi, sensor, scene.sensor_motion, near_clip,
-                      mi.Vector3f(*map(float, forward))),
-        projection=projection,
-        hide_emitters=params.hide_emitters, analytic=analytic,
-    )
+    return DopplerToFPath(mi, scene, params, spp, seed)
 
 
 def _show_progress(progress) -> bool:

@@ -19,7 +19,7 @@ from ..scene import lights
 from ..scene.bodies import (BodyFrames, intersect, nearest_hit, occluded,
                              surface_interaction)
 from .antithetic_map import PairedCameraRays
-from .film import FilmSampler  # noqa: F401  (importance film, re-exported)
+from .film import FilmSampler
 
 
 class PassLayout:
@@ -265,53 +265,131 @@ def loop_settings(mi, setup):
             params.max_depth, params.rr_depth, setup.hide_emitters)
 
 
+class CameraSample:
+    """Each lane's start: its time and camera ray, with what the path needs from them."""
+
+    def __init__(self, **fields):
+        self.__dict__.update(fields)
+
+
+class DopplerToFPath:
+    """The D-ToF path tracer of one render (scene, parameters, spp, seed), as Mitsuba's
+    ``ADIntegrator``: the constructor resolves everything the kernel reads;
+    :meth:`sample_camera` starts each lane (time, film position, lens, camera ray);
+    :meth:`trace` runs the path loop of one pass."""
+
+    def __init__(self, mi, scene, params, spp: int, seed: int):
+        from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
+        from .film import SplatFilter
+
+        sensor = scene.sensor
+        mod = params.modulation(scene.shutter_interval)
+        near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
+        analytic = params.time_sampling_method == sampling.ANALYTIC
+        splat = params.film_sampling == "splat"
+        self.mi = mi
+        self.scene = scene  #: the DopplerScene (static scene, bodies, sensor, lights)
+        self.params = params  #: RenderParams, ``auto`` resolved
+        self.modulation = mod  #: params.Modulation: frequencies, phase, waveform (SI)
+        self.modulation_weight = ModulationWeight(mi, mod)  #: w(L, t) of a contribution
+        self.seed = dr.opaque(mi.UInt32, seed & 0xFFFFFFFF)
+        # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
+        # (analytic: a sample's two paths share everything, and samples nothing)
+        self.correlation_depth = dr.opaque(
+            mi.UInt32, 0 if params.path_group_size == 1 or analytic
+            else min(params.path_correlation_depth, 1 << 30))
+        self.method = dr.opaque(mi.UInt32, 0 if analytic  #: the kernel's method number
+                                else sampling.method_index(params.time_sampling_method))
+        self.antithetic_shift = dr.opaque(self.modulation_weight.F, mod.antithetic_shift)
+        self.group_size: int = params.time_correlate_number  #: K
+        self.groups_per_pixel: int = spp // params.time_correlate_number
+        self.path_group_size: int = params.path_group_size  #: Kp, samples on one path stream
+        self.stratify: bool = params.use_stratified_sampling_for_each_interval
+        self.shutter_open: float = scene.shutter_open
+        #: film positions within a pixel: uniform (splat film) or from the filter
+        self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
+        #: the splat film's filter, or None for the importance film
+        self.splat = SplatFilter(sensor.film()) if splat else None
+        self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
+                             mi.Vector3f(*map(float, rest_forward(sensor))))
+        #: the pinhole film map, when pairs use the motion mapping (else None)
+        self.projection = None
+        if params.antithetic_mapping == "motion":
+            if not is_pinhole(sensor):
+                raise ValueError(
+                    "antithetic_mapping='motion' needs a pinhole perspective sensor, got "
+                    f"{sensor.class_name()}")
+            self.projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
+        self.hide_emitters: bool = params.hide_emitters
+        self.analytic: bool = analytic  #: time integrated (integrators/analytic.py)
+
+    def sample_camera(self, layout: PassLayout, streams) -> CameraSample:
+        """Each lane's time, film position, lens point and camera ray (sampling stage 0),
+        the body and light transforms at its time, and its first hit when the camera
+        rays were traced already (motion-mapped pairs)."""
+        mi, mod, scene = self.mi, self.modulation, self.scene
+
+        # ---- Time of each lane ----
+        def exposure_fraction(index):
+            return sampling.time_fraction(
+                mi, streams, layout.group, index, group_size=self.group_size,
+                groups_per_pixel=self.groups_per_pixel, method=self.method,
+                antithetic_shift=self.antithetic_shift, stratify=self.stratify,
+                double=not mod.low_pass,
+            )
+
+        t_frac = exposure_fraction(layout.index)
+        # since exposure start (float64 in full-waveform mode), and absolute for the motion
+        t_rel = t_frac * self.modulation_weight.F(mod.exposure)
+        time = mi.Float(t_rel) + self.shutter_open
+
+        # ---- Camera ray ----
+        pos, film_offset, center, window_lo, window_hi, lens = film_position(
+            mi, self, layout, streams)
+        partner_fraction = (exposure_fraction(1 - layout.index)
+                            if self.projection is not None else None)
+        ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
+            mi, self, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
+            lens)
+        if lane_pos is not None:  # a mapped partner's film position is its own
+            crop_size = scene.sensor.film().crop_size()
+            film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
+                                      (lane_pos.y - center.y) * crop_size[1])
+
+        # ---- Lights and bodies at the lanes' times, once per path ----
+        light_frames = (lights.LightFrames(mi, scene.light_motions, time)
+                        if scene.light_motions else None)
+        frames = (BodyFrames(mi, scene.bodies, time, self.shutter_open,
+                             self.shutter_open + mod.exposure) if scene.bodies else None)
+        return CameraSample(t_rel=t_rel, ray=ray, ray_weight=ray_weight,
+                            camera_offset=camera_offset, first_hit=first_hit, active=active,
+                            film_offset=film_offset, light_frames=light_frames, frames=frames)
+
+    def trace(self, layout: PassLayout):
+        """Render one pass; returns each lane's time-averaged measurement (the variant's
+        Spectrum; RGB in spectral variants) and its film position's offset from its
+        pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
+        if self.analytic:  # time integrated, not sampled
+            from .analytic import trace_analytic_pass
+
+            return trace_analytic_pass(self.mi, self, layout)
+        streams = lane_streams(self.mi, self, layout)
+        return _trace_paths(self.mi, self, layout, streams,
+                            self.sample_camera(layout, streams))
+
+
+def trace_pass(mi, setup: DopplerToFPath, layout: PassLayout):
+    """One pass of ``setup`` (see :meth:`DopplerToFPath.trace`)."""
+    return setup.trace(layout)
+
+
 @dr.syntax
-def trace_pass(mi, setup, layout: PassLayout):
-    """Render one pass; returns each lane's time-averaged measurement (the variant's
-    Spectrum; RGB in spectral variants) and its film position's offset from its
-    pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
-    scene = setup.scene
-    static = scene.static
-    mod = setup.modulation
+def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
+    """The path loop: from each lane's camera ray to its measurement."""
+    static = setup.scene.static
     modulation = setup.modulation_weight  # w(L, t) of a contribution
-    if dr.hint(setup.analytic, mode="scalar"):  # time integrated, not sampled
-        from .analytic import trace_analytic_pass
-
-        return trace_analytic_pass(mi, setup, layout)
-
-    streams = lane_streams(mi, setup, layout)
-
-    # ---- Time of each lane ----
-    def exposure_fraction(index):
-        return sampling.time_fraction(
-            mi, streams, layout.group, index, group_size=setup.group_size,
-            groups_per_pixel=setup.groups_per_pixel, method=setup.method,
-            antithetic_shift=setup.antithetic_shift, stratify=setup.stratify,
-            double=not mod.low_pass,
-        )
-
-    t_frac = exposure_fraction(layout.index)
-    t_rel = t_frac * modulation.F(mod.exposure)  # since exposure start, float64 in full mode
-    time = mi.Float(t_rel) + setup.shutter_open  # absolute, for the motion
-
-    # ---- Camera ray (stage 0) ----
-    pos, film_offset, center, window_lo, window_hi, lens = film_position(
-        mi, setup, layout, streams)
-    partner_fraction = (exposure_fraction(1 - layout.index)
-                        if setup.projection is not None else None)
-    ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
-        mi, setup, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
-        lens)
-    if lane_pos is not None:  # a mapped partner's film position is its own
-        crop_size = setup.scene.sensor.film().crop_size()
-        film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
-                                  (lane_pos.y - center.y) * crop_size[1])
-    light_frames = (lights.LightFrames(mi, scene.light_motions, time)
-                    if scene.light_motions else None)
-
-    # Per-lane body transforms at the lanes' times, once per path (none: static scene)
-    frames = (BodyFrames(mi, scene.bodies, time, setup.shutter_open,
-                         setup.shutter_open + mod.exposure) if scene.bodies else None)
+    t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
+    first_hit, active = start.first_hit, start.active
 
     # The first hit's light and BSDF samples from the pixel's low-discrepancy set
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
@@ -321,8 +399,8 @@ def trace_pass(mi, setup, layout: PassLayout):
 
     # ---- Loop state ----
     measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
-    beta = mi.Spectrum(ray_weight)  # path throughput
-    length = modulation.F(camera_offset)  # path length from the camera to the ray origin (m)
+    beta = mi.Spectrum(start.ray_weight)  # path throughput
+    length = modulation.F(start.camera_offset)  # path length, camera to ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
     # (active: whether the path goes on; set by the camera rays)
     prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
@@ -359,4 +437,4 @@ def trace_pass(mi, setup, layout: PassLayout):
         active = ((v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
                   | v.through)
 
-    return _as_colour(mi, measured, wavelengths), film_offset
+    return _as_colour(mi, measured, wavelengths), start.film_offset
