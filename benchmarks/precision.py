@@ -3,7 +3,7 @@
 For each scene and source of error (Monte Carlo over 32 seeds, sensor noise over 32
 noise draws of one render, both together), the median over pixels of the predicted /
 measured per-pixel standard deviation of velocity and depth
-(dopplertof.tof.precision.repetition_check), with the medians of both, and
+(dopplertof.tof.validation.repetition_check), with the medians of both, and
 "v 1-cap": the median over pixels and repetitions of one capture's own predicted /
 measured velocity std (below 1 where the errors are heavy-tailed):
 
@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     import dopplertof
     from dopplertof.tof import NoiseModel
-    from dopplertof.tof.precision import repetition_check
+    from dopplertof.tof.validation import repetition_check
 
     dopplertof.set_variant(None)
     spp, batches = (32, 4) if args.quick else (64, 8)

@@ -20,6 +20,7 @@ import dopplertof
 from analytic import plane_scene
 from dopplertof.tof import NoiseModel, capture
 from dopplertof.tof import precision as prec
+from dopplertof.tof.validation import repetition_check
 from dopplertof.tof import reconstruct as rec
 from dopplertof.tof.capture import _reconstruct
 from dopplertof.demo import demo_scene_path
@@ -40,20 +41,20 @@ def assert_within_10_percent(check, pixels=64):
 
 @pytest.mark.slow
 def test_monte_carlo_prediction_on_the_moving_plane():
-    assert_within_10_percent(prec.repetition_check(plane(), 32, 4, "mc", progress=False))
+    assert_within_10_percent(repetition_check(plane(), 32, 4, "mc", progress=False))
 
 
 @pytest.mark.slow
 def test_monte_carlo_and_sensor_with_a_light_off_the_camera_and_a_splatting_filter():
     # tent filter: every sample splats into 3x3 pixels, neighbours are correlated
     scene = plane(light_off=True, rfilter="tent")
-    assert_within_10_percent(prec.repetition_check(
+    assert_within_10_percent(repetition_check(
         scene, 32, 4, "total", noise=NoiseModel(full_well=2e6, gain=500), progress=False))
 
 
 def test_sensor_prediction_on_the_demo_scene():
     scene = dopplertof.load_file(demo_scene_path(), {"res": 16, "spp": 16})
-    assert_within_10_percent(prec.repetition_check(scene, 16, 2, "sensor", progress=False),
+    assert_within_10_percent(repetition_check(scene, 16, 2, "sensor", progress=False),
                              pixels=100)
 
 

@@ -78,6 +78,8 @@ def configurations():
     yield "published-motion-map", rgb, published(), {
         "spp": 32, "params": {"time_sampling_method": "antithetic",
                               "antithetic_mapping": "motion"}}
+    yield "published-analytic", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "analytic"}}
     yield "published-adaptive", rgb, published(), {
         "spp": 128, "params": {"adaptive_sampling": True}}
     for wave in ("rectangular", "triangular", "trapezoidal"):
@@ -153,6 +155,9 @@ def main(argv=None) -> int:
         with open(args.compare) as f:
             before = json.load(f)["images"]
         changed = sorted(k for k in before if found.get(k) != before[k])
+        new = sorted(set(found) - set(before))
+        if new:
+            print(f"not recorded before (not compared): {', '.join(new)}")
         for k in changed:
             print(f"changed: {k}")
         print(f"{len(before) - len(changed)} of {len(before)} images bitwise unchanged")

@@ -19,11 +19,21 @@ try:
 except _backend.BackendError:
     pass
 
-from .backend import BackendError, set_variant  # noqa: E402
+from .backend import BackendError  # noqa: E402
 from .params import ParameterError, RenderParams  # noqa: E402
 from .render import RenderResult, render, render_result  # noqa: E402
 from . import scene  # noqa: E402
 from .scene import Animation, DopplerScene, SceneError  # noqa: E402
+
+
+def set_variant(variant: str | None = None) -> str:
+    """Choose the Mitsuba variant (LLVM RGB by default; checks libLLVM and the GPU) and
+    register the D-ToF integrator plugins for it (``<integrator type="dopplertof">``)."""
+    variant = _backend.set_variant(variant)
+    from . import integrators
+
+    integrators.register()
+    return variant
 
 
 def _ensure_variant():

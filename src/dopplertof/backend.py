@@ -88,7 +88,8 @@ def ensure_libllvm() -> str:
 def set_variant(variant: str | None = None) -> str:
     """Select a Mitsuba JIT variant (LLVM RGB by default) after the libLLVM check.
 
-    Importing this package registers the D-ToF integrator for the chosen variant.
+    :func:`dopplertof.set_variant` also registers the D-ToF integrator plugins for it
+    (this module knows nothing of the integrators).
     """
     variant = variant or DEFAULT_VARIANT
     if variant.startswith("scalar_"):
@@ -120,9 +121,6 @@ def set_variant(variant: str | None = None) -> str:
                                f"the variants that work here: {working_variants(mi)}") from None
         raise BackendError(f"cannot use variant {variant!r}: {exc}") from None
     _log_to_stderr(mi)
-    from . import integrators  # noqa: F401  registers the plugins for this variant
-
-    integrators.register()
     return variant
 
 

@@ -20,14 +20,14 @@ def _make_class(mi):
             self.params = RenderParams.from_mapping(values, where="integrator dopplertof")
 
         def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
-            from ..render import render as render_image
             from ..scene.scene import build
+            from .pipeline import render_result
 
             if not isinstance(sensor, int) and sensor is not scene.sensors()[0]:
                 raise ValueError("dopplertof renders the scene's first sensor only")
             dscene = build(mi, scene, (), self.params, "<mitsuba scene>")
-            image = render_image(dscene, spp=spp or None, seed=int(seed), progress=False)
-            return mi.TensorXf(image)
+            result = render_result(dscene, spp=spp or None, seed=int(seed), progress=False)
+            return mi.TensorXf(result.image)
 
         def sample(self, *args, **kwargs):
             raise NotImplementedError("dopplertof renders whole images: use render()")

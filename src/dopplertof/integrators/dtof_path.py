@@ -321,7 +321,8 @@ class DopplerToFPath:
                     f"{sensor.class_name()}")
             self.projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
         self.hide_emitters: bool = params.hide_emitters
-        self.analytic: bool = analytic  #: time integrated (integrators/analytic.py)
+        #: time integrated, not sampled: the integrator is then analytic.AnalyticPath
+        self.analytic: bool = analytic
 
     def sample_camera(self, layout: PassLayout, streams) -> CameraSample:
         """Each lane's time, film position, lens point and camera ray (sampling stage 0),
@@ -369,10 +370,6 @@ class DopplerToFPath:
         """Render one pass; returns each lane's time-averaged measurement (the variant's
         Spectrum; RGB in spectral variants) and its film position's offset from its
         pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
-        if self.analytic:  # time integrated, not sampled
-            from .analytic import trace_analytic_pass
-
-            return trace_analytic_pass(self.mi, self, layout)
         streams = lane_streams(self.mi, self, layout)
         return _trace_paths(self.mi, self, layout, streams,
                             self.sample_camera(layout, streams))

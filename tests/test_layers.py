@@ -1,0 +1,65 @@
+"""The package's import graph has no circle: every import, at module level or inside a
+function, points one way (design.md section 7)."""
+
+import ast
+import os
+
+SRC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+
+
+def modules():
+    out = {}
+    for folder, _, files in os.walk(os.path.join(SRC, "dopplertof")):
+        for name in files:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                module = os.path.relpath(path, SRC)[:-3].replace(os.sep, ".")
+                out[module.removesuffix(".__init__")] = path
+    return out
+
+
+def imports(module: str, path: str, known) -> set:
+    """The package modules ``module`` imports (``from .. import x`` counts as x when x
+    is a module, not as the package whose attribute it would be)."""
+    package = module if path.endswith("__init__.py") else module.rsplit(".", 1)[0]
+    found = set()
+    for node in ast.walk(ast.parse(open(path).read())):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join(parts + ([node.module] if node.module else []))
+            subs = [f"{base}.{a.name}" for a in node.names]
+            targets = [t for t in subs if t in known]
+            if len(targets) < len(subs):
+                targets.append(base)
+        else:
+            continue
+        for t in targets:
+            while t not in known and "." in t:
+                t = t.rsplit(".", 1)[0]
+            if t in known and t != module:
+                found.add(t)
+    return found
+
+
+def test_no_import_circle():
+    known = modules()
+    graph = {m: imports(m, p, known) for m, p in known.items()}
+    state, circles = {}, []
+
+    def visit(m, trail):
+        state[m] = "open"
+        for n in sorted(graph[m]):
+            if state.get(n) == "open":
+                circles.append(trail[trail.index(n):] + [n])
+            elif n not in state:
+                visit(n, trail + [n])
+        state[m] = "done"
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+    assert not circles, "import circles: " + "; ".join(" -> ".join(c) for c in circles)
