@@ -245,8 +245,6 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     summary "precision"). max_velocity_std, max_depth_std: NaN where the predicted total
     standard deviation is larger (implies mc_batches=8 when not given).
     """
-    from ..render import render_result
-
     started = _time.perf_counter()
     base = scene.params
     if params:
@@ -259,59 +257,21 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     model = rec.CaptureModel.of(base.modulation(scene.shutter_interval), h)
     unwrap = _check_unwrap(unwrap_frequency, base.w_g)
     calibration = rec.resolve_calibration(velocity_calibration, model.waveform)
-    if noise is True:
-        noise = NoiseModel()
-    elif noise is False:
-        noise = None
-    if noise is not None and not isinstance(noise, NoiseModel):
-        raise CaptureError(f"noise must be a NoiseModel, True or None, got {noise!r}")
-    if min_signal_fraction is not None:
-        try:
-            min_signal_fraction = float(min_signal_fraction)
-        except (TypeError, ValueError):
-            min_signal_fraction = math.nan
-        if not 0 <= min_signal_fraction < 1:
-            raise CaptureError("min_signal_fraction must be a number in [0, 1), got "
-                               f"{min_signal_fraction}")
-
-    max_velocity_std = prec.check_limit("max_velocity_std", max_velocity_std)
-    max_depth_std = prec.check_limit("max_depth_std", max_depth_std)
-    if mc_batches is None and (max_velocity_std or max_depth_std):
+    noise = _check_noise(noise)
+    min_signal_fraction = _check_signal_fraction(min_signal_fraction)
+    limits = (prec.check_limit("max_velocity_std", max_velocity_std),
+              prec.check_limit("max_depth_std", max_depth_std))
+    if mc_batches is None and any(limits):
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
         mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
 
-    specs = plan_captures(base.w_g, h, unwrap)
-    rendered, records, radiance, batches = {}, [], None, {}
-    for index, spec in enumerate(specs):
-        capture_seed = int(seed) if common_random_numbers else int(seed) + index
-        if mc_batches:
-            image, stack, seconds, dropped = prec.render_batches(
-                scene, int(spp), capture_seed, spec.params(base), mc_batches, progress)
-            if spec.kind != "radiance":
-                batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
-        else:
-            result = render_result(scene, spp=int(spp), seed=capture_seed,
-                                   params=spec.params(base), progress=progress)
-            image = result.image
-            seconds = result.metadata["render_seconds"]
-            dropped = result.metadata["nonfinite_samples_dropped"]
-        if spec.kind == "radiance":
-            radiance = image
-        else:
-            rendered[spec.name] = image.mean(axis=-1, dtype=np.float64).astype(np.float32)
-        records.append({
-            "order": index, "name": spec.name, "file": f"{spec.name}.npy", "kind": spec.kind,
-            "w_g_MHz": spec.frequency_mhz, "hetero_frequency": spec.hetero_frequency,
-            "hetero_offset": spec.hetero_offset, "seed": capture_seed, "spp": int(spp),
-            "render_seconds": round(seconds, 3),
-            "nonfinite_samples_dropped": dropped,
-        })
-        if mc_batches:
-            records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
-        if on_capture is not None:
-            on_capture(spec, seconds)
+    # ---- Render every capture ----
+    rendered, records, radiance, batches = _render_captures(
+        scene, base, plan_captures(base.w_g, h, unwrap), int(spp), seed,
+        common_random_numbers, mc_batches, progress, on_capture)
 
+    # ---- Reconstruct, with sensor noise when asked, and the truth ----
     truth = ground_truth(scene, base)
     unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
     clean = _reconstruct(rendered, model, unwrap, min_signal_fraction, calibration)
@@ -327,6 +287,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     else:
         reconstruction = clean
 
+    # ---- Predicted precision and the masks it sets ----
     uncertainty = limit_counts = None
     if mc_batches:
         variances = (prec.capture_variances(rendered, unmodulated, exposure, noise)
@@ -334,8 +295,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
         uncertainty = prec.predict(rendered, batches, model, unwrap, calibration, clean.depth,
                                    variances, clean.velocity_reasons == rec.VALID,
                                    clean.depth_reasons == rec.VALID)
-        limit_counts = prec.apply_limits(reconstruction, uncertainty, max_velocity_std,
-                                         max_depth_std)
+        limit_counts = prec.apply_limits(reconstruction, uncertainty, *limits)
 
     summary = _summary(scene, base, spp, seed, model, unwrap, calibration, records,
                        reconstruction, noise_free, truth, noise_info, min_signal_fraction,
@@ -344,10 +304,73 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
         summary["precision"] = prec.precision_summary(
             uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
             None if unwrap is not None else model.wrap_distance,
-            {"max_velocity_std_m_s": max_velocity_std, "max_depth_std_m": max_depth_std,
+            {"max_velocity_std_m_s": limits[0], "max_depth_std_m": limits[1],
              "masked_pixels": limit_counts})
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
                          summary, uncertainty)
+
+
+def _check_noise(noise):
+    """The NoiseModel asked for (True: the default one), or None."""
+    if noise is True:
+        return NoiseModel()
+    if noise is False or noise is None:
+        return None
+    if not isinstance(noise, NoiseModel):
+        raise CaptureError(f"noise must be a NoiseModel, True or None, got {noise!r}")
+    return noise
+
+
+def _check_signal_fraction(min_signal_fraction):
+    if min_signal_fraction is None:
+        return None
+    try:
+        min_signal_fraction = float(min_signal_fraction)
+    except (TypeError, ValueError):
+        min_signal_fraction = math.nan
+    if not 0 <= min_signal_fraction < 1:
+        raise CaptureError("min_signal_fraction must be a number in [0, 1), got "
+                           f"{min_signal_fraction}")
+    return min_signal_fraction
+
+
+def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: bool,
+                     mc_batches, progress, on_capture):
+    """Every capture of ``specs``: the captures (mean of channels, float32), their
+    records for the summary, the radiance image, and (mc_batches) each capture's batch
+    stack's channel mean."""
+    from ..render import render_result
+
+    rendered, records, radiance, batches = {}, [], None, {}
+    for index, spec in enumerate(specs):
+        capture_seed = int(seed) if common_random_numbers else int(seed) + index
+        if mc_batches:
+            image, stack, seconds, dropped = prec.render_batches(
+                scene, spp, capture_seed, spec.params(base), mc_batches, progress)
+            if spec.kind != "radiance":
+                batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
+        else:
+            result = render_result(scene, spp=spp, seed=capture_seed,
+                                   params=spec.params(base), progress=progress)
+            image = result.image
+            seconds = result.metadata["render_seconds"]
+            dropped = result.metadata["nonfinite_samples_dropped"]
+        if spec.kind == "radiance":
+            radiance = image
+        else:
+            rendered[spec.name] = image.mean(axis=-1, dtype=np.float64).astype(np.float32)
+        records.append({
+            "order": index, "name": spec.name, "file": f"{spec.name}.npy", "kind": spec.kind,
+            "w_g_MHz": spec.frequency_mhz, "hetero_frequency": spec.hetero_frequency,
+            "hetero_offset": spec.hetero_offset, "seed": capture_seed, "spp": spp,
+            "render_seconds": round(seconds, 3),
+            "nonfinite_samples_dropped": dropped,
+        })
+        if mc_batches:
+            records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
+        if on_capture is not None:
+            on_capture(spec, seconds)
+    return rendered, records, radiance, batches
 
 
 def _homodyne_set(captures, prefix):
