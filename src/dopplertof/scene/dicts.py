@@ -19,12 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hints import did_you_mean
 from ..params import ParameterError, RenderParams
 from .motion import Keyframes, Motion, MotionError
-from .scene import SceneError, build
-from .xml import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
-                  SAMPLER_NAMES)
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
+                    SceneError, build, correlated_sampler_params)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
@@ -203,11 +201,7 @@ def _correlated_sampler_replaced(key, value: dict, sampler_values: dict) -> dict
     sampler = value.get("sampler")
     if not (isinstance(sampler, dict) and sampler.get("type") == "correlated"):
         return value
-    unknown = set(sampler) - set(CORRELATED_SAMPLER_PARAMS) - {"type", "sample_count", "seed"}
-    if unknown:
-        name = sorted(unknown)[0]
-        raise SceneError(f"<dict>[{key!r}]: unknown parameter {name!r} of the correlated "
-                         f"sampler{did_you_mean(name, SAMPLER_NAMES)}")
-    sampler_values.update({k: v for k, v in sampler.items() if k in CORRELATED_SAMPLER_PARAMS})
+    sampler_values.update(correlated_sampler_params(
+        {k: v for k, v in sampler.items() if k != "type"}, f"<dict>[{key!r}]"))
     plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
     return dict(value, sampler=dict(plain, type="independent"))

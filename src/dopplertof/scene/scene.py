@@ -7,6 +7,32 @@ from dataclasses import dataclass, replace
 from ..params import RenderParams
 
 
+#: the integrator types of a D-ToF scene (the second is the published name)
+DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
+#: the lights that can move (keyframed, or riding on the camera)
+MOVABLE_EMITTERS = ("point", "spot")
+#: the published <sampler type="correlated">'s D-ToF parameters (render parameters)
+CORRELATED_SAMPLER_PARAMS = ("time_correlate_number", "path_correlate_number",
+                             "use_stratified_sampling_for_each_interval")
+#: every parameter name of the correlated sampler
+SAMPLER_NAMES = ("sample_count", "seed") + CORRELATED_SAMPLER_PARAMS
+
+
+def correlated_sampler_params(values: dict, where: str) -> dict:
+    """The render parameters of a published correlated sampler whose properties are
+    ``values`` (its type left out): one rule for the XML and the dict loaders, any other
+    name than sample_count, seed and these is an error."""
+    from ..hints import did_you_mean
+
+    unknown = set(values) - set(SAMPLER_NAMES)
+    if unknown:
+        name = sorted(unknown)[0]
+        raise SceneError(f"{where}: unknown parameter {name!r} of the correlated "
+                         f"sampler{did_you_mean(name, SAMPLER_NAMES)} (known: "
+                         f"{', '.join(SAMPLER_NAMES)})")
+    return {k: v for k, v in values.items() if k in CORRELATED_SAMPLER_PARAMS}
+
+
 class SceneError(ValueError):
     """A scene that cannot be loaded; the message names the problem and where."""
 

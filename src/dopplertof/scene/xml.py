@@ -28,15 +28,11 @@ import numpy as np
 from ..params import ParameterError, RenderParams
 from ..hints import did_you_mean
 from .motion import Keyframes, MotionError, Motion
-from .scene import SceneError, build
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
+                    SceneError, build, correlated_sampler_params)
 from .transforms import TransformError, compose
 
-DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
-CORRELATED_SAMPLER_PARAMS = ("time_correlate_number", "path_correlate_number",
-                             "use_stratified_sampling_for_each_interval")
-#: every parameter name of the correlated sampler
-SAMPLER_NAMES = ("sample_count", "seed") + CORRELATED_SAMPLER_PARAMS
 TRANSFORM_OPS = ("matrix", "translate", "rotate", "scale", "lookat")
 
 
@@ -189,15 +185,7 @@ def _sensor(doc: _Doc) -> tuple[dict, ET.Element | None]:
     sampler = sensor.find("sampler")
     if sampler is None or sampler.get("type") != "correlated":
         return {}, sensor
-    values = _properties(doc, sampler)
-    params = {k: v for k, v in values.items() if k in CORRELATED_SAMPLER_PARAMS}
-    unknown = set(values) - set(params) - {"sample_count", "seed"}
-    if unknown:
-        name = sorted(unknown)[0]
-        raise SceneError(f"{doc.where(sampler)}: unknown parameter {name!r} of the correlated "
-                         f"sampler{did_you_mean(name, SAMPLER_NAMES)}"
-                         f" (known: sample_count, "
-                         f"{', '.join(CORRELATED_SAMPLER_PARAMS)})")
+    params = correlated_sampler_params(_properties(doc, sampler), doc.where(sampler))
     for child in list(sampler):
         if child.get("name") in CORRELATED_SAMPLER_PARAMS:
             sampler.remove(child)
@@ -247,8 +235,6 @@ def _matrix_element(M: np.ndarray) -> ET.Element:
 def _referenced_ids(elements) -> set:
     return {el.get("id") for e in elements for el in e.iter("ref") if el.get("id")}
 
-
-MOVABLE_EMITTERS = ("point", "spot")
 
 
 def _rest_pose(doc: _Doc, elem, anim, what: str) -> Keyframes:
