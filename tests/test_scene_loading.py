@@ -176,3 +176,24 @@ def test_filters_with_negative_lobes_are_refused():
     d["sensor"]["film"]["rfilter"] = {"type": "mitchell"}
     with pytest.raises(ValueError, match="MitchellNetravaliFilter is not supported"):
         dopplertof.render(dopplertof.load_dict(d))
+
+
+@pytest.mark.parametrize("light,message", [
+    ({"type": "directional"}, "only point and spot lights can move, not type 'directional'"),
+    ({"type": "point", "position": [0, 0, 0]}, "takes its position from the <animation>"),
+    ({"type": "point", "follow": "moon"}, 'only follow="sensor"'),
+])
+def test_dict_scenes_follow_the_xml_rules_of_motion(light, message):
+    """One rule book (scene.check_motion) for what may move, in both loaders."""
+    import mitsuba as mi
+    from analytic import plane_scene
+
+    T = mi.ScalarTransform4f
+    follow = light.pop("follow", None)
+    animation = (dopplertof.Animation((), follow=follow) if follow else
+                 dopplertof.Animation([(0.0, T()), (0.0015, T().translate([0, 0, 0.01]))]))
+    d = plane_scene(4.0, 0.0, spp=4)
+    d["light"] = {**light, "irradiance" if light["type"] == "directional" else "intensity":
+                  {"type": "rgb", "value": 1.0}, "to_world": animation}
+    with pytest.raises(SceneError, match=message):
+        dopplertof.load_dict(d)

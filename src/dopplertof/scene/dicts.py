@@ -21,8 +21,8 @@ import numpy as np
 
 from ..params import ParameterError, RenderParams
 from .motion import Keyframes, Motion, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
-                    SceneError, build, correlated_sampler_params)
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS, SceneError,
+                    build, check_motion, correlated_sampler_params)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
@@ -114,20 +114,16 @@ def load_dict(scene: dict):
         if isinstance(anim, Animation) and kind in SENSOR_TYPES + MOVABLE_EMITTERS:
             where = f"<dict>[{key!r}]"
             if kind in SENSOR_TYPES:
-                if anim.follow:
-                    raise SceneError(f"{where}: 'follow' is for lights, not the sensor")
+                check_motion(where, "sensor", follow=anim.follow)
                 sensor_kf = anim.to_keyframes(where)
                 value = dict(value, to_world=_rest_transform(mi, sensor_kf))
             else:
-                if "position" in value:
-                    raise SceneError(f"{where}: a moving light takes its position from the "
-                                     "Animation: remove its 'position'")
+                check_motion(where, "emitter", kind, anim.follow,
+                             has_position="position" in value)
                 value = dict(value)
                 if anim.follow == "sensor":
                     light_kfs.append((key, "sensor"))
                     value.pop("to_world")  # placed at the camera below
-                elif anim.follow is not None:
-                    raise SceneError(f"{where}: follow={anim.follow!r}: only 'sensor'")
                 else:
                     kf = anim.to_keyframes(where)
                     light_kfs.append((key, kf))
@@ -136,10 +132,10 @@ def load_dict(scene: dict):
             continue
         if isinstance(anim, Animation):
             where = f"<dict>[{key!r}]"
-            if kind in ("directional", "area", "envmap", "constant"):
-                raise SceneError(f"{where}: only point and spot lights can move")
-            if any(isinstance(v, dict) and v.get("type") == "area" for v in value.values()):
-                raise SceneError(f"{where}: moving area emitters are not supported yet")
+            if kind in ("directional", "area", "envmap", "constant"):  # a light, not a shape
+                check_motion(where, "emitter", kind)
+            check_motion(where, "shape", has_area_emitter=any(
+                isinstance(v, dict) and v.get("type") == "area" for v in value.values()))
             kf = value["to_world"].to_keyframes(where)
             body_shape = dict(value, to_world=_rest_transform(mi, kf))
             groups.setdefault(kf, []).append((key, body_shape))

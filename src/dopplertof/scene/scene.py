@@ -33,6 +33,30 @@ def correlated_sampler_params(values: dict, where: str) -> dict:
     return {k: v for k, v in values.items() if k in CORRELATED_SAMPLER_PARAMS}
 
 
+def check_motion(where: str, what: str, plugin_type=None, follow=None,
+                 has_position: bool = False, has_area_emitter: bool = False) -> None:
+    """What may move, one rule book for both loaders: ``what`` is "sensor", "emitter"
+    or "shape", ``follow`` its animation's follow attribute (None: keyframes)."""
+    if what == "sensor":
+        if follow:
+            raise SceneError(f"{where}: 'follow' is for lights, not the sensor")
+        return
+    if what == "emitter":
+        if plugin_type not in MOVABLE_EMITTERS:
+            raise SceneError(f"{where}: only point and spot lights can move, "
+                             f"not type {plugin_type!r}")
+        if has_position:
+            raise SceneError(f"{where}: a moving light takes its position from the "
+                             "<animation> keyframes (an Animation in a dict): remove its "
+                             "'position'")
+        if follow is not None and follow != "sensor":
+            raise SceneError(f"{where}: follow={follow!r}: only follow=\"sensor\" is "
+                             "supported")
+        return
+    if has_area_emitter:
+        raise SceneError(f"{where}: moving area emitters are not supported yet")
+
+
 class SceneError(ValueError):
     """A scene that cannot be loaded; the message names the problem and where."""
 

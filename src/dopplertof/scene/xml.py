@@ -28,8 +28,8 @@ import numpy as np
 from ..params import ParameterError, RenderParams
 from ..hints import did_you_mean
 from .motion import Keyframes, MotionError, Motion
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
-                    SceneError, build, correlated_sampler_params)
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, SceneError, build,
+                    check_motion, correlated_sampler_params)
 from .transforms import TransformError, compose
 
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
@@ -260,8 +260,7 @@ def _split_observers(doc: _Doc):
     if len(anims) > 1:
         raise SceneError(f"{doc.where(anims[1])}: the sensor has more than one <animation>")
     if anims:
-        if anims[0].get("follow"):
-            raise SceneError(f"{doc.where(anims[0])}: 'follow' is for lights, not the sensor")
+        check_motion(doc.where(anims[0]), "sensor", follow=anims[0].get("follow"))
         sensor_kf = _rest_pose(doc, sensor, anims[0], "sensor")
     lights = []
     for k, el in enumerate(root.findall("emitter")):
@@ -271,19 +270,12 @@ def _split_observers(doc: _Doc):
         anim = anims[0]
         if len(anims) > 1:
             raise SceneError(f"{doc.where(anims[1])}: an emitter has more than one <animation>")
-        if el.get("type") not in MOVABLE_EMITTERS:
-            raise SceneError(f"{doc.where(anim)}: only point and spot lights can move, "
-                             f"not type {el.get('type')!r}")
-        if any(c.get("name") == "position" for c in el):
-            raise SceneError(f"{doc.where(anim)}: a moving light takes its position from the "
-                             "<animation> keyframes: remove its 'position'")
+        follow = anim.get("follow")
+        check_motion(doc.where(anim), "emitter", el.get("type"), follow,
+                     has_position=any(c.get("name") == "position" for c in el))
         ident = el.get("id") or f"__dopplertof_light_{k}"
         el.set("id", ident)
-        follow = anim.get("follow")
         if follow is not None:
-            if follow != "sensor":
-                raise SceneError(f"{doc.where(anim)}: follow={follow!r}: only "
-                                 "follow=\"sensor\" is supported")
             if len(anim):
                 raise SceneError(f"{doc.where(anim)}: an <animation follow=\"sensor\"> takes "
                                  "no keyframes")
@@ -318,8 +310,7 @@ def _split_bodies(doc: _Doc):
         if any(t.get("name") == "to_world" for t in shape.findall("transform")):
             raise SceneError(f"{doc.where(anim)}: a shape with an <animation> must not also "
                              "have a <transform name=\"to_world\">")
-        if shape.find("emitter") is not None:
-            raise SceneError(f"{doc.where(anim)}: moving area emitters are not supported yet")
+        check_motion(doc.where(anim), "shape", has_area_emitter=shape.find("emitter") is not None)
         kf = _keyframes(doc, shape, anim)
         body_shape = doc.copy(shape)
         body_shape.remove(body_shape.find("animation"))
