@@ -9,11 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .integrators.pipeline import (  # noqa: F401  (the pipeline's names, for callers)
-    DEFAULT_MAX_LANES, GROUPS_PER_CHUNK, Accumulator, Checkpoint, CheckpointError,
-    PassPlanner, RenderResult, _make_setup, _show_progress, _spectrum_channels,
-    render_result)
-from .sampling import check_sample_count  # noqa: F401
+from .integrators.pipeline import (  # noqa: F401  (the pipeline's public names)
+    Checkpoint, CheckpointError, RenderResult, render_result)
 
 
 def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> np.ndarray:

@@ -33,7 +33,7 @@ class TimeSampling(str, enum.Enum):
     @property
     def index(self) -> int:
         """The kernel's number for a sampled method (its position in METHODS)."""
-        return METHODS.index(self.value)
+        return method_index(self.value)
 
 
 #: the sampled methods, in the kernel's order (``time_fraction``'s ``method``)

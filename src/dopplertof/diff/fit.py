@@ -218,7 +218,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     velocity field's variation and average the noise)."""
     from tqdm import tqdm
 
-    from ..render import _show_progress
+    from ..integrators.pipeline import _show_progress
     from .render import DifferentiableScene, render_derivatives
 
     data = load_capture(folder, defines)

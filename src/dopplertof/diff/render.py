@@ -252,7 +252,8 @@ def render_derivatives(dscene: DifferentiableScene, names=(), spp: int | None = 
     (others are zero): fits and tests that need only some pixels pay only for them."""
     import drjit as dr
 
-    from ..render import _spectrum_channels, check_sample_count
+    from ..integrators.pipeline import _spectrum_channels
+    from ..sampling import check_sample_count
 
     mi = dscene.mi
     names = list(names)
@@ -333,7 +334,7 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
     import drjit as dr
 
     from ..integrators.dtof_path import PassLayout, trace_pass
-    from ..render import _make_setup
+    from ..integrators.pipeline import _make_setup
 
     mi = dscene.mi
     names = [] if name is None else [name]

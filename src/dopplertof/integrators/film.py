@@ -8,8 +8,9 @@ pixel whose reconstruction filter reaches it, ``w`` the filter at the sample's o
 from that pixel's centre. A sample thus serves up to (2n+1)^2 pixels (n = 1 for a
 tent of radius 1, 2 for the default gaussian) and every pixel sees the samples of its
 neighbours: the reuse that importance sampling gives away. It stays deterministic
-without atomics: each lane computes its weight for the fixed neighbour offsets, the
-kernel sums them per (source pixel, offset) in chunks, and the host shifts and adds.
+without atomics: each lane's weights for the fixed neighbour offsets are computed in
+one kernel whose threads sum their pixel's chunks in lane order into per-(pixel,
+offset) totals, and the host shifts and adds them in a fixed order.
 
 ``importance``: film positions drawn from the filter itself, so that every sample
 belongs to its own pixel with weight 1 and pixels' noise is independent (denoiser
@@ -24,8 +25,9 @@ known from the filter (the filter's integral over each source pixel inside the
 window), which keeps the estimate unbiased. The ratio cancels the fluctuation of the
 weight sum itself, which on a smooth surface is most of the noise at low spp (a
 standard deviation 40-70x lower on the moving plane at 4-16 spp; docs/parameters.md),
-and its bias was not measurable (under 2e-5 relative at 4 spp). Both restrict the filter to the crop window at the
-edges, as Mitsuba's film does (its samples come from inside the window only).
+and its bias was not measurable (under 2e-5 relative at 4 spp). Both restrict the
+filter to the crop window at the edges, as Mitsuba's film does (its samples come from
+inside the window only).
 """
 
 from __future__ import annotations
@@ -152,15 +154,7 @@ class SplatFilter:
         self._sigma = sigma
         self._bias = math.exp(-self.radius * self.radius * self._alpha)
 
-    # ---- One axis: e(x) in the kernel, its integral on the host (float64) ----
-
-    def eval_1d(self, x):
-        """e(x) for a Dr.Jit Float (offsets in pixels)."""
-        if self.kind == "BoxFilter":
-            return dr.select(dr.abs(x) < 0.5, 1.0, 0.0)
-        if self.kind == "TentFilter":
-            return dr.maximum(0.0, 1.0 - dr.abs(x) * (1.0 / self.radius))
-        return dr.maximum(0.0, dr.exp(-dr.square(x) * self._alpha) - self._bias)
+    # ---- One axis: the filter's integral on the host (float64) ----
 
     def _antiderivative(self, x: float) -> float:
         """The integral of e from 0 to x (float64)."""
@@ -195,8 +189,11 @@ class SplatFilter:
         its pixel's centre on one axis (Dr.Jit Float). The gaussian's five exponentials
         come from two: exp(-a (d - k)^2) = exp(-a d^2) exp(2 a d k) exp(-a k^2)."""
         n = self.reach
-        if self.kind != "GaussianFilter":
-            return {k: self.eval_1d(d - k) for k in range(-n, n + 1)}
+        if self.kind == "BoxFilter":  # (reach 0: the pixel itself)
+            return {0: dr.select(dr.abs(d) < 0.5, 1.0, 0.0)}
+        if self.kind == "TentFilter":
+            return {k: dr.maximum(0.0, 1.0 - dr.abs(d - k) * (1.0 / self.radius))
+                    for k in range(-n, n + 1)}
         a = self._alpha
         centre, step = dr.exp(-dr.square(d) * a), dr.exp(d * (2.0 * a))
         powers = {0: centre}

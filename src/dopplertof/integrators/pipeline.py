@@ -118,7 +118,7 @@ class PassPlanner:
     def lanes(self, mi, first_chunk: int, end_chunk: int, counts):
         """The pass [first_chunk, end_chunk): its PassLayout, chunk size, and per pixel
         with samples in it (pixel-major lanes) the pixel, its first lane and its lane
-        count, and each chunk's pixel."""
+        count."""
         import drjit as dr
 
         from .dtof_path import PassLayout
@@ -130,7 +130,6 @@ class PassPlanner:
             chunk_size = min(chunk, samples)
             layout = PassLayout(mi, n_pixels, samples, dr.opaque(mi.UInt32, s0), K)
             pixels, per_pixel = np.arange(n_pixels), np.full(n_pixels, samples)
-            block_pixel = np.repeat(pixels, samples // chunk_size)
         else:  # each pixel its own number of chunks: lanes from host arrays
             chunk_size = chunk
             per_pixel = np.clip(counts - s0, 0, (end_chunk - first_chunk) * chunk)
@@ -140,9 +139,7 @@ class PassPlanner:
             first_lane = np.repeat(np.cumsum(per_pixel) - per_pixel, per_pixel)
             lane_sample = s0 + np.arange(lane_pixel.size) - first_lane
             layout = PassLayout.of_lanes(mi, lane_pixel, lane_sample, K)
-            block_pixel = lane_pixel[::chunk]
-        return (layout, chunk_size, (pixels, np.cumsum(per_pixel) - per_pixel, per_pixel),
-                block_pixel)
+        return layout, chunk_size, (pixels, np.cumsum(per_pixel) - per_pixel, per_pixel)
 
 
 class Accumulator:
@@ -193,11 +190,14 @@ class Accumulator:
             return np.stack([np.asarray(t) for t in self.device_total], axis=-1)
         return self.total
 
-    def add(self, value, film_offset, chunk_size: int, threads, block_pixel, pilot: bool):
-        """Add a pass's per-lane values (and film offsets) to the sums."""
+    def add(self, value, film_offset, chunk_size: int, threads, pilot: bool):
+        """Add a pass's per-lane values (and film offsets) to the sums; ``threads``:
+        per pixel with samples in the pass, the pixel, its first lane and its lanes."""
         import drjit as dr
 
         mi, K, n_pixels = self.mi, self.group_size, self.n_pixels
+        pixels, _, lanes = threads
+        block_pixel = np.repeat(pixels, lanes // chunk_size)  # each chunk's pixel
         dr.eval(value, film_offset if self.weighted else None)  # one path tracing kernel
         # ---- Drop non-finite samples and sum each chunk (sequential reductions) ----
         raw = [value[c] for c in range(_channels(value))]
@@ -323,10 +323,9 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         """Trace the passes; the timeout stops the render after the pass it expires in."""
         nonlocal reached
         for first_chunk, end_chunk in passes:
-            layout, chunk_size, threads, block_pixel = plan.lanes(mi, first_chunk, end_chunk,
-                                                                  counts)
+            layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, counts)
             value, film_offset = trace_pass(mi, setup, layout)
-            sums.add(value, film_offset, chunk_size, threads, block_pixel,
+            sums.add(value, film_offset, chunk_size, threads,
                      pilot=sums.squares is not None and first_chunk < plan.pilot_chunks)
             bar.update(threads[2].sum() / n_pixels)
             if saved is not None:

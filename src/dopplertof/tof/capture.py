@@ -322,12 +322,9 @@ def _check_noise(noise):
 
 
 def _check_signal_fraction(min_signal_fraction):
+    min_signal_fraction = prec.optional_number(min_signal_fraction)
     if min_signal_fraction is None:
         return None
-    try:
-        min_signal_fraction = float(min_signal_fraction)
-    except (TypeError, ValueError):
-        min_signal_fraction = math.nan
     if not 0 <= min_signal_fraction < 1:
         raise CaptureError("min_signal_fraction must be a number in [0, 1), got "
                            f"{min_signal_fraction}")

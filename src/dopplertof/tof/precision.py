@@ -351,13 +351,21 @@ def apply_limits(recon, u: Uncertainty, max_velocity_std=None, max_depth_std=Non
     return counts
 
 
-def check_limit(name: str, value):
+def optional_number(value):
+    """``value`` as a float (NaN where it is not a number), or None: what option checks
+    test their ranges on."""
     if value is None:
         return None
     try:
-        value = float(value)
+        return float(value)
     except (TypeError, ValueError):
-        value = math.nan
+        return math.nan
+
+
+def check_limit(name: str, value):
+    value = optional_number(value)
+    if value is None:
+        return None
     if not (value > 0 and math.isfinite(value)):
         raise PrecisionError(f"{name} must be a positive number, got {value}")
     return value
