@@ -246,6 +246,62 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     standard deviation is larger (implies mc_batches=8 when not given).
     """
     started = _time.perf_counter()
+    settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
+                               noise, min_signal_fraction, velocity_calibration,
+                               common_random_numbers, mc_batches, max_velocity_std,
+                               max_depth_std)
+    base, model, unwrap = settings.base, settings.model, settings.unwrap
+
+    # ---- Render every capture ----
+    rendered, records, radiance, batches = _render_captures(
+        scene, base, plan_captures(base.w_g, model.hetero_frequency, unwrap),
+        int(settings.spp), seed, common_random_numbers, settings.mc_batches, progress,
+        on_capture)
+
+    # ---- Reconstruct, with sensor noise when asked, and the truth ----
+    truth = ground_truth(scene, base)
+    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
+    clean = _reconstruct(rendered, model, unwrap, settings.min_signal_fraction,
+                         settings.calibration)
+    captures, reconstruction, noise_free, noise, noise_info = _sense(
+        rendered, unmodulated, clean, settings)
+
+    # ---- Predicted precision and the masks it sets ----
+    uncertainty, limit_counts = _predict_precision(rendered, batches, unmodulated, clean,
+                                                   reconstruction, noise, settings)
+
+    summary = _summary(scene, settings, records, reconstruction, noise_free, truth,
+                       noise_info, _time.perf_counter() - started)
+    if uncertainty is not None:
+        summary["precision"] = _precision_summary(scene, settings, uncertainty,
+                                                  reconstruction, truth, limit_counts)
+    return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
+                         summary, uncertainty)
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """The checked settings of one :func:`capture`."""
+
+    base: RenderParams  #: the scene's parameters with the overrides
+    spp: int  #: samples per pixel per capture
+    seed: int
+    exposure: float  #: T, s
+    model: rec.CaptureModel  #: what the reconstruction inverts (h included)
+    unwrap: float | None  #: second modulation frequency, MHz
+    calibration: str  #: "none" or "inverse-square"
+    noise: NoiseModel | None
+    min_signal_fraction: float | None
+    common_random_numbers: bool  #: one seed for every capture (else seed + its index)
+    limits: tuple  #: (max_velocity_std, max_depth_std), each None when not set
+    mc_batches: int | None
+
+
+def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency, noise,
+                    min_signal_fraction, velocity_calibration, common_random_numbers,
+                    mc_batches, max_velocity_std, max_depth_std) -> _Settings:
+    """:func:`capture`'s arguments checked and resolved, in the order of its error
+    messages (a CaptureError or PrecisionError names the first bad one)."""
     base = scene.params
     if params:
         base = (params if isinstance(params, RenderParams) else
@@ -265,49 +321,51 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
         mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
+    return _Settings(base, spp, seed, exposure, model, unwrap, calibration, noise,
+                     min_signal_fraction, common_random_numbers, limits, mc_batches)
 
-    # ---- Render every capture ----
-    rendered, records, radiance, batches = _render_captures(
-        scene, base, plan_captures(base.w_g, h, unwrap), int(spp), seed,
-        common_random_numbers, mc_batches, progress, on_capture)
 
-    # ---- Reconstruct, with sensor noise when asked, and the truth ----
-    truth = ground_truth(scene, base)
-    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
-    clean = _reconstruct(rendered, model, unwrap, min_signal_fraction, calibration)
-    noise_info, saturated, captures, noise_free = None, None, rendered, None
-    if noise is not None:
-        captures, saturated, noise = apply_noise(rendered, unmodulated, exposure, noise)
-        noise_free = clean
-        reconstruction = _reconstruct(captures, model, unwrap, min_signal_fraction,
-                                      calibration, saturated)
-        noise_info = noise.describe()
-        noise_info["saturated_pixels"] = int(saturated.sum())
-        noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(exposure)
-    else:
-        reconstruction = clean
+def _sense(rendered, unmodulated, clean: Reconstruction, settings: _Settings):
+    """What the camera records and reports: (captures, reconstruction, the noise-free
+    reconstruction, the noise model resolved, its summary entry). Without sensor noise,
+    the renders and ``clean`` (and None for the rest)."""
+    if settings.noise is None:
+        return rendered, clean, None, None, None
+    captures, saturated, noise = apply_noise(rendered, unmodulated, settings.exposure,
+                                             settings.noise)
+    reconstruction = _reconstruct(captures, settings.model, settings.unwrap,
+                                  settings.min_signal_fraction, settings.calibration,
+                                  saturated)
+    noise_info = noise.describe()
+    noise_info["saturated_pixels"] = int(saturated.sum())
+    noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(settings.exposure)
+    return captures, reconstruction, clean, noise, noise_info
 
-    # ---- Predicted precision and the masks it sets ----
-    uncertainty = limit_counts = None
-    if mc_batches:
-        variances = (prec.capture_variances(rendered, unmodulated, exposure, noise)
-                     if noise is not None else None)
-        uncertainty = prec.predict(rendered, batches, model, unwrap, calibration, clean.depth,
-                                   variances, clean.velocity_reasons == rec.VALID,
-                                   clean.depth_reasons == rec.VALID)
-        limit_counts = prec.apply_limits(reconstruction, uncertainty, *limits)
 
-    summary = _summary(scene, base, spp, seed, model, unwrap, calibration, records,
-                       reconstruction, noise_free, truth, noise_info, min_signal_fraction,
-                       common_random_numbers, _time.perf_counter() - started)
-    if uncertainty is not None:
-        summary["precision"] = prec.precision_summary(
-            uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
-            None if unwrap is not None else model.wrap_distance,
-            {"max_velocity_std_m_s": limits[0], "max_depth_std_m": limits[1],
-             "masked_pixels": limit_counts})
-    return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
-                         summary, uncertainty)
+def _predict_precision(rendered, batches, unmodulated, clean: Reconstruction,
+                       reconstruction: Reconstruction, noise, settings: _Settings):
+    """The predicted standard deviations (precision.Uncertainty) from the batches and
+    the sensor noise ``noise`` (resolved, or None), and the pixel counts of the limits'
+    masks, which it applies to ``reconstruction``; (None, None) without mc_batches."""
+    if not settings.mc_batches:
+        return None, None
+    variances = (prec.capture_variances(rendered, unmodulated, settings.exposure, noise)
+                 if noise is not None else None)
+    uncertainty = prec.predict(rendered, batches, settings.model, settings.unwrap,
+                               settings.calibration, clean.depth, variances,
+                               clean.velocity_reasons == rec.VALID,
+                               clean.depth_reasons == rec.VALID)
+    return uncertainty, prec.apply_limits(reconstruction, uncertainty, *settings.limits)
+
+
+def _precision_summary(scene, settings: _Settings, uncertainty, reconstruction, truth,
+                       limit_counts) -> dict:
+    """summary.json's "precision" section (precision.precision_summary) of one frame."""
+    return prec.precision_summary(
+        uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
+        None if settings.unwrap is not None else settings.model.wrap_distance,
+        {"max_velocity_std_m_s": settings.limits[0],
+         "max_depth_std_m": settings.limits[1], "masked_pixels": limit_counts})
 
 
 def _check_noise(noise):
@@ -488,32 +546,35 @@ def _static_surfaces(recon: Reconstruction, truth: GroundTruth):
     return _region(STATIC_SURFACES, static, recon, truth) if static.any() else None
 
 
-def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon, noise_free,
-             truth, noise_info, min_signal_fraction, common_random_numbers, seconds):
+#: summary.json's "units" entry
+SUMMARY_UNITS = {
+    "captures": "time-averaged correlation (1/T) * integral over the exposure, signed, "
+                "scene radiance units, mean of the rendered channels (monochrome "
+                "sensor); multiply by exposure_s for the integrated value",
+    "radiance": "time-averaged radiance over the exposure (scene units, RGB)",
+    "velocity": "m/s, radial: rate of change of the distance along the pixel's ray; "
+                "> 0 receding (distance grows), < 0 approaching",
+    "depth": "m, distance from the camera centre along the pixel-centre ray",
+    "frequencies": "MHz", "times": "s", "angular frequencies": "rad/s",
+}
+
+
+def _summary(scene, settings: _Settings, records, recon, noise_free, truth, noise_info,
+             seconds):
+    """summary.json of one frame (without its "precision" section)."""
     from ..backend import require_variant
 
     height, width = truth.depth.shape
-    wrap = model.wrap_distance
-    depth_modulo = None if unwrap is not None else wrap
-    fraction = (rec.DEFAULT_MIN_SIGNAL_FRACTION if min_signal_fraction is None
-                else float(min_signal_fraction))
+    base, model, unwrap = settings.base, settings.model, settings.unwrap
+    depth_modulo = None if unwrap is not None else model.wrap_distance
     summary = {
         "scene": scene.source,
         "variant": require_variant().variant(),
         "resolution": [width, height],
-        "spp_per_capture": int(spp),
-        "seed": int(seed),
-        "common_random_numbers": bool(common_random_numbers),
-        "units": {
-            "captures": "time-averaged correlation (1/T) * integral over the exposure, signed, "
-                        "scene radiance units, mean of the rendered channels (monochrome "
-                        "sensor); multiply by exposure_s for the integrated value",
-            "radiance": "time-averaged radiance over the exposure (scene units, RGB)",
-            "velocity": "m/s, radial: rate of change of the distance along the pixel's ray; "
-                        "> 0 receding (distance grows), < 0 approaching",
-            "depth": "m, distance from the camera centre along the pixel-centre ray",
-            "frequencies": "MHz", "times": "s", "angular frequencies": "rad/s",
-        },
+        "spp_per_capture": int(settings.spp),
+        "seed": int(settings.seed),
+        "common_random_numbers": bool(settings.common_random_numbers),
+        "units": dict(SUMMARY_UNITS),
         "modulation": {
             "w_g_MHz": base.w_g, "omega_g_rad_s": model.omega_g,
             "exposure_s": model.exposure, "hetero_frequency": model.hetero_frequency,
@@ -523,38 +584,8 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         },
         "render_params": {k: getattr(base, k) for k in RenderParams.names()},
         "captures": records,
-        "velocity": {
-            "file": "velocity.npy",
-            "method": "r = sum H_i E_i / sum H_i^2 over the offsets 0 and 0.25 (least "
-                      "squares); E/H = Delta_omega / (omega_d + Delta_omega) for a single "
-                      "path of constant brightness, every waveform, integer "
-                      "hetero_frequency; v = c Delta_omega / (2 omega_g)",
-            "calibration": calibration,
-            "calibration_note": CALIBRATION_NOTES[calibration],
-            "rotating_bodies": rotating_bodies(scene, base),
-            "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
-            "nan_when": {text.split(" (")[0].split(":")[0]: text
-                         for text in rec.INVALID_REASONS.values()},
-            "nan_pixels": _reason_counts(recon.velocity_reasons),
-            "min_signal_fraction": fraction,
-            "ground_truth": "velocity_gt.npy: (u . n) / (d . n) at mid-exposure from the "
-                            "analytic motion; velocity_point.npy: u . d",
-            "ground_truth_time_s": truth.time,
-        },
-        "depth": {
-            "file": "depth.npy",
-            "method": "phi = atan2(H(0.75) - H(0.25), H(0) - H(0.5)) (calibrated for "
-                      "non-sinusoidal waveforms), depth = c phi / (2 omega_g): half the "
-                      "path length, the distance for a colocated light",
-            "wrap_distance_m": wrap,
-            "unwrap_frequency_MHz": unwrap,
-            "unambiguous_range_m": (rec.unambiguous_range(model.frequency_hz, unwrap * 1e6)
-                                    if unwrap is not None else wrap),
-            "nan_pixels": _reason_counts(recon.depth_reasons),
-            "error_modulo_m": depth_modulo,
-            "ground_truth": "depth_gt.npy: distance to the first hit along the pixel-centre "
-                            "ray at mid-exposure",
-        },
+        "velocity": _velocity_summary(scene, settings, recon, truth),
+        "depth": _depth_summary(model, unwrap, recon, depth_modulo),
         "light": light_colocation(scene),
         "noise": noise_info,
         "errors": _errors(recon, truth, depth_modulo),
@@ -568,6 +599,51 @@ def _summary(scene, base, spp, seed, model, unwrap, calibration, records, recon,
         summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
         summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
     return summary
+
+
+def _velocity_summary(scene, settings: _Settings, recon, truth) -> dict:
+    """summary.json's "velocity" entry: the method, its calibration, why pixels are NaN."""
+    model, calibration = settings.model, settings.calibration
+    fraction = (rec.DEFAULT_MIN_SIGNAL_FRACTION if settings.min_signal_fraction is None
+                else float(settings.min_signal_fraction))
+    return {
+        "file": "velocity.npy",
+        "method": "r = sum H_i E_i / sum H_i^2 over the offsets 0 and 0.25 (least "
+                  "squares); E/H = Delta_omega / (omega_d + Delta_omega) for a single "
+                  "path of constant brightness, every waveform, integer "
+                  "hetero_frequency; v = c Delta_omega / (2 omega_g)",
+        "calibration": calibration,
+        "calibration_note": CALIBRATION_NOTES[calibration],
+        "rotating_bodies": rotating_bodies(scene, settings.base),
+        "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
+        "nan_when": {text.split(" (")[0].split(":")[0]: text
+                     for text in rec.INVALID_REASONS.values()},
+        "nan_pixels": _reason_counts(recon.velocity_reasons),
+        "min_signal_fraction": fraction,
+        "ground_truth": "velocity_gt.npy: (u . n) / (d . n) at mid-exposure from the "
+                        "analytic motion; velocity_point.npy: u . d",
+        "ground_truth_time_s": truth.time,
+    }
+
+
+def _depth_summary(model, unwrap, recon, depth_modulo) -> dict:
+    """summary.json's "depth" entry: the method, the wrap and unambiguous ranges, why
+    pixels are NaN."""
+    wrap = model.wrap_distance
+    return {
+        "file": "depth.npy",
+        "method": "phi = atan2(H(0.75) - H(0.25), H(0) - H(0.5)) (calibrated for "
+                  "non-sinusoidal waveforms), depth = c phi / (2 omega_g): half the "
+                  "path length, the distance for a colocated light",
+        "wrap_distance_m": wrap,
+        "unwrap_frequency_MHz": unwrap,
+        "unambiguous_range_m": (rec.unambiguous_range(model.frequency_hz, unwrap * 1e6)
+                                if unwrap is not None else wrap),
+        "nan_pixels": _reason_counts(recon.depth_reasons),
+        "error_modulo_m": depth_modulo,
+        "ground_truth": "depth_gt.npy: distance to the first hit along the pixel-centre "
+                        "ray at mid-exposure",
+    }
 
 
 #: speeds below this print as 0 in the summary lines (m/s)

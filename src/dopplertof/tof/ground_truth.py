@@ -76,6 +76,42 @@ def body_velocity(motion, points: np.ndarray, time: float, exposure: float) -> n
 
 def ground_truth(scene, params=None) -> GroundTruth:
     """Depth and radial velocity at mid-exposure for every pixel of ``scene``'s film."""
+    start, mid, end = mid_exposure(scene, params)
+    width, height = (int(v) for v in scene.sensor.film().crop_size())
+    camera = scene.sensor_motion
+    p, n, ray_o, d, body = _trace_pixel_centres(scene, width, height, start, mid, end)
+    hit = body > -2
+    # ---- Depth: from the camera centre at mid-exposure (or its plane) ----
+    centre = camera_origin(scene)
+    if camera is not None:
+        centre = (camera.relative_matrix(mid) @ np.append(centre, 1.0))[:3]
+    origin = centre
+    if ray_o is not None:
+        # rays from different points (orthographic): each pixel's distance is measured
+        # from where its ray crosses the camera's plane, as the renderer's path lengths
+        forward = _forward(scene, camera, mid)
+        origin = ray_o - (((ray_o - centre) @ forward) / (d @ forward))[:, None] * d
+    depth = np.where(hit, np.linalg.norm(p - origin, axis=-1), np.nan)
+    # ---- Velocities relative to the camera ----
+    radial, point = _relative_velocities(scene, camera, body, p, n, d, origin, depth,
+                                         mid, end - start)
+    shape2 = (height, width)
+    return GroundTruth(depth.reshape(shape2), radial.reshape(shape2), point.reshape(shape2),
+                       body.reshape(shape2), d.reshape(height, width, 3),
+                       n.reshape(height, width, 3), mid, centre)
+
+
+def _as_numpy(v) -> np.ndarray:
+    """A Dr.Jit 3-vector of N lanes as an (N, 3) float64 array."""
+    return np.stack([np.asarray(v[i], dtype=np.float64) for i in range(3)], axis=-1)
+
+
+def _trace_pixel_centres(scene, width: int, height: int, start: float, mid: float,
+                         end: float):
+    """The width x height pixel-centre rays of the camera at mid-exposure against the
+    scene at its pose then: hit points p and geometric normals n (N, 3), the rays'
+    origins (N, 3) where they differ between pixels (not a pinhole) else None, unit
+    directions d (N, 3), and per pixel the body hit (index, -1 static, -2 nothing)."""
     import drjit as dr
 
     from ..backend import require_variant
@@ -83,18 +119,15 @@ def ground_truth(scene, params=None) -> GroundTruth:
     from ..scene.bodies import BodyFrames, intersect
 
     mi = require_variant()
-    start, mid, end = mid_exposure(scene, params)
     sensor = scene.sensor
-    film = sensor.film()
-    width, height = (int(v) for v in film.crop_size())
     index = dr.arange(mi.UInt32, width * height)
     # pixel centres, normalized over the crop window as Mitsuba's sensors take them
     position = mi.Point2f((mi.Float(index % width) + 0.5) / width,
                           (mi.Float(index // width) + 0.5) / height)
     time = dr.full(mi.Float, mid, width * height)
-    camera = scene.sensor_motion
     # the camera's pose at mid-exposure
-    ray, _, _ = Camera(mi, sensor, camera).ray(position, time, mi.Point2f(0.5, 0.5))
+    ray, _, _ = Camera(mi, sensor, scene.sensor_motion).ray(position, time,
+                                                            mi.Point2f(0.5, 0.5))
     frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
 
@@ -103,28 +136,19 @@ def ground_truth(scene, params=None) -> GroundTruth:
         for shape in moving.scene.shapes():
             body = dr.select(si.is_valid() & (si.shape == mi.ShapePtr(shape)), k, body)
     dr.eval(si.p, si.n, ray.d, body)
-
-    def as_numpy(v):
-        return np.stack([np.asarray(v[i], dtype=np.float64) for i in range(3)], axis=-1)
-
-    p, n = as_numpy(si.p), as_numpy(si.n)
-    d = np.broadcast_to(as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
+    p, n = _as_numpy(si.p), _as_numpy(si.n)
+    d = np.broadcast_to(_as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    body = np.asarray(body, dtype=np.int64)
-    hit = body > -2
-    origin = camera_origin(scene)
-    exposure = end - start
-    if camera is not None:
-        origin = (camera.relative_matrix(mid) @ np.append(origin, 1.0))[:3]
-    centre = origin  # (the camera centre at mid-exposure, for the result)
-    if not is_pinhole(sensor):
-        # rays from different points (orthographic): each pixel's distance is measured
-        # from where its ray crosses the camera's plane, as the renderer's path lengths
-        forward = _forward(scene, camera, mid)
-        o = np.broadcast_to(as_numpy(ray.o), p.shape)
-        origin = o - (((o - origin) @ forward) / (d @ forward))[:, None] * d
+    ray_o = None if is_pinhole(sensor) else np.broadcast_to(_as_numpy(ray.o), p.shape)
+    return p, n, ray_o, d, np.asarray(body, dtype=np.int64)
 
-    depth = np.where(hit, np.linalg.norm(p - origin, axis=-1), np.nan)
+
+def _relative_velocities(scene, camera, body, p, n, d, origin, depth, mid: float,
+                         exposure: float):
+    """Per pixel, relative to the camera: the radial velocity ds/dt of the distance s
+    (``depth``) along the ray and the hit point's velocity along the ray u . d (NaN
+    where the ray hits nothing)."""
+    hit = body > -2
     u = np.zeros_like(p)
     for k, moving in enumerate(scene.bodies):
         on = body == k
@@ -145,11 +169,7 @@ def ground_truth(scene, params=None) -> GroundTruth:
             / np.sum(d * n, axis=-1)
     radial = np.where(hit, radial + 0.0, np.nan)  # + 0.0: no -0 on static surfaces
     point = np.where(hit, np.sum((u - u_origin) * d, axis=-1) + 0.0, np.nan)
-
-    shape2 = (height, width)
-    return GroundTruth(depth.reshape(shape2), radial.reshape(shape2), point.reshape(shape2),
-                       body.reshape(shape2), d.reshape(height, width, 3),
-                       n.reshape(height, width, 3), mid, centre)
+    return radial, point
 
 
 def light_colocation(scene, tolerance: float = 1e-3) -> dict:

@@ -25,6 +25,8 @@ def prepare_folder(folder, create: bool = False) -> str:
 
 
 def write_result(result, folder) -> list:
+    """Every file of a capture (see the module docstring) into ``folder`` (created if
+    missing); returns the paths in the order written."""
     folder = prepare_folder(folder, create=True)
     summary = result.summary
     written = []
@@ -35,7 +37,24 @@ def write_result(result, folder) -> list:
         return p
 
     noisy = " (with sensor noise)" if summary.get("noise") else ""
-    for record in summary["captures"]:
+    recon, truth = result.reconstruction, result.truth
+    _write_captures(result, path, noisy)
+    _write_velocity_maps(recon, truth, path, noisy)
+    _write_depth_maps(recon, truth, summary["depth"], path, noisy)
+    figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
+                             truth.velocity, f"{os.path.basename(summary['scene'])}: "
+                             f"{summary['spp_per_capture']} spp per capture{noisy}")
+    if getattr(result, "uncertainty", None) is not None:
+        write_uncertainty(result.uncertainty, path)
+    io.write_json(path("summary.json"), summary)
+    return written
+
+
+def _write_captures(result, path, noisy: str) -> None:
+    """The captures as the camera records them (.npy) with their previews (.png, the
+    capture record as metadata), and the radiance image; ``path(name)`` gives a file's
+    path in the output folder, ``noisy`` the titles' noise note."""
+    for record in result.summary["captures"]:
         name = record["name"]
         if record["kind"] == "radiance":
             continue
@@ -45,12 +64,14 @@ def write_result(result, folder) -> list:
                                      record["hetero_offset"], record["w_g_MHz"], noisy)
         io.write_png(path(f"{name}.png"), image, title=title,
                      label="time-averaged correlation (scene units)", metadata=record)
-
     io.write_npy(path("radiance.npy"), result.radiance)
     figures.write_radiance(path("radiance.png"), result.radiance,
                            "radiance, time-averaged over the exposure")
 
-    recon, truth = result.reconstruction, result.truth
+
+def _write_velocity_maps(recon, truth, path, noisy: str) -> None:
+    """Reconstructed and true radial velocity, the hit point's velocity along the ray
+    (.npy, .png on one symmetric colour scale) and the error's preview."""
     v_limit = figures.truth_limit(truth.velocity, recon.velocity)
     velocity_maps = (
         ("velocity", recon.velocity, f"reconstructed radial velocity{noisy}"),
@@ -67,7 +88,10 @@ def write_result(result, folder) -> list:
                       "m/s", cmap="PuOr_r", symmetric=True,
                       note=io.NO_SIGNAL_NOTE)
 
-    depth_info = summary["depth"]
+
+def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
+    """Reconstructed and true depth (.npy, .png); ``depth_info``: the summary's depth
+    section (wrapped or unwrapped)."""
     wrap_note = (f"wraps every {depth_info['wrap_distance_m']:.3f} m"
                  if depth_info["unwrap_frequency_MHz"] is None else
                  f"unwrapped with {depth_info['unwrap_frequency_MHz']:g} MHz")
@@ -83,14 +107,6 @@ def write_result(result, folder) -> list:
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
                           vmin=d_lo, vmax=d_hi, note=f"{note}; {io.NO_SIGNAL_NOTE}")
-
-    figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
-                             truth.velocity, f"{os.path.basename(summary['scene'])}: "
-                             f"{summary['spp_per_capture']} spp per capture{noisy}")
-    if getattr(result, "uncertainty", None) is not None:
-        write_uncertainty(result.uncertainty, path)
-    io.write_json(path("summary.json"), summary)
-    return written
 
 
 _STD_TITLES = {

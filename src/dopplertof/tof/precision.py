@@ -108,48 +108,8 @@ def jacobians(captures: dict, model: rec.CaptureModel, unwrap_mhz=None,
     differences of :func:`.reconstruct.velocity_inverse_square`, chained with the
     depth's Jacobian.
     """
-    H = [np.asarray(captures[_name("homodyne", o)], np.float64) for o in rec.VELOCITY_OFFSETS]
-    E = [np.asarray(captures[_name("heterodyne", o)], np.float64) for o in rec.VELOCITY_OFFSETS]
-    den = sum(h * h for h in H)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = sum(h * e for h, e in zip(H, E)) / den
-        dv_dd = None
-        if calibration == "inverse-square":
-            depth = np.asarray(depth, np.float64)
-            phase = rec.phase_from_depth(depth, model.omega_g)
-            grid, coefficients = rec.inverse_square_coefficients(model)
-            c10, c01, c20, c11, c02 = (np.interp(phase, grid, c) for c in coefficients)
-            inv_d = 1.0 / depth
-            v = rec.velocity_inverse_square(r, phase, depth, model)
-            dv_dr = 1.0 / (c10 + c01 * inv_d + 2 * (c20 + c11 * inv_d + c02 * inv_d**2) * v)
-            step = 1e-4 * depth  # along depth, the phase following it (one path)
-
-            def v_at(k):
-                d = depth + k * step
-                return rec.velocity_inverse_square(r, phase + 2 * model.omega_g * k * step
-                                                   / SPEED_OF_LIGHT, d, model)
-            dv_dd = (v_at(1) - v_at(-1)) / (2 * step)
-        else:
-            dv_dr = model.omega_d * model.velocity_per_delta_omega() / (1.0 - r) ** 2
-        amp_v = np.sqrt(den)
-    velocity, amp_v_jac = {}, {}
-    for o, h, e in zip(rec.VELOCITY_OFFSETS, H, E):
-        velocity[_name("heterodyne", o)] = dv_dr * h / den
-        velocity[_name("homodyne", o)] = dv_dr * (e - 2 * r * h) / den
-        amp_v_jac[_name("homodyne", o)] = h / amp_v
-    if unwrap_mhz is None:
-        depth_jac, amp_d, amp_d_jac = _depth_jacobian(captures, "homodyne", model.omega_g,
-                                                      model.waveform)
-        amplitudes = [(amp_v, amp_v_jac), (amp_d, amp_d_jac)]
-    else:  # the f^2-weighted mean of the two matched depths
-        f1, f2 = model.frequency_hz, unwrap_mhz * 1e6
-        w1, w2 = f1 * f1 / (f1 * f1 + f2 * f2), f2 * f2 / (f1 * f1 + f2 * f2)
-        depth_jac, amp_d, amp_d_jac = _depth_jacobian(captures, "homodyne", model.omega_g,
-                                                      model.waveform, w1)
-        second, amp_2, amp_2_jac = _depth_jacobian(captures, f"homodyne_{unwrap_mhz:g}MHz",
-                                                   2 * math.pi * f2, model.waveform, w2)
-        depth_jac.update(second)
-        amplitudes = [(amp_v, amp_v_jac), (amp_d, amp_d_jac), (amp_2, amp_2_jac)]
+    velocity, amp_v, dv_dd = _velocity_jacobian(captures, model, calibration, depth)
+    depth_jac, amplitudes = _depth_jacobians(captures, model, unwrap_mhz)
     if dv_dd is not None:  # the calibration reads the first frequency's phase and depth
         if unwrap_mhz is None:
             phase_depth = depth_jac
@@ -158,7 +118,67 @@ def jacobians(captures: dict, model: rec.CaptureModel, unwrap_mhz=None,
                                           model.waveform)[0]
         for name, jac in phase_depth.items():
             velocity[name] = velocity.get(name, 0.0) + dv_dd * jac
-    return velocity, depth_jac, amplitudes
+    return velocity, depth_jac, [amp_v] + amplitudes
+
+
+def _velocity_jacobian(captures, model, calibration, depth):
+    """d velocity / d capture through the ratio r = sum H_i E_i / sum H_i^2 of the
+    velocity offsets' homodyne H_i and heterodyne E_i captures; the velocity amplitude
+    sqrt(sum H_i^2) with its Jacobian; and d velocity / d depth of the inverse-square
+    calibration (None without it)."""
+    H = [np.asarray(captures[_name("homodyne", o)], np.float64) for o in rec.VELOCITY_OFFSETS]
+    E = [np.asarray(captures[_name("heterodyne", o)], np.float64) for o in rec.VELOCITY_OFFSETS]
+    den = sum(h * h for h in H)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = sum(h * e for h, e in zip(H, E)) / den
+        dv_dr, dv_dd = _velocity_slopes(r, model, calibration, depth)
+        amp_v = np.sqrt(den)
+    velocity, amp_v_jac = {}, {}
+    for o, h, e in zip(rec.VELOCITY_OFFSETS, H, E):
+        velocity[_name("heterodyne", o)] = dv_dr * h / den
+        velocity[_name("homodyne", o)] = dv_dr * (e - 2 * r * h) / den
+        amp_v_jac[_name("homodyne", o)] = h / amp_v
+    return velocity, (amp_v, amp_v_jac), dv_dd
+
+
+def _velocity_slopes(r, model, calibration, depth):
+    """(d v / d r, d v / d depth) of the velocity from the ratio ``r``: the exact E/H
+    inversion v = c omega_d r / (2 omega_g (1 - r)) (no depth term, None), or the
+    inverse-square calibration's, whose depth term moves the phase with the depth (one
+    path)."""
+    if calibration != "inverse-square":
+        return model.omega_d * model.velocity_per_delta_omega() / (1.0 - r) ** 2, None
+    depth = np.asarray(depth, np.float64)
+    phase = rec.phase_from_depth(depth, model.omega_g)
+    grid, coefficients = rec.inverse_square_coefficients(model)
+    c10, c01, c20, c11, c02 = (np.interp(phase, grid, c) for c in coefficients)
+    inv_d = 1.0 / depth
+    v = rec.velocity_inverse_square(r, phase, depth, model)
+    dv_dr = 1.0 / (c10 + c01 * inv_d + 2 * (c20 + c11 * inv_d + c02 * inv_d**2) * v)
+    step = 1e-4 * depth  # along depth, the phase following it (one path)
+
+    def v_at(k):
+        d = depth + k * step
+        return rec.velocity_inverse_square(r, phase + 2 * model.omega_g * k * step
+                                           / SPEED_OF_LIGHT, d, model)
+    return dv_dr, (v_at(1) - v_at(-1)) / (2 * step)
+
+
+def _depth_jacobians(captures, model, unwrap_mhz):
+    """d depth / d capture and the depth amplitudes (value, Jacobian): one frequency's,
+    or with ``unwrap_mhz`` the f^2-weighted mean of the two matched depths'."""
+    if unwrap_mhz is None:
+        depth_jac, amp_d, amp_d_jac = _depth_jacobian(captures, "homodyne", model.omega_g,
+                                                      model.waveform)
+        return depth_jac, [(amp_d, amp_d_jac)]
+    f1, f2 = model.frequency_hz, unwrap_mhz * 1e6
+    w1, w2 = f1 * f1 / (f1 * f1 + f2 * f2), f2 * f2 / (f1 * f1 + f2 * f2)
+    depth_jac, amp_d, amp_d_jac = _depth_jacobian(captures, "homodyne", model.omega_g,
+                                                  model.waveform, w1)
+    second, amp_2, amp_2_jac = _depth_jacobian(captures, f"homodyne_{unwrap_mhz:g}MHz",
+                                               2 * math.pi * f2, model.waveform, w2)
+    depth_jac.update(second)
+    return depth_jac, [(amp_d, amp_d_jac), (amp_2, amp_2_jac)]
 
 
 # ---- Propagation ------------------------------------------------------------------
