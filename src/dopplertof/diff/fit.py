@@ -216,39 +216,76 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     blocks of block x block interior pixels of one body (a per-pixel Jacobian's Monte
     Carlo noise would inflate J^T J and shorten every step; block sums keep the
     velocity field's variation and average the noise)."""
-    from tqdm import tqdm
-
-    from ..integrators.pipeline import _show_progress
-    from .render import DifferentiableScene, render_derivatives
-
     data = load_capture(folder, defines)
-    scene = data.scene
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else int(seed)
-    jacobian_seed = seed + 1
+    # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
+    motions, t_mid = _motions_at_mid_exposure(data)
+    geometry = _truth(data.scene, motions, data.base)
+    masks = _interior_masks(data.scene, geometry)
+
+    # ---- Start ----
+    closed_form = [None if data.velocity is None
+                   else closed_form_velocity(geometry, data.velocity, mask) for mask in masks]
+    start = dict(start or {})
+    _start_motions(motions, start, closed_form, folder)
+
+    # ---- Gauss-Newton with Levenberg-Marquardt damping ----
+    problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block)
+    started = _time.perf_counter()
+    theta, state, loss_ab, history, done = _gauss_newton(problem, spp, iterations,
+                                                         tolerance, progress, started)
+    (r, _), (r_b, _) = state
+    loss = 0.5 * float(r @ r + r_b @ r_b)
+
+    # ---- Uncertainties from the final Jacobian ----
+    cov, sigma, seen = _covariance(state, loss)
+    bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
+    settings = {
+        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
+        "spp": int(spp), "seed": seed, "jacobian_seed": seed + 1,
+        "pixels": int(problem.pixels.size), "block": int(block),
+        "residuals": "per capture, sums over blocks of interior pixels of one body",
+        "parameters": problem.names, "angular": bool(angular),
+        "start": "user" if start else "closed form (velocity.npy)",
+        **_method_notes(t_mid),
+        "unconstrained": [n for n, ok in zip(problem.names, seen) if not ok],
+        "seconds": round(_time.perf_counter() - started, 3),
+    }
+    settings["cross_loss"] = loss_ab
+    return FitResult(bodies, done, loss, history, settings)
+
+
+def _motions_at_mid_exposure(data: CaptureData):
+    """Each body's VelocityMotion about its pose at mid-exposure t_mid (velocities 0),
+    and t_mid."""
+    scene = data.scene
     t0 = scene.shutter_open
     t1 = t0 + data.base.exposure(scene.shutter_interval)
     t_mid = 0.5 * (t0 + t1)
-    n_bodies = len(scene.bodies)
-    # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
     motions = [VelocityMotion.from_motion(b.motion, t0, t1, t_ref=t_mid)
                for b in scene.bodies]
     for m in motions:
         m.velocity, m.angular_velocity = [0.0] * 3, [0.0] * 3
-    geometry = _truth(scene, motions, data.base)
-    masks = [interior(geometry, k) for k in range(n_bodies)]
+    return motions, t_mid
+
+
+def _interior_masks(scene, geometry) -> list:
+    """Per body, its :func:`interior` pixels; a FitError for a body with fewer than 4."""
+    masks = [interior(geometry, k) for k in range(len(scene.bodies))]
     for k, mask in enumerate(masks):
         if mask.sum() < 4:
             raise FitError(f"body {k} ({', '.join(scene.bodies[k].names)}) covers fewer than "
                            "4 interior pixels: too small to fit at this resolution")
+    return masks
 
-    # ---- Start ----
-    closed_form = [None] * n_bodies
-    for k in range(n_bodies):
-        if data.velocity is not None:
-            closed_form[k] = closed_form_velocity(geometry, data.velocity, masks[k])
-    start = dict(start or {})
+
+def _start_motions(motions, start: dict, closed_form, folder) -> None:
+    """Set each body's velocities to the user's ``start`` where it names the body, else
+    to its closed form; a FitError for a body named that the scene lacks, or for a body
+    with neither."""
+    n_bodies = len(motions)
     for k, value in start.items():
         if not isinstance(k, (int, np.integer)) or not 0 <= k < n_bodies:
             raise FitError(f"start names body {k!r}; the scene has bodies 0 .. {n_bodies - 1}")
@@ -265,115 +302,211 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
             raise FitError(f"{folder} has no velocity.npy for the closed-form start: give a "
                            f"start for body {k}")
 
-    # ---- One differentiable scene per capture, sharing the motions ----
-    scenes = {}
-    for name in FIT_CAPTURES:
-        ds = DifferentiableScene(scene, _capture_params(data, name))
-        ds.motions = motions
-        scenes[name] = ds
-    pixels = np.flatnonzero(np.logical_or.reduce(masks))
-    groups = _blocks(masks, block)  # per rendered pixel, its block
-    n_groups = int(groups.max()) + 1
 
-    def pool(values):  # per-pixel values -> block sums
-        return np.bincount(groups, weights=values, minlength=n_groups)
-    names = [f"body{k}.{kind}{a}" for k in range(n_bodies)
-             for kind in ("vw" if angular else "v") for a in "xyz"]
-    target = np.concatenate([pool(data.captures[c].ravel()[pixels]) for c in FIT_CAPTURES])
+class _FitProblem:
+    """The least squares of a fit. theta: per body its linear velocity (and, with
+    ``angular``, its angular velocity), in the order of ``names``; it sets the
+    ``motions`` that one differentiable scene per fitted capture shares. The residuals:
+    per capture, block sums of render - capture over the bodies' interior pixels."""
 
-    def values():
+    def __init__(self, data: CaptureData, motions, masks, seeds, angular: bool, block: int):
+        from .render import DifferentiableScene
+
+        self.data, self.motions, self.masks, self.angular = data, motions, masks, angular
+        self.seeds = seeds  #: (A, B): the two renders of independent random numbers
+        self.per_body = 6 if angular else 3  #: parameters per body
+        # ---- One differentiable scene per capture, sharing the motions ----
+        self.scenes = {}
+        for name in FIT_CAPTURES:
+            ds = DifferentiableScene(data.scene, _capture_params(data, name))
+            ds.motions = motions
+            self.scenes[name] = ds
+        self.pixels = np.flatnonzero(np.logical_or.reduce(masks))
+        self.groups = _blocks(masks, block)  # per rendered pixel, its block
+        self.n_groups = int(self.groups.max()) + 1
+        self.names = [f"body{k}.{kind}{a}" for k in range(len(motions))
+                      for kind in ("vw" if angular else "v") for a in "xyz"]
+        self.target = np.concatenate([self.pool(data.captures[c].ravel()[self.pixels])
+                                      for c in FIT_CAPTURES])
+
+    def pool(self, values):
+        """Per-pixel values (of the rendered pixels) -> block sums."""
+        return np.bincount(self.groups, weights=values, minlength=self.n_groups)
+
+    def values(self) -> np.ndarray:
+        """theta of the current motions."""
         out = []
-        for k in range(n_bodies):
-            out += motions[k].velocity
-            if angular:
-                out += motions[k].angular_velocity
+        for m in self.motions:
+            out += m.velocity
+            if self.angular:
+                out += m.angular_velocity
         return np.array(out, dtype=np.float64)
 
-    def set_values(theta):
-        per = 6 if angular else 3
-        for k in range(n_bodies):
-            motions[k].velocity = theta[k * per:k * per + 3].tolist()
-            if angular:
-                motions[k].angular_velocity = theta[k * per + 3:k * per + 6].tolist()
+    def set_values(self, theta) -> None:
+        per = self.per_body
+        for k, m in enumerate(self.motions):
+            m.velocity = theta[k * per:k * per + 3].tolist()
+            if self.angular:
+                m.angular_velocity = theta[k * per + 3:k * per + 6].tolist()
 
-    def evaluate(samples):
+    def evaluate(self, samples: int):
         """Residuals and Jacobians at the current motions from two renders of
-        independent random numbers (A, B)."""
+        independent random numbers (A, B): [(r_A, J_A), (r_B, J_B)]."""
+        from .render import render_derivatives
+
         out = []
-        for seed_ in (seed, jacobian_seed):
+        for seed in self.seeds:
             residual, jacobian = [], []
             for c in FIT_CAPTURES:
-                d = render_derivatives(scenes[c], names, spp=samples, seed=seed_,
-                                       pixels=pixels)
-                residual.append(pool(d.image.mean(-1).ravel()[pixels]))
-                jacobian.append(np.stack([pool(d.tangents[n].mean(-1).ravel()[pixels])
-                                          for n in names], -1))
-            out.append((np.concatenate(residual) - target, np.concatenate(jacobian)))
+                d = render_derivatives(self.scenes[c], self.names, spp=samples, seed=seed,
+                                       pixels=self.pixels)
+                residual.append(self.pool(d.image.mean(-1).ravel()[self.pixels]))
+                jacobian.append(np.stack([self.pool(d.tangents[n].mean(-1).ravel()
+                                                    [self.pixels]) for n in self.names], -1))
+            out.append((np.concatenate(residual) - self.target, np.concatenate(jacobian)))
         return out
 
-    def radial_all():
-        truth = _truth(scene, motions, data.base)
-        return [radial_velocity(truth, k) for k in range(n_bodies)]
+    def radial(self) -> list:
+        """Each body's median radial velocity at the current motions (the truth's)."""
+        truth = _truth(self.data.scene, self.motions, self.data.base)
+        return [radial_velocity(truth, k) for k in range(len(self.motions))]
 
-    # ---- Gauss-Newton with Levenberg-Marquardt damping ----
-    # Early iterations render a quarter of the samples (the start may be far off); the
-    # last ones all of them. Parameters the captures do not see (a Jacobian column far
-    # below the others: a velocity along no visible face's normal) keep their start.
-    started = _time.perf_counter()
-    K = scenes[FIT_CAPTURES[0]].params.time_correlate_number
+    def record(self, iteration: int, loss: float, samples: int, theta, started) -> dict:
+        """One entry of the fit's history."""
+        return {"iteration": iteration, "loss": loss, "spp": samples,
+                "radial_velocity_m_s": self.radial(), "parameters": theta.tolist(),
+                "seconds": _time.perf_counter() - started}
+
+    def radial_gradient(self, theta) -> np.ndarray:
+        """d (each body's radial velocity) / d theta (n_bodies, n_params): central
+        differences of the truth (linear in u); leaves the motions at ``theta``."""
+        grad_radial = np.zeros((len(self.motions), len(theta)))
+        for j in range(len(theta)):
+            h = 1e-3 * max(1.0, abs(theta[j]))
+            up, down = theta.copy(), theta.copy()
+            up[j] += h
+            down[j] -= h
+            self.set_values(up)
+            r_up = self.radial()
+            self.set_values(down)
+            r_down = self.radial()
+            for k in range(len(self.motions)):
+                if r_up[k] is not None:
+                    grad_radial[k, j] = (r_up[k] - r_down[k]) / (2 * h)
+        self.set_values(theta)
+        return grad_radial
+
+    def body_entries(self, theta, cov, sigma, first: dict, closed_form) -> list:
+        """fit.json's per-body entries at the fitted ``theta`` (the current motions),
+        with the uncertainties from ``cov`` and ``sigma``, the start (``first``: the
+        history's first entry) and the capture's own record of the body."""
+        radial = self.radial()
+        # the radial velocities' derivatives (central differences of the truth; linear in u)
+        grad_radial = self.radial_gradient(theta)
+        per, bodies = self.per_body, []
+        for k, m in enumerate(self.motions):
+            g = grad_radial[k]
+            entry = {
+                "name": ", ".join(self.data.scene.bodies[k].names),
+                "radial_velocity_m_s": radial[k],
+                "radial_velocity_uncertainty_m_s": float(np.sqrt(max(g @ cov @ g, 0.0))),
+                "linear_velocity_m_s": theta[k * per:k * per + 3].tolist(),
+                "linear_velocity_uncertainty_m_s": _or_none(sigma[k * per:k * per + 3]),
+                "angular_velocity_rad_s": [float(x) for x in m.angular_velocity],
+                "angular_velocity_uncertainty_rad_s": (
+                    _or_none(sigma[k * per + 3:k * per + 6]) if self.angular else None),
+                "pivot_m": m.pivot,
+                "start_linear_velocity_m_s": first["parameters"][k * per:k * per + 3],
+                "start_radial_velocity_m_s": first["radial_velocity_m_s"][k],
+                "closed_form_linear_velocity_m_s": (None if closed_form[k] is None
+                                                    else closed_form[k].tolist()),
+                "interior_pixels": int(self.masks[k].sum()),
+            }
+            _add_capture_record(entry, self.data.summary)
+            bodies.append(entry)
+        return bodies
+
+
+def _add_capture_record(entry: dict, summary: dict) -> None:
+    """The capture's own record of the body ``entry`` names (summary.json's velocity
+    medians), for comparison, when it has one."""
+    truth_summary = [b for b in summary.get("bodies", []) if b.get("name") == entry["name"]]
+    if truth_summary:
+        entry["capture_velocity_gt_median_m_s"] = truth_summary[0].get(
+            "velocity_gt_median_m_s")
+        entry["capture_velocity_median_m_s"] = truth_summary[0].get("velocity_median_m_s")
+
+
+def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: float,
+                  progress, started):
+    """Gauss-Newton iterations with Levenberg-Marquardt damping from the current
+    motions: (theta, the last (r, J) pair of renders, its cross loss, the history, the
+    iterations done). Early iterations render a quarter of the samples (the start may be
+    far off); the last ones all of them. Parameters the captures do not see (a Jacobian
+    column far below the others: a velocity along no visible face's normal) keep their
+    start."""
+    from tqdm import tqdm
+
+    from ..integrators.pipeline import _show_progress
+
+    K = problem.scenes[FIT_CAPTURES[0]].params.time_correlate_number
     coarse = max(K, (spp // 4) // K * K)
     samples = coarse if coarse < spp else spp
-    history = []
     damping = 1e-3
-    theta = values()
-    state = evaluate(samples)
+    theta = problem.values()
+    state = problem.evaluate(samples)
     loss = _cross_loss(state)
-    history.append({"iteration": 0, "loss": loss, "spp": samples,
-                    "radial_velocity_m_s": radial_all(), "parameters": theta.tolist(),
-                    "seconds": _time.perf_counter() - started})
+    history = [problem.record(0, loss, samples, theta, started)]
     bar = tqdm(total=iterations, desc="fitting", unit="it", leave=False,
                disable=not _show_progress(progress))
     done = 0
-    seen = np.ones(len(theta), dtype=bool)
     try:
         for it in range(1, iterations + 1):
-            step, seen = _damped_step(state, damping)
-            step = _trust(step, theta)
-            while True:
-                set_values(theta + step)
-                state_new = evaluate(samples)
-                loss_new = _cross_loss(state_new)
-                if loss_new <= loss or damping > 1e3:
-                    break
-                damping *= 10.0  # a worse loss: a shorter, more gradient-like step
-                step, seen = _damped_step(state, damping)
-                step = _trust(step, theta)
+            step, state_new, loss_new, damping = _damped_trials(problem, state, loss, theta,
+                                                                damping, samples)
             theta, state, loss = theta + step, state_new, loss_new
             damping = max(damping / 10.0, 1e-6)
             done = it
             bar.update(1)
-            history.append({"iteration": it, "loss": loss, "spp": samples,
-                            "radial_velocity_m_s": radial_all(), "parameters": theta.tolist(),
-                            "seconds": _time.perf_counter() - started})
+            history.append(problem.record(it, loss, samples, theta, started))
             small = np.linalg.norm(step) <= 1e-2 * max(np.linalg.norm(theta), 1e-12)
             stalled = loss_new > 0.9 * history[-2]["loss"]  # the noise's floor
             if samples < spp and (small or stalled or it >= iterations // 2):
                 samples = spp  # near: the precise renders (the loss is re-evaluated)
-                state = evaluate(samples)
+                state = problem.evaluate(samples)
                 loss = _cross_loss(state)
             elif np.linalg.norm(step) <= tolerance * max(np.linalg.norm(theta), 1e-12):
                 break
     finally:
         bar.close()
-    (r, J), (r_b, J_b) = state
-    loss_ab = loss
-    loss = 0.5 * float(r @ r + r_b @ r_b)
-    J = 0.5 * (J + J_b)
+    return theta, state, loss, history, done
 
-    # ---- Uncertainties from the final Jacobian ----
+
+def _damped_trials(problem: _FitProblem, state, loss: float, theta, damping: float,
+                   samples: int):
+    """Levenberg-Marquardt's steps from ``theta`` (renders ``state``), the damping ten
+    times larger after each that makes the loss worse (a shorter, more gradient-like
+    step), until one does not or the damping passes 1e3: (that step, its state, its
+    cross loss, the damping); the motions are left at theta + step."""
+    while True:
+        step = _trust(_damped_step(state, damping)[0], theta)
+        problem.set_values(theta + step)
+        state_new = problem.evaluate(samples)
+        loss_new = _cross_loss(state_new)
+        if loss_new <= loss or damping > 1e3:
+            return step, state_new, loss_new, damping
+        damping *= 10.0
+
+
+def _covariance(state, loss: float):
+    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = ``loss`` / its
+    degrees of freedom, over the parameters the captures see; the standard deviations
+    (NaN for a parameter not seen) and that mask."""
     G, seen = _metric(state)
+    (r, _), _ = state
+    n = G.shape[0]
     dof = max(len(r) - int(seen.sum()), 1)
-    cov = np.zeros((len(theta), len(theta)))
+    cov = np.zeros((n, n))
     if seen.any():
         scale = np.sqrt(np.diag(G)[seen])
         Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
@@ -381,56 +514,12 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         cov[np.ix_(seen, seen)] = ((loss / dof) * _truncated_inverse(Gs, RCOND ** 2)
                                    / np.outer(scale, scale))
     sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.nan)
-    radial = radial_all()
-    # the radial velocities' derivatives (central differences of the truth; linear in u)
-    grad_radial = np.zeros((n_bodies, len(theta)))
-    for j in range(len(theta)):
-        h = 1e-3 * max(1.0, abs(theta[j]))
-        up, down = theta.copy(), theta.copy()
-        up[j] += h
-        down[j] -= h
-        set_values(up)
-        r_up = radial_all()
-        set_values(down)
-        r_down = radial_all()
-        for k in range(n_bodies):
-            if r_up[k] is not None:
-                grad_radial[k, j] = (r_up[k] - r_down[k]) / (2 * h)
-    set_values(theta)
-    per = 6 if angular else 3
-    bodies = []
-    for k in range(n_bodies):
-        g = grad_radial[k]
-        entry = {
-            "name": ", ".join(scene.bodies[k].names),
-            "radial_velocity_m_s": radial[k],
-            "radial_velocity_uncertainty_m_s": float(np.sqrt(max(g @ cov @ g, 0.0))),
-            "linear_velocity_m_s": theta[k * per:k * per + 3].tolist(),
-            "linear_velocity_uncertainty_m_s": _or_none(sigma[k * per:k * per + 3]),
-            "angular_velocity_rad_s": [float(x) for x in motions[k].angular_velocity],
-            "angular_velocity_uncertainty_rad_s": (_or_none(sigma[k * per + 3:k * per + 6])
-                                                   if angular else None),
-            "pivot_m": motions[k].pivot,
-            "start_linear_velocity_m_s": history[0]["parameters"][k * per:k * per + 3],
-            "start_radial_velocity_m_s": history[0]["radial_velocity_m_s"][k],
-            "closed_form_linear_velocity_m_s": (None if closed_form[k] is None
-                                                else closed_form[k].tolist()),
-            "interior_pixels": int(masks[k].sum()),
-        }
-        truth_summary = [b for b in data.summary.get("bodies", [])
-                         if b.get("name") == entry["name"]]
-        if truth_summary:  # the capture's own record, for comparison
-            entry["capture_velocity_gt_median_m_s"] = truth_summary[0].get(
-                "velocity_gt_median_m_s")
-            entry["capture_velocity_median_m_s"] = truth_summary[0].get(
-                "velocity_median_m_s")
-        bodies.append(entry)
-    settings = {
-        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
-        "spp": int(spp), "seed": seed, "jacobian_seed": jacobian_seed, "pixels": int(pixels.size), "block": int(block),
-        "residuals": "per capture, sums over blocks of interior pixels of one body",
-        "parameters": names, "angular": bool(angular),
-        "start": "user" if start else "closed form (velocity.npy)",
+    return cov, sigma, seen
+
+
+def _method_notes(t_mid: float) -> dict:
+    """fit.json's settings that describe the method, the motion and the uncertainty."""
+    return {
         "method": "Gauss-Newton with Levenberg-Marquardt damping on the cross loss "
                   "(R_A - C).(R_B - C) of two renders of independent seeds, forward-mode "
                   "Jacobians, the same seeds every iteration (correlated sampling)",
@@ -440,11 +529,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
                        "^+: the pseudo-inverse over the directions the captures constrain "
                        "(singular values >= %g of the largest, columns scaled); null: a "
                        "parameter the captures do not see (kept at its start)" % RCOND,
-        "unconstrained": [n for n, ok in zip(names, seen) if not ok],
-        "seconds": round(_time.perf_counter() - started, 3),
     }
-    settings["cross_loss"] = loss_ab
-    return FitResult(bodies, done, loss, history, settings)
 
 
 def _blocks(masks, block: int) -> np.ndarray:
