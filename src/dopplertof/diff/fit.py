@@ -260,9 +260,10 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
 def _motions_at_mid_exposure(data: CaptureData):
     """Each body's VelocityMotion about its pose at mid-exposure t_mid (velocities 0),
     and t_mid."""
+    from ..tof.ground_truth import mid_exposure
+
     scene = data.scene
-    t0 = scene.shutter_open
-    t1 = t0 + data.base.exposure(scene.shutter_interval)
+    t0, _, t1 = mid_exposure(scene, data.base)
     t_mid = 0.5 * (t0 + t1)
     motions = [VelocityMotion.from_motion(b.motion, t0, t1, t_ref=t_mid)
                for b in scene.bodies]

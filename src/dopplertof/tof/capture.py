@@ -255,15 +255,15 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     # ---- Render every capture ----
     rendered, records, radiance, batches = _render_captures(
         scene, base, plan_captures(base.w_g, model.hetero_frequency, unwrap),
-        int(settings.spp), seed, common_random_numbers, settings.mc_batches, progress,
-        on_capture)
+        int(settings.spp), settings.seed, settings.common_random_numbers,
+        settings.mc_batches, progress, on_capture)
 
     # ---- Reconstruct, with sensor noise when asked, and the truth ----
     truth = ground_truth(scene, base)
     unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
     clean = _reconstruct(rendered, model, unwrap, settings.min_signal_fraction,
                          settings.calibration)
-    captures, reconstruction, noise_free, noise, noise_info = _sense(
+    captures, reconstruction, noise_free, noise, noise_info = _sensor_readout(
         rendered, unmodulated, clean, settings)
 
     # ---- Predicted precision and the masks it sets ----
@@ -325,7 +325,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
                      min_signal_fraction, common_random_numbers, limits, mc_batches)
 
 
-def _sense(rendered, unmodulated, clean: Reconstruction, settings: _Settings):
+def _sensor_readout(rendered, unmodulated, clean: Reconstruction, settings: _Settings):
     """What the camera records and reports: (captures, reconstruction, the noise-free
     reconstruction, the noise model resolved, its summary entry). Without sensor noise,
     the renders and ``clean`` (and None for the rest)."""
