@@ -11,6 +11,7 @@ import dopplertof
 from analytic import plane_scene, reference
 from conftest import PUBLISHED
 from dopplertof import sampling
+from dopplertof.sampling import FULL_CORRELATION
 from dopplertof.cli import main
 from test_bad_input import GOOD
 
@@ -177,7 +178,7 @@ def test_kp_one_is_independent_paths_whatever_the_depth():
     common = dict(time_sampling_method="antithetic", hetero_frequency=1.0)
     independent = dopplertof.render(scene, spp=16, seed=2,
                                     params=dict(common, path_correlation_depth=0))
-    for depth in (1, 4, 1 << 16):
+    for depth in (1, 4, FULL_CORRELATION):
         kp1 = dopplertof.render(scene, spp=16, seed=2, params=dict(
             common, path_correlate_number=1, path_correlation_depth=depth))
         assert np.array_equal(kp1, independent), depth
