@@ -74,6 +74,7 @@ def _add_noise_options(n) -> None:
 def _add_render_command(sub) -> None:
     """``render``: one D-ToF image of a scene."""
     r = sub.add_parser("render", help="render a D-ToF image of a scene")
+    # ---- what to render, and where to
     _add_scene_argument(r)
     r.add_argument("-o", "--output", required=True,
                    help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
@@ -81,6 +82,7 @@ def _add_render_command(sub) -> None:
     _add_seed_option(r)
     add_defines_option(r)
     add_params_option(r, "override an integrator parameter, e.g. -P hetero_frequency=1")
+    # ---- how it runs
     _add_variant_option(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     # ---- files beside the image
@@ -97,6 +99,7 @@ def _add_capture_command(sub) -> None:
     options."""
     c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
                        "depth reconstruction, exact truth, previews and summary.json")
+    # ---- what to capture, and where to
     _add_scene_argument(c)
     c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP})")
     c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
@@ -113,8 +116,10 @@ def _add_capture_command(sub) -> None:
     c.add_argument("--min-signal", type=float, metavar="FRACTION",
                    help="velocity/depth are NaN where the homodyne signal is below this "
                    "fraction of the image's 99th percentile (default 0.01)")
+    # ---- how it runs
     _add_variant_option(c)
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
+    # ---- the groups: precision limits, sensor noise
     _add_capture_precision_options(c)
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
     n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")

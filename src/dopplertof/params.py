@@ -107,11 +107,10 @@ class RenderParams:
         """These parameters when every value is in range and they agree with each other,
         else a ParameterError prefixed with ``where``. The checks run in a fixed order (by
         topic), so that an input with several problems always reports the same one."""
-        for first_problem in (self._modulation_problem, self._time_sampling_problem,
-                              self._path_problem, self._execution_problem,
-                              self._pairing_problem, self._film_problem,
-                              self._motion_mapping_problem):
-            problem = first_problem()
+        for check in (self._modulation_problem, self._time_sampling_problem,
+                      self._path_problem, self._execution_problem, self._pairing_problem,
+                      self._film_problem, self._motion_mapping_problem):
+            problem = check()
             if problem:
                 raise ParameterError(f"{where}: {problem}")
         return self

@@ -67,8 +67,8 @@ def add_defines_option(p) -> None:
 
 
 def add_params_option(p, help: str) -> None:
-    """``-P NAME=VALUE`` (``parse_pairs(args.params, "-P")`` reads it), with the
-    command's own ``help``."""
+    """``-P NAME=VALUE`` (repeatable; ``parse_pairs(args.params, "-P")`` reads it), with
+    the command's own ``help``."""
     p.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE", help=help)
 
 
