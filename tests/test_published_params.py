@@ -31,16 +31,19 @@ def published(res=8):
 
 def count_passes(monkeypatch):
     """Counts the path tracing kernels launched (one per pass)."""
-    from dopplertof.integrators import dtof_path
+    import mitsuba as mi
+
+    from dopplertof.integrators.dtof_path import integrator_class
 
     calls = []
-    original = dtof_path.trace_pass
+    cls = integrator_class(mi)
+    original = cls.trace
 
     def counted(*args):
         calls.append(1)
         return original(*args)
 
-    monkeypatch.setattr(dtof_path, "trace_pass", counted)
+    monkeypatch.setattr(cls, "trace", counted)
     return calls
 
 

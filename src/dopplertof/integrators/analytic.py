@@ -32,8 +32,8 @@ import drjit as dr
 from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
 from ..scene.bodies import BodyFrames
-from .dtof_path import (DopplerToFPath, _as_colour, _intersect, advance, film_position,
-                        lane_streams, loop_settings, roulette, shade, vertex_numbers)
+from .path_steps import (_as_colour, _intersect, advance, film_position, lane_streams,
+                         loop_settings, roulette, shade, vertex_numbers)
 
 #: |phase change over the exposure| (rad) below which the closed forms use their series
 #: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
@@ -90,7 +90,7 @@ def _ratio(value_end, value_start):
 @dr.syntax
 def trace_analytic_pass(mi, setup, layout):
     """Render one pass with analytic time integration; returns each lane's
-    time-averaged measurement and film offset, as :func:`dtof_path.trace_pass` does."""
+    time-averaged measurement and film offset, as ``DopplerToFPath.trace`` does."""
     scene = setup.scene
     static = scene.static
     mod = setup.modulation
@@ -166,11 +166,3 @@ def trace_analytic_pass(mi, setup, layout):
         active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
 
     return _as_colour(mi, measured, wavelengths), film_offset
-
-
-class AnalyticPath(DopplerToFPath):
-    """The integrator of ``time_sampling_method="analytic"``: each sample's two paths
-    at the exposure's ends, their contributions integrated over the exposure."""
-
-    def trace(self, layout):
-        return trace_analytic_pass(self.mi, self, layout)

@@ -38,16 +38,6 @@ class RenderResult:
     sample_counts: np.ndarray | None = None
 
 
-def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int):
-    """The integrator of one render: dtof_path.DopplerToFPath, or for analytic time
-    integration its analytic.AnalyticPath."""
-    from .analytic import AnalyticPath
-    from .dtof_path import DopplerToFPath
-
-    analytic = params.time_sampling_method == sampling.ANALYTIC
-    return (AnalyticPath if analytic else DopplerToFPath)(mi, scene, params, spp, seed)
-
-
 def _show_progress(progress) -> bool:
     if progress is not None:
         return bool(progress)
@@ -121,7 +111,7 @@ class PassPlanner:
         count."""
         import drjit as dr
 
-        from .dtof_path import PassLayout
+        from .path_steps import PassLayout
 
         K, chunk, n_pixels = self.group_size, self.chunk, self.n_pixels
         s0 = first_chunk * chunk
@@ -274,10 +264,11 @@ class Checkpoint:
                          accumulator.squares, counts)
 
 
-def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
+def render_result(integrator, scene, spp: int | None = None, seed: int = 0, params=None, *,
                   progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
                   pass_chunks: int | None = None, checkpoint=None) -> RenderResult:
-    """Render ``scene`` (a DopplerScene); see :func:`render`.
+    """Render ``scene`` (a DopplerScene) with ``integrator`` (a DopplerToFPath: the
+    render traces passes with its :meth:`prepared` copy); see :func:`dopplertof.render`.
 
     ``checkpoint`` (a path) saves the accumulated chunks after every pass and resumes
     from them: the final image is bitwise the one of an uninterrupted render. It is
@@ -287,7 +278,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     mi, p, spp = _resolve(scene, spp, seed, params)
     width, height = (int(v) for v in scene.sensor.film().crop_size())
     n_pixels = width * height
-    setup = _make_setup(mi, scene, p, spp, int(seed))
+    setup = integrator.prepared(scene, p, spp, int(seed))
     plan = PassPlanner(spp, setup.group_size, n_pixels, p, max_lanes, pass_chunks)
     chunk = plan.chunk
     channels = _spectrum_channels(mi)
@@ -311,8 +302,6 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
 
     from tqdm import tqdm
 
-    from .dtof_path import trace_pass
-
     done = (min(spp, next_chunk * chunk) if counts is None
             else float(np.minimum(counts, next_chunk * chunk).mean()))
     bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
@@ -324,7 +313,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
         nonlocal reached
         for first_chunk, end_chunk in passes:
             layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, counts)
-            value, film_offset = trace_pass(mi, setup, layout)
+            value, film_offset = setup.trace(layout)
             sums.add(value, film_offset, chunk_size, threads,
                      pilot=sums.squares is not None and first_chunk < plan.pilot_chunks)
             bar.update(threads[2].sum() / n_pixels)
