@@ -7,8 +7,9 @@ import pytest
 import dopplertof
 from analytic import plane_scene, reference
 from conftest import PUBLISHED
+from dopplertof.sampling import FULL_CORRELATION
 
-MOTION = dict(time_sampling_method="antithetic", path_correlation_depth=1 << 16,
+MOTION = dict(time_sampling_method="antithetic", path_correlation_depth=FULL_CORRELATION,
               antithetic_mapping="motion")
 
 

@@ -85,3 +85,19 @@ def test_mitsuba_plugin_renders_static_scene():
     ours = dopplertof.render(dopplertof.scene.load_string(text, {"resx": 8, "resy": 8}),
                              spp=8, seed=1)
     assert np.array_equal(img, ours)
+
+
+def test_the_mitsuba_plugin_is_the_integrator_class():
+    """<integrator type="dopplertof"> (and the published "dopplertofpath") is the class
+    the pipeline renders with, a mi.SamplingIntegrator; its properties are checked."""
+    import mitsuba as mi
+
+    from dopplertof.integrators.dtof_path import integrator_class
+
+    for name in ("dopplertof", "dopplertofpath"):
+        integrator = mi.load_dict({"type": name, "max_depth": 3, "w_g": 20.0})
+        assert type(integrator) is integrator_class(mi)
+        assert isinstance(integrator, mi.SamplingIntegrator)
+        assert integrator.params.max_depth == 3 and integrator.params.w_g == 20.0
+    with pytest.raises(Exception, match="unknown parameter 'max_dept'"):
+        mi.load_dict({"type": "dopplertof", "max_dept": 3})

@@ -31,6 +31,7 @@ def _truths(folder):
         return [b["velocity_gt_median_m_s"] for b in json.load(f)["bodies"]]
 
 
+@pytest.mark.slow  # a whole fit (about 15 s); the CLI test below keeps the module in the fast tier
 def test_fit_recovers_radial_velocities_from_a_start_half_wrong(capture_dir, tmp_path):
     from dopplertof.diff.fit import fit, write_fit
 

@@ -11,6 +11,7 @@ import dopplertof
 from analytic import plane_scene, reference
 from conftest import PUBLISHED
 from dopplertof import sampling
+from dopplertof.sampling import FULL_CORRELATION
 from dopplertof.cli import main
 from test_bad_input import GOOD
 
@@ -31,16 +32,19 @@ def published(res=8):
 
 def count_passes(monkeypatch):
     """Counts the path tracing kernels launched (one per pass)."""
-    from dopplertof.integrators import dtof_path
+    import mitsuba as mi
+
+    from dopplertof.integrators.dtof_path import integrator_class
 
     calls = []
-    original = dtof_path.trace_pass
+    cls = integrator_class(mi)
+    original = cls.trace
 
     def counted(*args):
         calls.append(1)
         return original(*args)
 
-    monkeypatch.setattr(dtof_path, "trace_pass", counted)
+    monkeypatch.setattr(cls, "trace", counted)
     return calls
 
 
@@ -174,7 +178,7 @@ def test_kp_one_is_independent_paths_whatever_the_depth():
     common = dict(time_sampling_method="antithetic", hetero_frequency=1.0)
     independent = dopplertof.render(scene, spp=16, seed=2,
                                     params=dict(common, path_correlation_depth=0))
-    for depth in (1, 4, 1 << 16):
+    for depth in (1, 4, FULL_CORRELATION):
         kp1 = dopplertof.render(scene, spp=16, seed=2, params=dict(
             common, path_correlate_number=1, path_correlation_depth=depth))
         assert np.array_equal(kp1, independent), depth

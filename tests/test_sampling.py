@@ -5,6 +5,7 @@ import pytest
 
 import dopplertof
 from dopplertof import sampling
+from dopplertof.sampling import FULL_CORRELATION
 
 
 def streams(pixel, group, sample, seed=7, depth=2):
@@ -191,4 +192,4 @@ def test_auto_sampling_rule():
     assert auto(1.0)["antithetic_mapping"] == "replay"  # measured: motion does not pay
     p = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
                                 time=0.001).resolved(0.0)
-    assert p.time_sampling_method == "antithetic" and p.path_correlation_depth == 1 << 16
+    assert p.time_sampling_method == "antithetic" and p.path_correlation_depth == FULL_CORRELATION

@@ -197,3 +197,53 @@ def test_dict_scenes_follow_the_xml_rules_of_motion(light, message):
                   {"type": "rgb", "value": 1.0}, "to_world": animation}
     with pytest.raises(SceneError, match=message):
         dopplertof.load_dict(d)
+
+
+def test_both_loaders_describe_a_scene_alike():
+    """The XML and the dict loader produce one SceneDescription: the same moving body,
+    keyframes, motion claims and integrator, for the same scene said both ways."""
+    import mitsuba as mi
+
+    from dopplertof.scene import dicts, xml
+
+    T = mi.ScalarTransform4f
+    text = BASE.format(integrator='<integer name="max_depth" value="3"/>',
+                       shapes=ANIM.format(id="box", keyframes=keyframes(0, 0.0015)))
+    from_xml = xml.describe(xml._Doc(text, "<string>"))
+    from_dict = dicts.describe(mi, {
+        "type": "scene", "integrator": {"type": "dopplertof", "max_depth": 3},
+        "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8}},
+        "light": {"type": "point", "position": [0, 0, 5]},
+        "white": {"type": "diffuse"},
+        "box": {"type": "cube", "bsdf": {"type": "ref", "id": "white"},
+                "to_world": dopplertof.Animation([(0, T()),
+                                                  (0.0015, T().translate([0, 0, 0.01]))])}})
+    for d in (from_xml, from_dict):
+        assert [names for _, names, _ in d.bodies] == [["box"]]
+        assert [(c.what, c.plugin_type, c.follow) for c in d.motions] == [("shape", None, None)]
+        (where, values), = d.parameters  # XML values are text, the dict's Python values
+        assert dopplertof.RenderParams.from_mapping(values, where=where).max_depth == 3
+        assert d.has_integrator and d.sensor_keyframes is None and not d.light_keyframes
+    (kf_xml, _, _), (kf_dict, _, _) = from_xml.bodies[0], from_dict.bodies[0]
+    np.testing.assert_array_equal(kf_xml.times, kf_dict.times)
+    np.testing.assert_allclose(kf_xml.matrix_array(), kf_dict.matrix_array(), atol=1e-7)
+
+
+def test_a_description_is_validated_before_anything_loads():
+    """build() checks what may move and the parameters of any description, from
+    whichever loader, before Mitsuba loads a part."""
+    import mitsuba as mi
+
+    from dopplertof.scene.scene import MotionClaim, SceneDescription, build
+
+    def never(part, what):
+        raise AssertionError("loaded before it was validated")
+
+    moving_sun = SceneDescription("<test>", None, motions=[
+        MotionClaim("<test>[sun]", "emitter", "directional")])
+    with pytest.raises(SceneError, match=r"<test>\[sun\]: only point and spot lights can move"):
+        build(mi, moving_sun, never)
+    bad_depth = SceneDescription("<test>", None, parameters=[("<test> integrator",
+                                                              {"max_depth": "deep"})])
+    with pytest.raises(SceneError, match="max_depth"):
+        build(mi, bad_depth, never)

@@ -7,7 +7,7 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
-from .experiments.cli import parse_pairs
+from .experiments.cli import add_defines_option, add_params_option, parse_pairs
 from .io import FOLDER_HELP
 
 
@@ -15,7 +15,47 @@ class UsageError(Exception):
     pass
 
 
+def _parser() -> argparse.ArgumentParser:
+    """The ``dopplertof`` parser: the global options and one subcommand per command."""
+    p = argparse.ArgumentParser(prog="dopplertof",
+                                description="Doppler time-of-flight camera simulator",
+                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = p.add_subparsers(dest="command", required=True)
+    # ---- this module's commands (dispatched by name in main)
+    _add_render_command(sub)
+    _add_capture_command(sub)
+    _add_precision_command(sub)
+    _add_demo_command(sub)
+    _add_figures_command(sub)
+    # ---- the commands of the subpackages (each sets its own func)
+    from .diff.cli import add_subcommand
+    from .experiments.cli import add_subcommands
+
+    add_subcommands(sub)  # sweep, report, animate
+    add_subcommand(sub)  # fit
+    return p
+
+
+# ---- Options shared by several commands ----------------------------------------------------
+
+def _add_scene_argument(p) -> None:
+    """The positional scene file of render, capture and precision."""
+    p.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+
+
+def _add_seed_option(p) -> None:
+    """``--seed`` of render, capture and precision."""
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def _add_variant_option(p) -> None:
+    """``--variant`` of render, capture and precision (demo's has no help text)."""
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+
+
 def _add_noise_options(n) -> None:
+    """The sensor model's options (capture and precision; _NOISE_OPTIONS reads them)."""
     n.add_argument("--photons-per-unit", type=float, metavar="K", help="photons/s at a pixel "
                    "per unit of rendered value (default: the brightest pixel fills half the "
                    "full well)")
@@ -29,25 +69,23 @@ def _add_noise_options(n) -> None:
     n.add_argument("--noise-seed", type=int, metavar="S", help="default 0")
 
 
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="dopplertof",
-                                description="Doppler time-of-flight camera simulator",
-                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    sub = p.add_subparsers(dest="command", required=True)
+# ---- One function per command's arguments --------------------------------------------------
 
+def _add_render_command(sub) -> None:
+    """``render``: one D-ToF image of a scene."""
     r = sub.add_parser("render", help="render a D-ToF image of a scene")
-    r.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    # ---- what to render, and where to
+    _add_scene_argument(r)
     r.add_argument("-o", "--output", required=True,
                    help=f"output file: .exr, .npy or .png (its folder {FOLDER_HELP})")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's sampler)")
-    r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    r.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
-    r.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
-                   help="override an integrator parameter, e.g. -P hetero_frequency=1")
-    r.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    _add_seed_option(r)
+    add_defines_option(r)
+    add_params_option(r, "override an integrator parameter, e.g. -P hetero_frequency=1")
+    # ---- how it runs
+    _add_variant_option(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    # ---- files beside the image
     r.add_argument("--checkpoint", metavar="FILE",
                    help="save progress after every pass and resume from it after a kill "
                    f"(its folder {FOLDER_HELP})")
@@ -55,17 +93,21 @@ def _parser() -> argparse.ArgumentParser:
                    help="with -P adaptive_sampling=true: write the samples traced per pixel "
                    f"(.png map, .npy or .exr; its folder {FOLDER_HELP})")
 
+
+def _add_capture_command(sub) -> None:
+    """``capture``: one camera frame, its reconstruction and its precision and noise
+    options."""
     c = sub.add_parser("capture", help="one D-ToF camera frame: captures, velocity and "
                        "depth reconstruction, exact truth, previews and summary.json")
-    c.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    # ---- what to capture, and where to
+    _add_scene_argument(c)
     c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP})")
     c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
                    "scene's sampler)")
-    c.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    c.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
-    c.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
-                   help="override an integrator parameter for every capture, e.g. -P w_g=20")
+    _add_seed_option(c)
+    add_defines_option(c)
+    add_params_option(c, "override an integrator parameter for every capture, e.g. -P w_g=20")
+    # ---- the camera's modulation and reconstruction
     c.add_argument("--hetero-frequency", type=float, metavar="H",
                    help="beat periods per exposure of the heterodyne captures, a non-zero "
                    "integer (default: the scene's, else 1)")
@@ -74,8 +116,18 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--min-signal", type=float, metavar="FRACTION",
                    help="velocity/depth are NaN where the homodyne signal is below this "
                    "fraction of the image's 99th percentile (default 0.01)")
-    c.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    # ---- how it runs
+    _add_variant_option(c)
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
+    # ---- the groups: precision limits, sensor noise
+    _add_capture_precision_options(c)
+    n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
+    n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")
+    _add_noise_options(n)
+
+
+def _add_capture_precision_options(c) -> None:
+    """The capture's group of predicted standard deviations and the limits set on them."""
     u = c.add_argument_group("precision (predicted per-pixel standard deviations)")
     u.add_argument("--mc-batches", type=int, metavar="B",
                    help="render every capture as B independent batches and write "
@@ -85,18 +137,20 @@ def _parser() -> argparse.ArgumentParser:
                    "(implies --mc-batches 8)")
     u.add_argument("--max-depth-std", type=float, metavar="M",
                    help="depth is NaN where its predicted standard deviation is larger")
-    n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
-    n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")
-    _add_noise_options(n)
 
+
+def _add_precision_command(sub) -> None:
+    """``precision``: the predicted precision of a configuration, or a map over ranges."""
     s = sub.add_parser("precision", help="predicted velocity/depth precision of a camera "
                        "configuration; with ranges, a map over frequency x exposure")
-    s.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    _add_scene_argument(s)
+    # ---- the configuration, or the ranges of the map
     s.add_argument("--w-g", default=None, metavar="MHZ|LO:HI",
                    help="modulation frequency in MHz, or a range (default: the scene's)")
     s.add_argument("--exposure", default=None, metavar="S|LO:HI",
                    help="exposure in seconds, or a range (default: the scene's)")
     s.add_argument("--steps", type=int, default=6, help="grid steps per range (default 6)")
+    # ---- the pilot frames and the check of the map
     s.add_argument("--spp", type=int, default=64, help="samples per pixel of each pilot "
                    "frame (default 64)")
     s.add_argument("--mc-batches", type=int, default=4, metavar="B",
@@ -108,15 +162,16 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", metavar="MAP.png",
                    help="with ranges: the map (PNG) and its numbers beside it (.json; its "
                    f"folder {FOLDER_HELP})")
-    s.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
-    s.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
-                   help="override an integrator parameter")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    s.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    add_defines_option(s)
+    add_params_option(s, "override an integrator parameter")
+    _add_seed_option(s)
+    _add_variant_option(s)
     s.add_argument("--quiet", action="store_true", help="no progress")
     _add_noise_options(s.add_argument_group("sensor (the default noise model unless set)"))
 
+
+def _add_demo_command(sub) -> None:
+    """``demo``: the built-in moving Cornell box."""
     d = sub.add_parser("demo", help="one camera frame of the built-in moving Cornell box")
     d.add_argument("-o", "--output", default="demo_out",
                    help=f"output folder ({FOLDER_HELP}; default demo_out)")
@@ -126,16 +181,13 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--noise", action="store_true", help="add sensor noise (default camera)")
     d.add_argument("--quiet", action="store_true")
 
+
+def _add_figures_command(sub) -> None:
+    """``figures``: the supplementary's analysis."""
     f = sub.add_parser("figures", help="the supplementary's analysis as figures")
     f.add_argument("-o", "--output", default="figures",
                    help=f"output folder ({FOLDER_HELP}; default figures)")
     f.add_argument("--quick", action="store_true", help="small settings")
-    from .diff.cli import add_subcommand
-    from .experiments.cli import add_subcommands
-
-    add_subcommands(sub)  # sweep, report, animate (each sets its own func)
-    add_subcommand(sub)  # fit
-    return p
 
 
 def _load_scene(args):

@@ -104,86 +104,126 @@ class RenderParams:
         return replace(base, **changes).validated(where)
 
     def validated(self, where: str = "parameters"):
-        def fail(msg):
-            raise ParameterError(f"{where}: {msg}")
+        """These parameters when every value is in range and they agree with each other,
+        else a ParameterError prefixed with ``where``. The checks run in a fixed order (by
+        topic), so that an input with several problems always reports the same one."""
+        for check in (self._modulation_problem, self._time_sampling_problem,
+                      self._path_problem, self._execution_problem, self._pairing_problem,
+                      self._film_problem, self._motion_mapping_problem):
+            problem = check()
+            if problem:
+                raise ParameterError(f"{where}: {problem}")
+        return self
 
+    # ---- Validation, by topic: each returns its first problem, or None ----
+
+    def _modulation_problem(self) -> str | None:
+        """Exposure, frequencies, offsets and the waveform."""
         for name in ("w_g", "w_s", "g_0", "g_1", "sensor_phase_offset", "hetero_frequency",
                      "hetero_offset", "antithetic_shift", "time"):
             v = getattr(self, name)
             if v is not None and not math.isfinite(v):
-                fail(f"{name} must be finite, got {v}")
+                return f"{name} must be finite, got {v}"
         if self.time is not None and self.time <= 0:
-            fail(f"time (the exposure) must be > 0 seconds, got {self.time}")
+            return f"time (the exposure) must be > 0 seconds, got {self.time}"
         if self.w_g <= 0:
-            fail(f"w_g must be > 0 MHz, got {self.w_g}")
+            return f"w_g must be > 0 MHz, got {self.w_g}"
         if self.w_s is not None and self.w_s <= 0:
-            fail(f"w_s must be > 0 MHz, got {self.w_s}")
+            return f"w_s must be > 0 MHz, got {self.w_s}"
         if self.w_s is not None and self.hetero_frequency is not None:
-            fail("give w_s or hetero_frequency, not both (hetero_frequency sets w_s = w_g + h / T)")
+            return ("give w_s or hetero_frequency, not both (hetero_frequency sets "
+                    "w_s = w_g + h / T)")
         if self.wave_function_type not in WAVEFORMS:
-            fail(f"unknown wave_function_type {self.wave_function_type!r}: expected one of "
-                 f"{', '.join(WAVEFORMS)}")
+            return (f"unknown wave_function_type {self.wave_function_type!r}: expected one of "
+                    f"{', '.join(WAVEFORMS)}")
         if not self.low_frequency_component_only and self.wave_function_type not in FULL_WAVEFORMS:
-            fail(f"wave_function_type {self.wave_function_type!r} pairs a trapezoid sensor with "
-                 "a delta illumination and has no full-waveform form; set "
-                 "low_frequency_component_only=true")
+            return (f"wave_function_type {self.wave_function_type!r} pairs a trapezoid sensor "
+                    "with a delta illumination and has no full-waveform form; set "
+                    "low_frequency_component_only=true")
+        return None
+
+    def _time_sampling_problem(self) -> str | None:
+        """The time sampling method, and the limits of the published closed form."""
         if self.time_sampling_method not in METHOD_NAMES:
-            fail(f"unknown time_sampling_method {self.time_sampling_method!r}: expected one of "
-                 f"{', '.join(METHOD_NAMES)}")
+            return (f"unknown time_sampling_method {self.time_sampling_method!r}: expected "
+                    f"one of {', '.join(METHOD_NAMES)}")
         if self.time_sampling_method == ANALYTIC:  # the published closed form's limits
             if self.wave_function_type != "sinusoidal":
-                fail("time_sampling_method 'analytic' integrates a sinusoid in closed form: it "
-                     f"needs wave_function_type 'sinusoidal', got {self.wave_function_type!r}")
+                return ("time_sampling_method 'analytic' integrates a sinusoid in closed form: "
+                        "it needs wave_function_type 'sinusoidal', got "
+                        f"{self.wave_function_type!r}")
             if not self.low_frequency_component_only:
-                fail("time_sampling_method 'analytic' integrates the low-pass correlation: it "
-                     "needs low_frequency_component_only=true")
+                return ("time_sampling_method 'analytic' integrates the low-pass correlation: "
+                        "it needs low_frequency_component_only=true")
+        return None
+
+    def _path_problem(self) -> str | None:
+        """Path depths and the sizes of the correlated groups."""
         if self.max_depth < -1 or self.max_depth == 0:
-            fail(f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}")
+            return f"max_depth must be >= 1 or -1 (unbounded), got {self.max_depth}"
         if self.rr_depth < 1:
-            fail(f"rr_depth must be >= 1, got {self.rr_depth}")
+            return f"rr_depth must be >= 1, got {self.rr_depth}"
         if self.path_correlation_depth < 0:
-            fail(f"path_correlation_depth must be >= 0, got {self.path_correlation_depth}")
+            return f"path_correlation_depth must be >= 0, got {self.path_correlation_depth}"
         if self.time_correlate_number < 1:
-            fail(f"time_correlate_number must be >= 1, got {self.time_correlate_number}")
+            return f"time_correlate_number must be >= 1, got {self.time_correlate_number}"
         if self.path_correlate_number is not None and self.path_correlate_number < 1:
-            fail(f"path_correlate_number must be >= 1, got {self.path_correlate_number}")
+            return f"path_correlate_number must be >= 1, got {self.path_correlate_number}"
+        return None
+
+    def _execution_problem(self) -> str | None:
+        """The execution parameters (EXECUTION_PARAMS): tile, pass size and timeout."""
         if self.block_size < 0:
-            fail(f"block_size must be >= 0, got {self.block_size}")
+            return f"block_size must be >= 0, got {self.block_size}"
         if self.samples_per_pass == 0 or self.samples_per_pass < -1:
-            fail(f"samples_per_pass must be >= 1 or -1 (automatic), got {self.samples_per_pass}")
+            return ("samples_per_pass must be >= 1 or -1 (automatic), got "
+                    f"{self.samples_per_pass}")
         if not math.isfinite(self.timeout):
-            fail(f"timeout must be finite (seconds, -1: none), got {self.timeout}")
+            return f"timeout must be finite (seconds, -1: none), got {self.timeout}"
+        return None
+
+    def _pairing_problem(self) -> str | None:
+        """The mirrored pairs' group size and the name of the pair mapping."""
         if (self.time_sampling_method == "antithetic_mirror"
                 and self.time_correlate_number != 2):
-            fail("time_sampling_method 'antithetic_mirror' pairs samples: it needs "
-                 f"time_correlate_number=2, got {self.time_correlate_number}")
+            return ("time_sampling_method 'antithetic_mirror' pairs samples: it needs "
+                    f"time_correlate_number=2, got {self.time_correlate_number}")
         if self.antithetic_mapping not in (None,) + ANTITHETIC_MAPPINGS:
-            fail(f"unknown antithetic_mapping {self.antithetic_mapping!r}: expected one of "
-                 f"{', '.join(ANTITHETIC_MAPPINGS)}")
+            return (f"unknown antithetic_mapping {self.antithetic_mapping!r}: expected one "
+                    f"of {', '.join(ANTITHETIC_MAPPINGS)}")
+        return None
+
+    def _film_problem(self) -> str | None:
+        """How samples become pixels."""
         if self.film_sampling not in FILM_SAMPLINGS:
-            fail(f"unknown film_sampling {self.film_sampling!r}: expected one of "
-                 f"{', '.join(FILM_SAMPLINGS)}")
+            return (f"unknown film_sampling {self.film_sampling!r}: expected one of "
+                    f"{', '.join(FILM_SAMPLINGS)}")
         if self.film_normalization not in FILM_NORMALIZATIONS:
-            fail(f"unknown film_normalization {self.film_normalization!r}: expected one of "
-                 f"{', '.join(FILM_NORMALIZATIONS)}")
-        if self.antithetic_mapping == "motion":
-            method = self.time_sampling_method
-            if method not in ("antithetic", "antithetic_mirror"):
-                fail("antithetic_mapping 'motion' maps antithetic pairs: it needs "
-                     f"time_sampling_method antithetic or antithetic_mirror, got {method!r}")
-            if self.time_correlate_number != 2:
-                fail("antithetic_mapping 'motion' needs time_correlate_number=2, got "
-                     f"{self.time_correlate_number}")
-            if method == "antithetic" and self.antithetic_shift not in (None, 0.5):
-                fail("antithetic_mapping 'motion' needs pairs that map onto each other: "
-                     f"antithetic_shift 0.5, got {self.antithetic_shift}")
-            if self.path_correlation_depth < 1:
-                fail("antithetic_mapping 'motion' needs the pair to share its film position: "
-                     "path_correlation_depth >= 1, got 0")
-            if self.path_group_size != 2:
-                fail("antithetic_mapping 'motion' maps a pair's shared path: it needs "
-                     f"path_correlate_number=2 (the pair), got {self.path_correlate_number}")
-        return self
+            return (f"unknown film_normalization {self.film_normalization!r}: expected one "
+                    f"of {', '.join(FILM_NORMALIZATIONS)}")
+        return None
+
+    def _motion_mapping_problem(self) -> str | None:
+        """What ``antithetic_mapping="motion"`` needs: pairs that share one path."""
+        if self.antithetic_mapping != "motion":
+            return None
+        method = self.time_sampling_method
+        if method not in ("antithetic", "antithetic_mirror"):
+            return ("antithetic_mapping 'motion' maps antithetic pairs: it needs "
+                    f"time_sampling_method antithetic or antithetic_mirror, got {method!r}")
+        if self.time_correlate_number != 2:
+            return ("antithetic_mapping 'motion' needs time_correlate_number=2, got "
+                    f"{self.time_correlate_number}")
+        if method == "antithetic" and self.antithetic_shift not in (None, 0.5):
+            return ("antithetic_mapping 'motion' needs pairs that map onto each other: "
+                    f"antithetic_shift 0.5, got {self.antithetic_shift}")
+        if self.path_correlation_depth < 1:
+            return ("antithetic_mapping 'motion' needs the pair to share its film position: "
+                    "path_correlation_depth >= 1, got 0")
+        if self.path_group_size != 2:
+            return ("antithetic_mapping 'motion' maps a pair's shared path: it needs "
+                    f"path_correlate_number=2 (the pair), got {self.path_correlate_number}")
+        return None
 
     # ---- Derived quantities ----
 

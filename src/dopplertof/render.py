@@ -1,8 +1,8 @@
 """Render a D-ToF image: the public entry points.
 
 The pipeline (passes of bounded memory, deterministic accumulation, checkpoints,
-progress) is :mod:`dopplertof.integrators.pipeline`; the path tracer is
-:class:`dopplertof.integrators.dtof_path.DopplerToFPath`.
+progress) is :mod:`dopplertof.integrators.pipeline`; the path tracer is the integrator
+class of :mod:`dopplertof.integrators.dtof_path` (``DopplerToFPath``).
 """
 
 from __future__ import annotations
@@ -10,7 +10,22 @@ from __future__ import annotations
 import numpy as np
 
 from .integrators.pipeline import (  # noqa: F401  (the pipeline's public names)
-    Checkpoint, CheckpointError, RenderResult, render_result)
+    Checkpoint, CheckpointError, RenderResult)
+
+
+def render_result(scene, spp: int | None = None, seed: int = 0, params=None,
+                  **options) -> RenderResult:
+    """Render ``scene`` (a DopplerScene): the image and what produced it.
+
+    ``options``: ``progress`` (a bar on stderr; default: when it is a terminal),
+    ``checkpoint`` (a path: saved after every pass, resumed from, bitwise the same
+    image), ``max_lanes`` and ``pass_chunks`` (the pass size; the image ignores them).
+    """
+    from .backend import require_variant
+    from .integrators.dtof_path import integrator_class
+
+    integrator = integrator_class(require_variant())()
+    return integrator.render_result(scene, spp, seed, params, **options)
 
 
 def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> np.ndarray:

@@ -2,14 +2,16 @@
 
 A pixel's samples come in groups of K that share a time stream, and in *path groups*
 of Kp consecutive samples (``path_correlate_number``, default K) that share a path
-stream. Every random number is a hash of (seed, pixel, stream, dimension): the
-*shared* stream of a group (keyed by the group index) or the sample's *own* stream
-(keyed by its global sample index). Stage ``k`` of a path (0: camera ray; k >= 1: the
-decisions at the k-th surface hit) draws from its path group's shared stream when
-``k < path_correlation_depth``. Because dimensions are fixed per
-stage and numbers are hashed rather than drawn from a sequential generator, the two
-streams stay aligned whatever is selected, and a sample replays exactly for the same
-pixel, sample index and dimension, whatever the pass it is rendered in.
+stream. Every random number is a function of (seed, pixel, stream, dimension), never
+drawn from a sequential generator: a hash of them for the *shared* stream of a group
+(keyed by the group index) or the sample's *own* stream (keyed by its global sample
+index); the film position, the time and the first hit's light and BSDF samples are
+points of the pixel's scrambled Sobol set instead (indexed by the sample's number in
+the pixel; see :meth:`CorrelatedStreams.film_2d`). Stage ``k`` of a path (0: camera
+ray; k >= 1: the decisions at the k-th surface hit) draws from its path group's shared
+stream when ``k < path_correlation_depth``. Because dimensions are fixed per stage,
+the two streams stay aligned whatever is selected, and a sample replays exactly for
+the same pixel, sample index and dimension, whatever the pass it is rendered in.
 
 All functions work on Dr.Jit arrays of the current Mitsuba variant.
 """

@@ -333,8 +333,8 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
     a function that puts the scene parameters back."""
     import drjit as dr
 
-    from ..integrators.dtof_path import PassLayout, trace_pass
-    from ..integrators.pipeline import _make_setup
+    from ..integrators.dtof_path import integrator_class
+    from ..integrators.path_steps import PassLayout
 
     mi = dscene.mi
     names = [] if name is None else [name]
@@ -344,7 +344,7 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
         dr.enable_grad(x)
         motion_vars[name] = x
     scene = dscene._traced(motion_vars)
-    setup = _make_setup(mi, scene, dscene.params, spp, int(seed))
+    setup = integrator_class(mi)().prepared(scene, dscene.params, spp, int(seed))
     variables = {**motion_vars,
                  **_ModulationVariables(mi, setup.modulation_weight, setup.modulation, names).variables}
     # ---- Mitsuba scene parameters: the value plus x (channel c: x on c only), at 0 ----
@@ -382,5 +382,5 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
         lane = np.arange(len(pixels) * samples)
         layout = PassLayout.of_lanes(mi, np.repeat(pixels, samples), s0 + lane % samples,
                                      setup.group_size)
-    value, _ = trace_pass(mi, setup, layout)
+    value, _ = setup.trace(layout)
     return value, variables.get(name), restore

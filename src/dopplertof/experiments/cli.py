@@ -60,6 +60,18 @@ def parse_pairs(items, flag: str) -> dict:
     return out
 
 
+def add_defines_option(p) -> None:
+    """``-D NAME=VALUE`` (repeatable; ``parse_pairs(args.defines, "-D")`` reads it)."""
+    p.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
+                   help="set a <default> value of the scene (repeatable)")
+
+
+def add_params_option(p, help: str) -> None:
+    """``-P NAME=VALUE`` (repeatable; ``parse_pairs(args.params, "-P")`` reads it), with
+    the command's own ``help``."""
+    p.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE", help=help)
+
+
 def _cluster_options(p) -> None:
     g = p.add_argument_group("cluster")
     g.add_argument("--scheduler", metavar="ADDRESS",
@@ -91,8 +103,7 @@ def add_subcommands(subparsers) -> None:
                    help="seeds of a --preset, comma-separated (default 0)")
     s.add_argument("--quick", action="store_true",
                    help="a --preset with a few values per axis")
-    s.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
+    add_defines_option(s)
     s.add_argument("--dry-run", action="store_true",
                    help="check the configuration and list the tasks; render nothing")
     _cluster_options(s)
@@ -122,10 +133,8 @@ def add_subcommands(subparsers) -> None:
     a.add_argument("--fps", type=float, default=10.0, help="frames per second of the GIF")
     a.add_argument("--previews", action="store_true",
                    help="also write every frame's PNG previews")
-    a.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
-    a.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE",
-                   help="override an integrator parameter (repeatable)")
+    add_defines_option(a)
+    add_params_option(a, "override an integrator parameter (repeatable)")
     _cluster_options(a)
     a.set_defaults(func=cmd_animate)
 

@@ -355,11 +355,56 @@ def _lines(runs, grid, out, files, title_suffix):
         _save(fig, os.path.join(out, f"relative_mse_vs_{x_axis}.png"), files)
 
 
+@dataclass
+class _ImageLayout:
+    """What ``images.png`` shows: the runs over (at most) two axes, the others pinned."""
+
+    row_axis: str | None  #: the rows' axis (None: one row)
+    col_axis: str | None  #: the columns' axis (None: one column)
+    rows: list  #: the rows' values (the first 8)
+    cols: list  #: the columns' values (the first 8)
+    pinned: dict  #: {axis: value} of every other axis
+    runs: list  #: the runs at the pinned values
+
+
 def _image_grid(runs, references, grid, out, files, title_suffix):
+    """``images.png``: the runs over two axes beside their reference, one colour scale."""
     from ..io import preview_scalar
 
     if not runs:
         return
+    layout = _image_layout(runs, grid)
+    # ---- the images and their shared colour scale
+    first = layout.runs[0]
+    reference = references.get(first.reference) if first.reference else None
+    cells = _image_cells(layout)
+    scalars = {key: preview_scalar(r.image) for key, r in cells.items()}
+    ref_scalar = preview_scalar(reference) if reference is not None else None
+    basis = (ref_scalar if ref_scalar is not None
+             else np.concatenate([x.ravel() for x in scalars.values()]))
+    vmax = float(np.percentile(np.abs(basis), 99)) or 1.0
+    # ---- the figure: the reference's column (if any), then one column per value
+    extra = 1 if ref_scalar is not None else 0
+    ncols = len(layout.cols) + extra
+    fig = _figure(2.3 * ncols + 1.2, 2.3 * len(layout.rows) + 1.0)
+    axes = fig.subplots(len(layout.rows), ncols, squeeze=False)
+    shown = _draw_reference_column(axes[:, 0], ref_scalar, vmax) if extra else None
+    last_run = _draw_run_cells(axes[:, extra:], layout, cells, scalars, vmax)
+    if last_run is not None:
+        shown = last_run
+    # ---- colour bar and title
+    bar = fig.colorbar(shown, ax=axes.ravel().tolist(), shrink=0.8)
+    bar.set_label(IMAGE_LABEL)
+    pins = ", ".join(f"{_short(a)}={_label(a, v)}" for a, v in layout.pinned.items())
+    fig.suptitle("Rendered images" + title_suffix + (f"\n({pins})" if pins else ""),
+                 fontsize=10)
+    _save(fig, os.path.join(out, "images.png"), files)
+
+
+def _image_layout(runs, grid) -> _ImageLayout:
+    """Rows and columns over the first two varying axes (sampling configurations first,
+    never the seed); every other axis pinned to its middle value (the seed to its first),
+    or to the first run's values where that point is not rendered yet."""
     varying = [a for a in grid if a != "seed" and len(grid[a]) > 1]
     preferred = [a for a in CONFIG_AXES if a in varying] + [a for a in varying
                                                             if a not in CONFIG_AXES]
@@ -368,59 +413,70 @@ def _image_grid(runs, references, grid, out, files, title_suffix):
     fixed_axes = [a for a in grid if a not in (row_axis, col_axis)]
     # other axes at their middle value (h = 1 of 0..2: the heterodyne case), seed the first
     pinned = {a: grid[a][0 if a == "seed" else len(grid[a]) // 2] for a in fixed_axes}
-    chosen = [r for r in runs if all(_value(r, a) == v for a, v in pinned.items())]
+    chosen = _runs_at(runs, pinned)
     if not chosen:  # that point is not rendered yet: pin to a run that is
         pinned = {a: _value(runs[0], a) for a in fixed_axes}
-        chosen = [r for r in runs if all(_value(r, a) == v for a, v in pinned.items())]
-    first = chosen[0]
-    rows = _axis_values(grid, row_axis)[:8] if row_axis else [None]
-    cols = _axis_values(grid, col_axis)[:8] if col_axis else [None]
-    reference = references.get(first.reference) if first.reference else None
+        chosen = _runs_at(runs, pinned)
+    return _ImageLayout(row_axis=row_axis, col_axis=col_axis,
+                        rows=_axis_values(grid, row_axis)[:8] if row_axis else [None],
+                        cols=_axis_values(grid, col_axis)[:8] if col_axis else [None],
+                        pinned=pinned, runs=chosen)
+
+
+def _runs_at(runs, pinned: dict) -> list:
+    """The runs whose values are the pinned ones."""
+    return [r for r in runs if all(_value(r, a) == v for a, v in pinned.items())]
+
+
+def _image_cells(layout: _ImageLayout) -> dict:
+    """{(row value, column value): run} of the layout's runs in a shown row and column."""
+    row_axis, col_axis = layout.row_axis, layout.col_axis
     cells = {(_value(r, row_axis) if row_axis else None,
-              _value(r, col_axis) if col_axis else None): r for r in chosen}
-    cells = {key: r for key, r in cells.items() if key[0] in rows and key[1] in cols}
-    scalars = {key: preview_scalar(r.image) for key, r in cells.items()}
-    ref_scalar = preview_scalar(reference) if reference is not None else None
-    basis = (ref_scalar if ref_scalar is not None
-             else np.concatenate([x.ravel() for x in scalars.values()]))
-    vmax = float(np.percentile(np.abs(basis), 99)) or 1.0
-    extra = 1 if ref_scalar is not None else 0
-    ncols = len(cols) + extra
-    fig = _figure(2.3 * ncols + 1.2, 2.3 * len(rows) + 1.0)
-    axes = fig.subplots(len(rows), ncols, squeeze=False)
+              _value(r, col_axis) if col_axis else None): r for r in layout.runs}
+    return {key: r for key, r in cells.items() if key[0] in layout.rows
+            and key[1] in layout.cols}
+
+
+def _show_signed(ax, scalar, vmax):
+    """A signed image on the shared diverging colour scale [-vmax, vmax]."""
+    return ax.imshow(scalar, cmap="RdBu_r", vmin=-vmax, vmax=vmax, interpolation="nearest")
+
+
+def _draw_reference_column(column, ref_scalar, vmax):
+    """The reference at the top of its column (the cells below stay empty); its image."""
     shown = None
-    for i, rv in enumerate(rows):
-        if extra:
-            ax = axes[i][0]
-            if i == 0:
-                shown = ax.imshow(ref_scalar, cmap="RdBu_r", vmin=-vmax, vmax=vmax,
-                                  interpolation="nearest")
-                ax.set_title("reference", fontsize=9)
-            ax.set_axis_off()
-        for j, cv in enumerate(cols):
-            ax = axes[i][j + extra]
+    for i, ax in enumerate(column):
+        if i == 0:
+            shown = _show_signed(ax, ref_scalar, vmax)
+            ax.set_title("reference", fontsize=9)
+        ax.set_axis_off()
+    return shown
+
+
+def _draw_run_cells(axes, layout: _ImageLayout, cells, scalars, vmax):
+    """Every run in its cell: the column's value above the top row, the relative MSE
+    above each image, the row's value beside the first column; a cell without a run is
+    left blank. Returns the last image drawn (None if none)."""
+    shown = None
+    for i, rv in enumerate(layout.rows):
+        for j, cv in enumerate(layout.cols):
+            ax = axes[i][j]
             ax.set_xticks([])
             ax.set_yticks([])
             run = cells.get((rv, cv))
             if run is None:
                 ax.set_axis_off()
                 continue
-            shown = ax.imshow(scalars[(rv, cv)], cmap="RdBu_r", vmin=-vmax, vmax=vmax,
-                              interpolation="nearest")
+            shown = _show_signed(ax, scalars[(rv, cv)], vmax)
             label = []
-            if i == 0 and col_axis:
-                label.append(_combo_label([col_axis], [cv]))
+            if i == 0 and layout.col_axis:
+                label.append(_combo_label([layout.col_axis], [cv]))
             if run.relative_mse is not None:
                 label.append(f"relMSE {run.relative_mse:.2g}")
             ax.set_title("\n".join(label), fontsize=8)
-            if j == 0 and row_axis:
-                ax.set_ylabel(_combo_label([row_axis], [rv]), fontsize=8)
-    bar = fig.colorbar(shown, ax=axes.ravel().tolist(), shrink=0.8)
-    bar.set_label(IMAGE_LABEL)
-    pins = ", ".join(f"{_short(a)}={_label(a, v)}" for a, v in pinned.items())
-    fig.suptitle("Rendered images" + title_suffix + (f"\n({pins})" if pins else ""),
-                 fontsize=10)
-    _save(fig, os.path.join(out, "images.png"), files)
+            if j == 0 and layout.row_axis:
+                ax.set_ylabel(_combo_label([layout.row_axis], [rv]), fontsize=8)
+    return shown
 
 
 # ---- Tables -------------------------------------------------------------------------------

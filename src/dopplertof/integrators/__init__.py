@@ -1,8 +1,9 @@
-"""Integrator plugins registered with Mitsuba.
+"""The D-ToF integrator, registered with Mitsuba.
 
-The D-ToF path tracer itself lives in :mod:`.dtof_path`; :func:`register` makes
-``<integrator type="dopplertof">`` (alias ``dopplertofpath``) loadable by Mitsuba
-for the current variant (see the bottom of :mod:`.dopplertof`).
+The path tracer is the class :mod:`.dtof_path` makes per variant (``DopplerToFPath``,
+a ``mi.SamplingIntegrator``); :func:`register` makes it loadable by Mitsuba as
+``<integrator type="dopplertof">`` (alias ``dopplertofpath``) for the current variant
+(see the bottom of :mod:`.dtof_path`).
 """
 
 _registered: set = set()
@@ -14,7 +15,7 @@ def register() -> None:
 
     if mi.variant() in _registered:
         return
-    from .dopplertof import register_plugin
+    from .dtof_path import register_plugin
 
-    register_plugin()
+    register_plugin(mi)
     _registered.add(mi.variant())

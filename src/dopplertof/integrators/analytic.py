@@ -32,8 +32,8 @@ import drjit as dr
 from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
 from ..scene.bodies import BodyFrames
-from .dtof_path import (DopplerToFPath, _as_colour, _intersect, advance, film_position,
-                        lane_streams, loop_settings, roulette, shade, vertex_numbers)
+from .path_steps import (_as_colour, _intersect, advance, film_position, lane_streams,
+                         loop_settings, roulette, shade, vertex_numbers)
 
 #: |phase change over the exposure| (rad) below which the closed forms use their series
 #: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
@@ -87,29 +87,36 @@ def _ratio(value_end, value_start):
     return dr.select(value_start != 0.0, value_end / value_start, 0.0)
 
 
+def _exposure_ends(mi, setup, layout, streams):
+    """Each lane's film offset, and at the exposure's start and at its end (one film
+    position and lens point): the camera ray, its weight, the path length to its
+    origin, and the body and light transforms."""
+    scene, mod = setup.scene, setup.modulation
+    pos, film_offset, _, _, _, lens = film_position(mi, setup, layout, streams)
+    t_start = dr.full(mi.Float, setup.shutter_open, dr.width(pos))
+    span = (setup.shutter_open, setup.shutter_open + mod.exposure)
+    ends = []
+    for t in (t_start, t_start + mod.exposure):
+        ray, ray_weight, offset = setup.camera.ray(pos, t, *lens)
+        frames = BodyFrames(mi, scene.bodies, t, *span) if scene.bodies else None
+        light_frames = (lights.LightFrames(mi, scene.light_motions, t)
+                        if scene.light_motions else None)
+        ends.append((ray, ray_weight, offset, frames, light_frames))
+    return film_offset, ends[0], ends[1]
+
+
 @dr.syntax
 def trace_analytic_pass(mi, setup, layout):
     """Render one pass with analytic time integration; returns each lane's
-    time-averaged measurement and film offset, as :func:`dtof_path.trace_pass` does."""
-    scene = setup.scene
-    static = scene.static
-    mod = setup.modulation
-    integrated = IntegratedWeight(mi, mod)
+    time-averaged measurement and film offset, as ``DopplerToFPath.trace`` does."""
+    static = setup.scene.static
+    integrated = IntegratedWeight(mi, setup.modulation)
     streams = lane_streams(mi, setup, layout)  # correlation depth 0: samples independent
 
     # ---- Camera rays: one film position and lens point, at the exposure's two ends ----
-    pos, film_offset, _, _, _, lens = film_position(mi, setup, layout, streams)
-    t_start = dr.full(mi.Float, setup.shutter_open, dr.width(pos))
-    t_end = t_start + mod.exposure
-    ray1, ray_weight1, offset1 = setup.camera.ray(pos, t_start, *lens)
-    ray2, ray_weight2, offset2 = setup.camera.ray(pos, t_end, *lens)
-    span = (setup.shutter_open, setup.shutter_open + mod.exposure)
-    frames1 = BodyFrames(mi, scene.bodies, t_start, *span) if scene.bodies else None
-    frames2 = BodyFrames(mi, scene.bodies, t_end, *span) if scene.bodies else None
-    light_frames1 = (lights.LightFrames(mi, scene.light_motions, t_start)
-                     if scene.light_motions else None)
-    light_frames2 = (lights.LightFrames(mi, scene.light_motions, t_end)
-                     if scene.light_motions else None)
+    film_offset, (ray1, ray_weight1, offset1, frames1, light_frames1), \
+        (ray2, ray_weight2, offset2, frames2, light_frames2) = _exposure_ends(
+            mi, setup, layout, streams)
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
     wavelengths = ray1.wavelengths  # of the camera ray, for the colour conversion
@@ -166,11 +173,3 @@ def trace_analytic_pass(mi, setup, layout):
         active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
 
     return _as_colour(mi, measured, wavelengths), film_offset
-
-
-class AnalyticPath(DopplerToFPath):
-    """The integrator of ``time_sampling_method="analytic"``: each sample's two paths
-    at the exposure's ends, their contributions integrated over the exposure."""
-
-    def trace(self, layout):
-        return trace_analytic_pass(self.mi, self, layout)

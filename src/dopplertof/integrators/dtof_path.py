@@ -1,4 +1,5 @@
-"""The D-ToF path tracer: one symbolic Dr.Jit loop per pass.
+"""The D-ToF path tracer: the integrator class (the Mitsuba plugin ``dopplertof``) and
+its symbolic path loop, one Dr.Jit kernel per pass.
 
 A unidirectional path tracer (next-event estimation and BSDF sampling combined with
 MIS, Russian roulette) in which every contribution is weighted by the modulation of
@@ -6,7 +7,12 @@ its own full path length at its own sample time (design.md section 1). Doppler s
 are not added by hand: they follow because path lengths depend on time.
 
 Time-path sampling (design.md section 2) decides each lane's time and which of its
-random numbers it shares with the other samples of its group.
+random numbers it shares with the other samples of its group. The steps of a path
+are in :mod:`.path_steps`, the render pipeline around the passes in :mod:`.pipeline`.
+
+The class derives from the variant's ``mi.SamplingIntegrator`` (Dr.Jit variants are
+switched at run time), so :func:`integrator_class` makes it once per variant; it is
+registered with Mitsuba at the bottom of this file.
 """
 
 from __future__ import annotations
@@ -14,370 +20,178 @@ from __future__ import annotations
 import drjit as dr
 
 from .. import sampling
-from ..modulation import SPEED_OF_LIGHT, WAVEFORMS, correlation_by_index, wave
+from ..params import RenderParams
 from ..scene import lights
-from ..scene.bodies import (BodyFrames, intersect, nearest_hit, occluded,
-                             surface_interaction)
-from .antithetic_map import PairedCameraRays
-from .film import FilmSampler
+from ..scene.bodies import BodyFrames
+from ..scene.scene import DTOF_INTEGRATORS
+from . import pipeline
+from .analytic import trace_analytic_pass
+from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
+from .film import FilmSampler, SplatFilter
+from .path_steps import (CameraSample, ModulationWeight, PassLayout, _as_colour,
+                         _camera_rays, _intersect, advance, film_position, lane_streams,
+                         loop_settings, roulette, shade, vertex_numbers)
+
+_classes: dict = {}  # variant name -> its DopplerToFPath class
 
 
-class PassLayout:
-    """Which pixel, group and sample each lane of a pass renders.
-
-    Lanes are pixel-major: lane = pixel * samples + s, for samples s0 .. s0+samples-1
-    of every pixel.
-    """
-
-    def __init__(self, mi, n_pixels: int, samples: int, first_sample, group_size: int):
-        lane = dr.arange(mi.UInt32, n_pixels * samples)
-        self._set(lane // samples, first_sample + lane % samples, group_size)
-
-    @classmethod
-    def of_lanes(cls, mi, pixel, sample, group_size: int):
-        """A layout from host arrays of each lane's pixel and sample index (adaptive
-        sample counts: pixels render different numbers of samples in a pass)."""
-        layout = cls.__new__(cls)
-        layout._set(mi.UInt32(pixel), mi.UInt32(sample), group_size)
-        return layout
-
-    def _set(self, pixel, sample, group_size):
-        self.pixel = pixel
-        self.sample = sample
-        self.group = sample // group_size
-        self.index = sample % group_size
+def integrator_class(mi):
+    """The DopplerToFPath class of the current variant (a ``mi.SamplingIntegrator``)."""
+    cls = _classes.get(mi.variant())
+    if cls is None:
+        cls = _classes[mi.variant()] = _define_class(mi)
+    return cls
 
 
-def _mis_power(pdf_a, pdf_b):
-    a2 = dr.square(pdf_a)
-    w = a2 / (a2 + dr.square(pdf_b))
-    return dr.select(dr.isfinite(w), w, 0.0)
+def _define_class(mi):
+    class DopplerToFPath(mi.SamplingIntegrator):
+        """The D-ToF path tracer, as Mitsuba's ``ADIntegrator``: constructed from the
+        plugin's properties (or with the defaults); :meth:`render` is Mitsuba's entry
+        point and :meth:`render_result` the pipeline's (integrators/pipeline.py), which
+        renders through :meth:`prepared`, a copy that holds everything the kernel reads
+        for one render; :meth:`sample_camera` starts each lane (time, film position,
+        lens, camera ray) and :meth:`trace` runs the path loop of one pass."""
 
+        def __init__(self, props=None):
+            props = mi.Properties() if props is None else props
+            super().__init__(props)
+            self.mi = mi
+            #: the plugin's parameters (a DopplerScene's own are used for it instead)
+            self.params = RenderParams.from_mapping(
+                {name: props[name] for name in props.keys()}, where="integrator dopplertof")
 
-class ModulationWeight:
-    """w(L, t): the modulation weight of a contribution of path length L at time t.
+        # ---- Mitsuba's interface ----
 
-    Scalars enter the kernel as opaque variables, so that one compiled kernel serves
-    every frequency, offset and (in low-pass mode) waveform.
-    """
+        def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
+            """``mi.render``: the D-ToF image of a static Mitsuba scene (its first
+            sensor), with this plugin's parameters."""
+            from ..scene.scene import loaded
 
-    def __init__(self, mi, modulation):
-        self.low_pass = modulation.low_pass
-        self.to_float32 = mi.Float
-        F = mi.Float if self.low_pass else mi.Float64
-        self.F = F
-        self.omega_g = dr.opaque(F, modulation.omega_g)
-        self.omega_d = dr.opaque(F, modulation.omega_d)
-        self.omega_s = dr.opaque(F, modulation.omega_s)
-        self.psi = dr.opaque(F, modulation.psi)
-        self.g0 = dr.opaque(F, modulation.g0)
-        self.g1 = dr.opaque(F, modulation.g1)
-        self.k_length = dr.opaque(F, modulation.omega_g / SPEED_OF_LIGHT)  # rad per metre
-        self.waveform = modulation.waveform
-        self.waveform_index = dr.opaque(mi.UInt32, WAVEFORMS.index(modulation.waveform))
+            if not isinstance(sensor, int) and sensor is not scene.sensors()[0]:
+                raise ValueError("dopplertof renders the scene's first sensor only")
+            dscene = loaded(mi, scene, self.params)
+            result = self.render_result(dscene, spp=spp or None, seed=int(seed),
+                                        progress=False)
+            return mi.TensorXf(result.image)
 
-    def __call__(self, path_length, t):
-        """Weight of a contribution; ``t`` is the time since the exposure start (s)."""
-        if self.low_pass:
-            # g1 * C(theta), theta = omega_d t + psi + omega_g L / c
-            theta = self.omega_d * t + self.psi + self.k_length * path_length
-            return self.g1 * correlation_by_index(self.waveform_index, theta, dr)
-        # s(t) * g(t - L / c), phases in float64 (omega_g t reaches ~1e5 rad)
-        sensor = wave(self.waveform, self.omega_s * t + self.psi, dr)
-        light = self.g0 + self.g1 * wave(self.waveform, self.omega_g * t
-                                         - self.k_length * path_length, dr)
-        return self.to_float32(sensor * light)
+        def sample(self, *args, **kwargs):
+            raise NotImplementedError("dopplertof renders whole images: use render()")
 
+        def to_string(self):
+            return f"DopplerToFPath[{self.params}]"
 
-def _as_colour(mi, value, wavelengths):
-    """A sample's value for the film: spectral variants convert the sampled wavelengths'
-    values to linear sRGB, as Mitsuba's film does; others keep their Spectrum."""
-    return mi.spectrum_to_srgb(value, wavelengths) if mi.is_spectral else value
+        # ---- The render pipeline's interface ----
 
+        def render_result(self, scene, spp=None, seed=0, params=None, **options):
+            """Render a DopplerScene (see :func:`dopplertof.render_result`)."""
+            return pipeline.render_result(self, scene, spp, seed, params, **options)
 
-def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction, lens):
-    """Each lane's camera ray, its weight, the path length to its origin, its first hit
-    when already traced (else None), whether the lane renders at all, and its film
-    position when it is not ``pos`` (else None)."""
-    if setup.projection is None:
-        ray, weight, offset = setup.camera.ray(pos, time, *lens)
-        return ray, weight, offset, None, mi.Bool(True), None
-    # ---- Motion-compensated antithetic pairs ----
-    mod = setup.modulation
-    partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
-    primal = layout.index == 0
-    crop_size = setup.scene.sensor.film().crop_size()
-    pair = PairedCameraRays(
-        mi, setup.scene, setup.camera, setup.projection, setup.film_sampler, pos, center,
-        window, crop_size, dr.select(primal, time, partner), dr.select(primal, partner, time),
-        layout.index, lens, (setup.shutter_open, setup.shutter_open + mod.exposure))
-    return (pair.ray, pair.weight * pair.scale, pair.offset, (pair.pi, pair.winner),
-            pair.scale != 0.0, pair.position)
+        def prepared(self, scene, params, spp: int, seed: int):
+            """A copy of this integrator for one render of ``scene`` with ``params``
+            (``auto`` resolved), ``spp`` and ``seed``: its attributes are what the
+            kernel reads."""
+            integrator = type(self)()
+            integrator._prepare(scene, params, spp, seed)
+            return integrator
 
+        def _prepare(self, scene, params, spp: int, seed: int) -> None:
+            """What the kernel reads, as typed attributes (one render: scene, ``auto``
+            resolved parameters, spp, seed)."""
+            sensor = scene.sensor
+            mod = params.modulation(scene.shutter_interval)
+            near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
+            analytic = params.time_sampling_method == sampling.ANALYTIC
+            splat = params.film_sampling == "splat"
+            self.scene = scene  #: the DopplerScene (static scene, bodies, sensor, lights)
+            self.params = params  #: RenderParams, ``auto`` resolved
+            self.modulation = mod  #: params.Modulation: frequencies, phase, waveform (SI)
+            self.modulation_weight = ModulationWeight(mi, mod)  #: w(L, t) of a contribution
+            self.seed = dr.opaque(mi.UInt32, seed & 0xFFFFFFFF)
+            # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
+            # (analytic: a sample's two paths share everything, and samples nothing)
+            self.correlation_depth = dr.opaque(
+                mi.UInt32, 0 if params.path_group_size == 1 or analytic
+                else min(params.path_correlation_depth, 1 << 30))
+            self.method = dr.opaque(mi.UInt32, 0 if analytic  #: the kernel's method number
+                                    else sampling.method_index(params.time_sampling_method))
+            self.antithetic_shift = dr.opaque(self.modulation_weight.F, mod.antithetic_shift)
+            self.group_size: int = params.time_correlate_number  #: K
+            self.groups_per_pixel: int = spp // params.time_correlate_number
+            self.path_group_size: int = params.path_group_size  #: Kp, samples on one path stream
+            self.stratify: bool = params.use_stratified_sampling_for_each_interval
+            self.shutter_open: float = scene.shutter_open
+            #: film positions within a pixel: uniform (splat film) or from the filter
+            self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
+            #: the splat film's filter, or None for the importance film
+            self.splat = SplatFilter(sensor.film()) if splat else None
+            self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
+                                 mi.Vector3f(*map(float, rest_forward(sensor))))
+            #: the pinhole film map, when pairs use the motion mapping (else None)
+            self.projection = None
+            if params.antithetic_mapping == "motion":
+                if not is_pinhole(sensor):
+                    raise ValueError(
+                        "antithetic_mapping='motion' needs a pinhole perspective sensor, got "
+                        f"{sensor.class_name()}")
+                self.projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
+            self.hide_emitters: bool = params.hide_emitters
+            #: time integrated, not sampled (analytic.trace_analytic_pass traces it)
+            self.analytic: bool = analytic
 
-def _intersect(mi, static, frames, ray, active, depth, first_hit, fresh):
-    """The path's next surface interaction; the first one (``fresh`` lanes) from
-    ``first_hit`` when the camera rays were traced before the loop (the loop's first
-    query then skips)."""
-    if first_hit is None:  # camera rays are coherent, as in Mitsuba's path tracer
-        return intersect(mi, static, frames, ray, active, coherent=depth == 0)
-    pi, winner = nearest_hit(mi, static, frames, ray, active & ~fresh, skip_idle=True)
-    pi = dr.select(fresh, first_hit[0], pi)
-    winner = dr.select(fresh, first_hit[1], winner)
-    return surface_interaction(mi, static, frames, ray, pi, winner, active)
+        def sample_camera(self, layout: PassLayout, streams) -> CameraSample:
+            """Each lane's time, film position, lens point and camera ray (sampling stage 0),
+            the body and light transforms at its time, and its first hit when the camera
+            rays were traced already (motion-mapped pairs)."""
+            mi, mod, scene = self.mi, self.modulation, self.scene
 
+            # ---- Time of each lane ----
+            def exposure_fraction(index):
+                return sampling.time_fraction(
+                    mi, streams, layout.group, index, group_size=self.group_size,
+                    groups_per_pixel=self.groups_per_pixel, method=self.method,
+                    antithetic_shift=self.antithetic_shift, stratify=self.stratify,
+                    double=not mod.low_pass,
+                )
 
-def lane_streams(mi, setup, layout: PassLayout):
-    """The correlated random streams of a pass's lanes (groups of K share the time
-    stream, path groups of Kp the path stream)."""
-    return sampling.CorrelatedStreams(
-        mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth,
-        path_group=(None if setup.path_group_size == setup.group_size
-                    else layout.sample // setup.path_group_size))
+            t_frac = exposure_fraction(layout.index)
+            # since exposure start (float64 in full-waveform mode), and absolute for the motion
+            t_rel = t_frac * self.modulation_weight.F(mod.exposure)
+            time = mi.Float(t_rel) + self.shutter_open
 
+            # ---- Camera ray ----
+            pos, film_offset, center, window_lo, window_hi, lens = film_position(
+                mi, self, layout, streams)
+            partner_fraction = (exposure_fraction(1 - layout.index)
+                                if self.projection is not None else None)
+            ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
+                mi, self, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
+                lens)
+            if lane_pos is not None:  # a mapped partner's film position is its own
+                crop_size = scene.sensor.film().crop_size()
+                film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
+                                          (lane_pos.y - center.y) * crop_size[1])
 
-def film_position(mi, setup, layout: PassLayout, streams):
-    """Each lane's film position (normalized) and its offset from its pixel centre (in
-    pixels; uniform in the pixel for the splat film, drawn from the filter for the
-    importance film), the centre, the crop window seen from the centre (pixels, low and
-    high corners) and the lens numbers (lens position and, in spectral variants, the
-    wavelengths)."""
-    # Film positions are normalized over the crop window, as Mitsuba's sensors take them.
-    crop_size = setup.scene.sensor.film().crop_size()
-    px = mi.Float(layout.pixel % crop_size[0])
-    py = mi.Float(layout.pixel // crop_size[0])
-    u_film = streams.film_2d(layout.group, layout.index, setup.groups_per_pixel)
-    center = mi.Point2f((px + 0.5) / crop_size[0], (py + 0.5) / crop_size[1])
-    # the crop window seen from the pixel centre (pixels)
-    window_lo = mi.Vector2f(-(px + 0.5), -(py + 0.5))
-    window_hi = mi.Vector2f(crop_size[0] - (px + 0.5), crop_size[1] - (py + 0.5))
-    sampler = setup.film_sampler
-    film_offset = mi.Vector2f(sampler.offset(mi, u_film.x, window_lo.x, window_hi.x),
-                              sampler.offset(mi, u_film.y, window_lo.y, window_hi.y))
-    pos = center + mi.Vector2f(film_offset.x / crop_size[0], film_offset.y / crop_size[1])
-    # the lens position and (spectral variants) the wavelengths, shared like the film
-    lens = (streams.get_2d(0, sampling.DIM_APERTURE), streams.get_1d(0, sampling.DIM_WAVELENGTH))
-    return pos, film_offset, center, window_lo, window_hi, lens
+            # ---- Lights and bodies at the lanes' times, once per path ----
+            light_frames = (lights.LightFrames(mi, scene.light_motions, time)
+                            if scene.light_motions else None)
+            frames = (BodyFrames(mi, scene.bodies, time, self.shutter_open,
+                                 self.shutter_open + mod.exposure) if scene.bodies else None)
+            return CameraSample(t_rel=t_rel, ray=ray, ray_weight=ray_weight,
+                                camera_offset=camera_offset, first_hit=first_hit, active=active,
+                                film_offset=film_offset, light_frames=light_frames, frames=frames)
 
+        def trace(self, layout: PassLayout):
+            """Render one pass; returns each lane's time-averaged measurement (the
+            variant's Spectrum; RGB in spectral variants) and its film position's offset
+            from its pixel's centre, in pixels (Vector2f; the splat film weighs the lane
+            with it)."""
+            if self.analytic:
+                return trace_analytic_pass(mi, self, layout)
+            streams = lane_streams(mi, self, layout)
+            return _trace_paths(mi, self, layout, streams, self.sample_camera(layout, streams))
 
-def vertex_numbers(streams, depth, u_em_first, u_dir_first):
-    """The random numbers of the decisions at surface hit ``depth`` (0-based, sampling
-    stage depth + 1): light sample, BSDF lobe and direction, Russian roulette; the
-    first hit's light and BSDF samples from the pixel's low-discrepancy set."""
-    stage = depth + 1
-    u_em = dr.select(depth == 0, u_em_first,
-                     streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)))
-    u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
-    u_dir = dr.select(depth == 0, u_dir_first,
-                      streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)))
-    u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
-    return u_em, u_lobe, u_dir, u_rr
-
-
-class Vertex:
-    """What a path finds at one surface hit: the emission it hits and the light sample
-    it takes (each as its contribution without the modulation, its MIS weight and its
-    full path length), and the BSDF sample that continues it."""
-
-    __slots__ = ("valid", "through", "hit_emitter", "emitted", "mis_hit", "length_hit",
-                 "active_em", "em_value", "mis_em", "length_em", "active_next", "bs",
-                 "bsdf_weight")
-
-
-def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
-          prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth, hide_direct_emitters, F,
-          bsdf_ctx) -> Vertex:
-    """One surface hit of a path (``si``, found for ``ray``) with the decisions'
-    random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type."""
-    v = Vertex()
-    u_em, u_lobe, u_dir, _ = numbers
-    valid = active & si.is_valid()
-    length_hit = length + F(dr.select(valid, si.t, 0.0))
-
-    # ---- Emission from an emitter hit by the ray ----
-    # (null emitter pointers evaluate to zero)
-    emitter = si.emitter(static)
-    # hide_emitters, as in Mitsuba 3.9's path tracer: camera rays pass through
-    # emitters (the path goes on behind them, its length too)
-    through = (valid & (depth == 0) & (emitter != None)  # noqa: E711
-               if hide_direct_emitters else mi.Bool(False))
-    hit_emitter = valid & ((depth > 0) | (not hide_direct_emitters))
-    ds = mi.DirectionSample3f(static, si, prev_si)
-    em_pdf = dr.select(prev_bsdf_delta, 0.0,
-                       static.pdf_emitter_direction(prev_si, ds, hit_emitter & ~prev_bsdf_delta))
-    v.mis_hit = _mis_power(prev_bsdf_pdf, em_pdf)
-    v.emitted = beta * emitter.eval(si, hit_emitter)
-
-    active_next = valid & (depth + 1 < max_depth) & ~through
-    bsdf = si.bsdf(ray)
-
-    # ---- Next-event estimation ----
-    active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-    ds, em_weight = (
-        lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
-        if light_frames is not None
-        else static.sample_emitter_direction(si, u_em, False, active_em))
-    active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
-    shadow_ray = si.spawn_ray_to(ds.p)
-    active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
-    wo = si.to_local(ds.d)
-
-    # ---- BSDF evaluation and sampling ----
-    bsdf_val, bsdf_pdf, v.bs, v.bsdf_weight = bsdf.eval_pdf_sample(
-        bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
-    v.mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
-    v.em_value = beta * bsdf_val * em_weight
-    v.length_em = length_hit + F(ds.dist)
-    v.valid, v.through, v.hit_emitter, v.length_hit = valid, through, hit_emitter, length_hit
-    v.active_em, v.active_next = active_em, active_next
-    return v
-
-
-def advance(mi, si, ray, v: Vertex, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta,
-            depth):
-    """The path after vertex ``v``: its next ray (straight on through a hidden emitter)
-    and the state that follows the BSDF sample."""
-    ray = dr.select(v.through, si.spawn_ray(ray.d), si.spawn_ray(si.to_world(v.bs.wo)))
-    bounced = ~v.through
-    beta = dr.select(bounced, beta * v.bsdf_weight, beta)
-    eta = dr.select(bounced, eta * v.bs.eta, eta)
-    prev_si = dr.select(bounced, mi.Interaction3f(si.t, si.time, si.wavelengths, si.p, si.n),
-                        prev_si)
-    prev_bsdf_pdf = dr.select(bounced, v.bs.pdf, prev_bsdf_pdf)
-    prev_bsdf_delta = dr.select(bounced, mi.has_flag(v.bs.sampled_type, mi.BSDFFlags.Delta),
-                                prev_bsdf_delta)
-    depth = dr.select(v.valid & bounced, depth + 1, depth)
-    return ray, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth
-
-
-def roulette(beta, eta, depth, rr_depth):
-    """Russian roulette: the throughput's largest channel (before the roulette), the
-    survival probability, and whether it plays at ``depth``."""
-    beta_max = dr.max(beta)
-    return beta_max, dr.minimum(beta_max * dr.square(eta), 0.95), depth >= rr_depth
-
-
-def loop_settings(mi, setup):
-    """The path loop's plain settings: the depth limit (a UInt32), the iteration hint,
-    the Russian roulette depth and whether directly visible emitters are hidden."""
-    params = setup.params
-    return (mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF),
-            params.max_depth, params.rr_depth, setup.hide_emitters)
-
-
-class CameraSample:
-    """Each lane's start: its time and camera ray, with what the path needs from them."""
-
-    def __init__(self, **fields):
-        self.__dict__.update(fields)
-
-
-class DopplerToFPath:
-    """The D-ToF path tracer of one render (scene, parameters, spp, seed), as Mitsuba's
-    ``ADIntegrator``: the constructor resolves everything the kernel reads;
-    :meth:`sample_camera` starts each lane (time, film position, lens, camera ray);
-    :meth:`trace` runs the path loop of one pass."""
-
-    def __init__(self, mi, scene, params, spp: int, seed: int):
-        from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
-        from .film import SplatFilter
-
-        sensor = scene.sensor
-        mod = params.modulation(scene.shutter_interval)
-        near_clip = float(sensor.near_clip()) if hasattr(sensor, "near_clip") else 0.0
-        analytic = params.time_sampling_method == sampling.ANALYTIC
-        splat = params.film_sampling == "splat"
-        self.mi = mi
-        self.scene = scene  #: the DopplerScene (static scene, bodies, sensor, lights)
-        self.params = params  #: RenderParams, ``auto`` resolved
-        self.modulation = mod  #: params.Modulation: frequencies, phase, waveform (SI)
-        self.modulation_weight = ModulationWeight(mi, mod)  #: w(L, t) of a contribution
-        self.seed = dr.opaque(mi.UInt32, seed & 0xFFFFFFFF)
-        # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
-        # (analytic: a sample's two paths share everything, and samples nothing)
-        self.correlation_depth = dr.opaque(
-            mi.UInt32, 0 if params.path_group_size == 1 or analytic
-            else min(params.path_correlation_depth, 1 << 30))
-        self.method = dr.opaque(mi.UInt32, 0 if analytic  #: the kernel's method number
-                                else sampling.method_index(params.time_sampling_method))
-        self.antithetic_shift = dr.opaque(self.modulation_weight.F, mod.antithetic_shift)
-        self.group_size: int = params.time_correlate_number  #: K
-        self.groups_per_pixel: int = spp // params.time_correlate_number
-        self.path_group_size: int = params.path_group_size  #: Kp, samples on one path stream
-        self.stratify: bool = params.use_stratified_sampling_for_each_interval
-        self.shutter_open: float = scene.shutter_open
-        #: film positions within a pixel: uniform (splat film) or from the filter
-        self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
-        #: the splat film's filter, or None for the importance film
-        self.splat = SplatFilter(sensor.film()) if splat else None
-        self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
-                             mi.Vector3f(*map(float, rest_forward(sensor))))
-        #: the pinhole film map, when pairs use the motion mapping (else None)
-        self.projection = None
-        if params.antithetic_mapping == "motion":
-            if not is_pinhole(sensor):
-                raise ValueError(
-                    "antithetic_mapping='motion' needs a pinhole perspective sensor, got "
-                    f"{sensor.class_name()}")
-            self.projection = PinholeProjection(mi, sensor, scene.sensor_motion, near_clip)
-        self.hide_emitters: bool = params.hide_emitters
-        #: time integrated, not sampled: the integrator is then analytic.AnalyticPath
-        self.analytic: bool = analytic
-
-    def sample_camera(self, layout: PassLayout, streams) -> CameraSample:
-        """Each lane's time, film position, lens point and camera ray (sampling stage 0),
-        the body and light transforms at its time, and its first hit when the camera
-        rays were traced already (motion-mapped pairs)."""
-        mi, mod, scene = self.mi, self.modulation, self.scene
-
-        # ---- Time of each lane ----
-        def exposure_fraction(index):
-            return sampling.time_fraction(
-                mi, streams, layout.group, index, group_size=self.group_size,
-                groups_per_pixel=self.groups_per_pixel, method=self.method,
-                antithetic_shift=self.antithetic_shift, stratify=self.stratify,
-                double=not mod.low_pass,
-            )
-
-        t_frac = exposure_fraction(layout.index)
-        # since exposure start (float64 in full-waveform mode), and absolute for the motion
-        t_rel = t_frac * self.modulation_weight.F(mod.exposure)
-        time = mi.Float(t_rel) + self.shutter_open
-
-        # ---- Camera ray ----
-        pos, film_offset, center, window_lo, window_hi, lens = film_position(
-            mi, self, layout, streams)
-        partner_fraction = (exposure_fraction(1 - layout.index)
-                            if self.projection is not None else None)
-        ray, ray_weight, camera_offset, first_hit, active, lane_pos = _camera_rays(
-            mi, self, layout, pos, center, (window_lo, window_hi), time, partner_fraction,
-            lens)
-        if lane_pos is not None:  # a mapped partner's film position is its own
-            crop_size = scene.sensor.film().crop_size()
-            film_offset = mi.Vector2f((lane_pos.x - center.x) * crop_size[0],
-                                      (lane_pos.y - center.y) * crop_size[1])
-
-        # ---- Lights and bodies at the lanes' times, once per path ----
-        light_frames = (lights.LightFrames(mi, scene.light_motions, time)
-                        if scene.light_motions else None)
-        frames = (BodyFrames(mi, scene.bodies, time, self.shutter_open,
-                             self.shutter_open + mod.exposure) if scene.bodies else None)
-        return CameraSample(t_rel=t_rel, ray=ray, ray_weight=ray_weight,
-                            camera_offset=camera_offset, first_hit=first_hit, active=active,
-                            film_offset=film_offset, light_frames=light_frames, frames=frames)
-
-    def trace(self, layout: PassLayout):
-        """Render one pass; returns each lane's time-averaged measurement (the variant's
-        Spectrum; RGB in spectral variants) and its film position's offset from its
-        pixel's centre, in pixels (Vector2f; the splat film weighs the lane with it)."""
-        streams = lane_streams(self.mi, self, layout)
-        return _trace_paths(self.mi, self, layout, streams,
-                            self.sample_camera(layout, streams))
-
-
-def trace_pass(mi, setup: DopplerToFPath, layout: PassLayout):
-    """One pass of ``setup`` (see :meth:`DopplerToFPath.trace`)."""
-    return setup.trace(layout)
+    DopplerToFPath.__qualname__ = "DopplerToFPath"  # (not _define_class.<locals>...)
+    return DopplerToFPath
 
 
 @dr.syntax
@@ -435,3 +249,12 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
                   | v.through)
 
     return _as_colour(mi, measured, wavelengths), start.film_offset
+
+
+# ---- Registration: <integrator type="dopplertof"> (alias "dopplertofpath") ----
+
+def register_plugin(mi) -> None:
+    """Make the integrator loadable by Mitsuba in the current variant."""
+    cls = integrator_class(mi)
+    for name in DTOF_INTEGRATORS:
+        mi.register_integrator(name, lambda props, cls=cls: cls(props))

@@ -38,16 +38,6 @@ class RenderResult:
     sample_counts: np.ndarray | None = None
 
 
-def _make_setup(mi, scene, params: RenderParams, spp: int, seed: int):
-    """The integrator of one render: dtof_path.DopplerToFPath, or for analytic time
-    integration its analytic.AnalyticPath."""
-    from .analytic import AnalyticPath
-    from .dtof_path import DopplerToFPath
-
-    analytic = params.time_sampling_method == sampling.ANALYTIC
-    return (AnalyticPath if analytic else DopplerToFPath)(mi, scene, params, spp, seed)
-
-
 def _show_progress(progress) -> bool:
     if progress is not None:
         return bool(progress)
@@ -121,7 +111,7 @@ class PassPlanner:
         count."""
         import drjit as dr
 
-        from .dtof_path import PassLayout
+        from .path_steps import PassLayout
 
         K, chunk, n_pixels = self.group_size, self.chunk, self.n_pixels
         s0 = first_chunk * chunk
@@ -274,10 +264,11 @@ class Checkpoint:
                          accumulator.squares, counts)
 
 
-def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
+def render_result(integrator, scene, spp: int | None = None, seed: int = 0, params=None, *,
                   progress: bool | None = None, max_lanes: int = DEFAULT_MAX_LANES,
                   pass_chunks: int | None = None, checkpoint=None) -> RenderResult:
-    """Render ``scene`` (a DopplerScene); see :func:`render`.
+    """Render ``scene`` (a DopplerScene) with ``integrator`` (a DopplerToFPath: the
+    render traces passes with its :meth:`prepared` copy); see :func:`dopplertof.render`.
 
     ``checkpoint`` (a path) saves the accumulated chunks after every pass and resumes
     from them: the final image is bitwise the one of an uninterrupted render. It is
@@ -286,82 +277,88 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None, *,
     """
     mi, p, spp = _resolve(scene, spp, seed, params)
     width, height = (int(v) for v in scene.sensor.film().crop_size())
-    n_pixels = width * height
-    setup = _make_setup(mi, scene, p, spp, int(seed))
-    plan = PassPlanner(spp, setup.group_size, n_pixels, p, max_lanes, pass_chunks)
-    chunk = plan.chunk
+    setup = integrator.prepared(scene, p, spp, int(seed))
+    plan = PassPlanner(spp, setup.group_size, width * height, p, max_lanes, pass_chunks)
     channels = _spectrum_channels(mi)
-    sums = Accumulator(mi, setup, n_pixels, channels, p.adaptive_sampling)
+    sums = Accumulator(mi, setup, width * height, channels, p.adaptive_sampling)
 
     _check_budget(width, height, channels, spp, plan, p, sums, progress)
     sums.start()
 
     # ---- Resume ----
-    counts, next_chunk = None, 0
-    saved = None
-    if checkpoint is not None:
-        saved_at = Checkpoint(checkpoint, _render_key(scene, p.image_defining(), spp, seed,
-                                                      mi.variant(), chunk))
-        restored = saved_at.load(sums)
-        if restored is not None:
-            next_chunk, counts = restored
-            counts = counts if p.adaptive_sampling else None
-        saved = saved_at
-    started = _time.perf_counter()
+    saved = None if checkpoint is None else Checkpoint(checkpoint, _render_key(
+        scene, p.image_defining(), spp, seed, mi.variant(), plan.chunk))
+    next_chunk, counts = (saved and saved.load(sums)) or (0, None)
+    render = _Passes(mi, setup, plan, sums, saved, counts if p.adaptive_sampling else None,
+                     next_chunk, progress)
 
-    from tqdm import tqdm
-
-    from .dtof_path import trace_pass
-
-    done = (min(spp, next_chunk * chunk) if counts is None
-            else float(np.minimum(counts, next_chunk * chunk).mean()))
-    bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
-               disable=not _show_progress(progress), leave=False, file=sys.stderr)
-    reached = next_chunk  # chunks of every pixel traced so far (where it has them)
-
-    def run(passes):
-        """Trace the passes; the timeout stops the render after the pass it expires in."""
-        nonlocal reached
-        for first_chunk, end_chunk in passes:
-            layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, counts)
-            value, film_offset = trace_pass(mi, setup, layout)
-            sums.add(value, film_offset, chunk_size, threads,
-                     pilot=sums.squares is not None and first_chunk < plan.pilot_chunks)
-            bar.update(threads[2].sum() / n_pixels)
-            if saved is not None:
-                saved.save(sums, end_chunk, counts)
-            reached = end_chunk
-            if p.timeout >= 0 and _time.perf_counter() - started > p.timeout:
-                raise _TimedOut
-
+    # ---- Trace: every pixel at spp, or the adaptive pilot, the counts, the rest ----
     try:
         if not p.adaptive_sampling:
-            run(plan.uniform(next_chunk))
+            render.run(plan.uniform(next_chunk))
         else:
-            # ---- Pilot: the first chunks of every pixel ----
-            run(plan.pilot(next_chunk))
-            # ---- Counts from the neighbours' pilot variance, then the rest ----
-            if counts is None:
-                counts = _adaptive_counts(sums.pilot_sums, sums.squares,
-                                          plan.pilot_chunks * chunk, setup.group_size, spp,
-                                          chunk, (height, width))
-            run(plan.adaptive(counts, next_chunk))
+            render.run(plan.pilot(next_chunk))  # the first chunks of every pixel
+            if render.counts is None:  # from the neighbours' pilot variance
+                render.counts = _adaptive_counts(
+                    sums.pilot_sums, sums.squares, plan.pilot_chunks * plan.chunk,
+                    setup.group_size, spp, plan.chunk, (height, width))
+            render.run(plan.adaptive(render.counts, next_chunk))
     except _TimedOut:
         pass
     finally:
-        bar.close()
+        render.bar.close()
+    return render.result(seed, (height, width))
 
-    per_pixel, timed_out = _samples_taken(np.full(n_pixels, spp) if counts is None else counts,
-                                          spp, reached * chunk, p.timeout,
-                                          checkpoint is not None)
-    image = sums.image(per_pixel, (height, width))
-    metadata = _metadata(mi, setup, p, spp, seed, per_pixel, timed_out, sums.nonfinite,
-                         started)
-    if counts is None:
-        return RenderResult(image, metadata)
-    metadata["sample_counts"] = {"pilot": plan.pilot_chunks * chunk, "min": int(counts.min()),
-                                 "max": int(counts.max()), "mean": float(counts.mean())}
-    return RenderResult(image, metadata, counts.reshape(height, width))
+
+class _Passes:
+    """A render's passes traced into its sums, with a progress bar, a checkpoint after
+    every pass and the timeout (checked between passes); then its result."""
+
+    def __init__(self, mi, setup, plan: PassPlanner, sums: Accumulator, saved, counts,
+                 next_chunk: int, progress):
+        from tqdm import tqdm
+
+        self.mi, self.setup, self.plan, self.sums, self.saved = mi, setup, plan, sums, saved
+        self.counts = counts  #: samples per pixel (adaptive, once known), else None
+        self.reached = next_chunk  #: chunks of every pixel traced so far (where it has them)
+        self.started = _time.perf_counter()
+        spp, chunk = plan.spp, plan.chunk
+        done = (min(spp, next_chunk * chunk) if counts is None
+                else float(np.minimum(counts, next_chunk * chunk).mean()))
+        self.bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
+                        disable=not _show_progress(progress), leave=False, file=sys.stderr)
+
+    def run(self, passes) -> None:
+        """Trace the passes; the timeout stops the render after the pass it expires in."""
+        plan, sums, timeout = self.plan, self.sums, self.setup.params.timeout
+        for first_chunk, end_chunk in passes:
+            layout, chunk_size, threads = plan.lanes(self.mi, first_chunk, end_chunk,
+                                                     self.counts)
+            value, film_offset = self.setup.trace(layout)
+            sums.add(value, film_offset, chunk_size, threads,
+                     pilot=sums.squares is not None and first_chunk < plan.pilot_chunks)
+            self.bar.update(threads[2].sum() / plan.n_pixels)
+            if self.saved is not None:
+                self.saved.save(sums, end_chunk, self.counts)
+            self.reached = end_chunk
+            if timeout >= 0 and _time.perf_counter() - self.started > timeout:
+                raise _TimedOut
+
+    def result(self, seed: int, shape) -> RenderResult:
+        """The image, normalized by the samples taken, and its metadata."""
+        p, spp, chunk, counts = self.setup.params, self.plan.spp, self.plan.chunk, self.counts
+        per_pixel, timed_out = _samples_taken(
+            np.full(self.plan.n_pixels, spp) if counts is None else counts, spp,
+            self.reached * chunk, p.timeout, self.saved is not None)
+        image = self.sums.image(per_pixel, shape)
+        metadata = _metadata(self.mi, self.setup, p, spp, seed, per_pixel, timed_out,
+                             self.sums.nonfinite, self.started)
+        if counts is None:
+            return RenderResult(image, metadata)
+        metadata["sample_counts"] = {"pilot": self.plan.pilot_chunks * chunk,
+                                     "min": int(counts.min()), "max": int(counts.max()),
+                                     "mean": float(counts.mean())}
+        return RenderResult(image, metadata, counts.reshape(shape))
 
 
 def _check_budget(width, height, channels, spp, plan, p, sums, progress) -> None:

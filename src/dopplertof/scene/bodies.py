@@ -170,7 +170,8 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):
 
 
 def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t, coherent):
-    """Visit the bodies whose swept boxes the ray enters, nearest box first, until the
+    """Visit the bodies whose boxes the ray enters (each body's own box, met by the ray in
+    the body's frame at the lane's time: _box_distances), nearest first, until the
     next box starts beyond the nearest hit. Each visit is one symbolic call that runs only
     the body scenes present in a SIMD packet, so the cost follows what rays meet rather
     than the number of bodies."""
@@ -312,7 +313,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
             blocked |= body.scene.ray_test(transformed_ray(mi, inv, ray, ray.maxt), test)
         return blocked
 
-    # ---- Dispatch: visit only the bodies whose swept boxes the segment crosses ----
+    # ---- Dispatch: visit only the bodies whose own boxes the segment crosses ----
     entry = _box_distances(mi, dr, frames, ray, active, ray.maxt)
     pending = mi.UInt32(0)
     for k, d in enumerate(entry):

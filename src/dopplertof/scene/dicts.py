@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..params import ParameterError, RenderParams
-from .motion import Keyframes, Motion, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS, SceneError,
-                    build, check_motion, correlated_sampler_params)
+from .motion import Keyframes, MotionError
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
+                    MotionClaim, SceneDescription, SceneError, build,
+                    correlated_sampler_params)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
@@ -92,112 +92,140 @@ def load_dict(scene: dict):
     from ..backend import require_variant
 
     mi = require_variant()
+    return build(mi, describe(mi, scene), lambda part, what: (_load(mi, part, what), repr(part)))
+
+
+def describe(mi, scene: dict) -> SceneDescription:
+    """The SceneDescription of a dict scene (parts: dicts for ``mi.load_dict``)."""
     if not isinstance(scene, dict) or scene.get("type") != "scene":
         raise SceneError("<dict>: the scene dict must have \"type\": \"scene\"")
-    static = {}
-    params = RenderParams()
-    integrator_values, sampler_values = {}, {}
-    groups: dict[Keyframes, list] = {}
-    sensor_kf, light_kfs = None, []
+    parts = _DictParts(mi)
     for key, value in scene.items():
+        parts.add(key, value)
+    parts.place_lights_on_sensor()
+    bodies = [(kf, [key for key, _ in shapes], _body_dict(scene, shapes))
+              for kf, shapes in parts.groups.items()]
+    parameters = [(f"<dict> {where}", values) for values, where in (
+        (parts.sampler_values, "correlated sampler"), (parts.integrator_values, "integrator"))
+        if values]
+    return SceneDescription("<dict>", parts.static, bodies, parameters,
+                            sensor_keyframes=parts.sensor_kf, light_keyframes=parts.light_kfs,
+                            motions=parts.motions, has_integrator=parts.has_integrator)
+
+
+class _DictParts:
+    """A dict scene's entries sorted into the description's parts: the static scene,
+    the moving bodies' shapes by keyframes, the camera's and lights' keyframes, the
+    integrator's and the correlated sampler's parameters."""
+
+    def __init__(self, mi):
+        self.mi = mi
+        self.static = {}  #: what mi.load_dict loads as the static scene
+        self.groups: dict[Keyframes, list] = {}  #: keyframes -> [(key, shape dict)]
+        self.sensor_kf, self.light_kfs = None, []
+        self.integrator_values, self.sampler_values = {}, {}
+        self.has_integrator = False
+        self.motions = []  #: MotionClaim of every Animation
+
+    def add(self, key, value) -> None:
+        """Sort one entry of the scene dict."""
         if not isinstance(value, dict):
-            static[key] = value
-            continue
+            self.static[key] = value
+            return
         kind = value.get("type")
         if key == "integrator" and kind not in DTOF_INTEGRATORS:
             raise SceneError(f"<dict>[{key!r}]: integrator type {kind!r} is not a D-ToF "
                              "integrator: use \"dopplertof\"")
         if kind in DTOF_INTEGRATORS:
-            integrator_values = {k: v for k, v in value.items() if k != "type"}
-            continue
+            self.integrator_values = {k: v for k, v in value.items() if k != "type"}
+            self.has_integrator = True
+            return
         anim = value.get("to_world")
         if isinstance(anim, Animation) and kind in SENSOR_TYPES + MOVABLE_EMITTERS:
-            where = f"<dict>[{key!r}]"
-            if kind in SENSOR_TYPES:
-                check_motion(where, "sensor", follow=anim.follow)
-                sensor_kf = anim.to_keyframes(where)
-                value = dict(value, to_world=_rest_transform(mi, sensor_kf))
-            else:
-                check_motion(where, "emitter", kind, anim.follow,
-                             has_position="position" in value)
-                value = dict(value)
-                if anim.follow == "sensor":
-                    light_kfs.append((key, "sensor"))
-                    value.pop("to_world")  # placed at the camera below
-                else:
-                    kf = anim.to_keyframes(where)
-                    light_kfs.append((key, kf))
-                    value["to_world"] = _rest_transform(mi, kf)
-            static[key] = _correlated_sampler_replaced(key, value, sampler_values)
-            continue
+            self.static[key] = self._sampler_replaced(key, self._observer(key, kind, value, anim))
+            return
         if isinstance(anim, Animation):
-            where = f"<dict>[{key!r}]"
-            if kind in ("directional", "area", "envmap", "constant"):  # a light, not a shape
-                check_motion(where, "emitter", kind)
-            check_motion(where, "shape", has_area_emitter=any(
-                isinstance(v, dict) and v.get("type") == "area" for v in value.values()))
-            kf = value["to_world"].to_keyframes(where)
-            body_shape = dict(value, to_world=_rest_transform(mi, kf))
-            groups.setdefault(kf, []).append((key, body_shape))
-            continue
-        value = _correlated_sampler_replaced(key, value, sampler_values)
+            self._body(key, kind, value, anim)
+            return
+        value = self._sampler_replaced(key, value)
         if any(isinstance(v, Animation) for v in value.values()):
             raise SceneError(f"<dict>[{key!r}]: only 'to_world' may be an Animation")
-        static[key] = value
+        self.static[key] = value
 
-    # A light that follows the camera sits at the camera's rest pose.
-    sensor_key = next((k for k, v in static.items() if isinstance(v, dict)
-                       and v.get("type") in SENSOR_TYPES), None)
-    for key, kind in light_kfs:
-        if kind == "sensor" and sensor_key is not None and "to_world" in static[sensor_key]:
-            static[key] = dict(static[key], to_world=static[sensor_key]["to_world"])
-
-    for values, where in ((sampler_values, "correlated sampler"),
-                          (integrator_values, "integrator")):
-        if values:
-            try:
-                params = RenderParams.from_mapping(values, where=f"<dict> {where}", base=params)
-            except ParameterError as e:
-                raise SceneError(str(e)) from None
-
-    def load(d, what):
-        try:
-            return mi.load_dict(d)
-        except Exception as e:
-            lines = [x for x in str(e).strip().splitlines() if x.strip()]
-            raise SceneError(f"<dict> {what}: {lines[-1] if lines else 'load failed'}") from None
-
-    static_scene = load(static, "scene")
-    from .bodies import MovingBody
-
-    bodies = []
-    for kf, shapes in groups.items():
-        body = {"type": "scene"}
-        todo = set().union(*(_refs(s) for _, s in shapes))
-        done = set()
-        while todo:
-            ident = todo.pop()
-            done.add(ident)
-            if ident in scene:
-                body[ident] = scene[ident]
-                todo |= _refs(scene[ident]) - done
-        body.update({k: s for k, s in shapes})
-        bodies.append(MovingBody(load(body, f"body {[k for k, _ in shapes]}"), Motion(kf),
-                                 tuple(k for k, _ in shapes)))
-    return build(mi, static_scene, bodies, params, "<dict>",
-                 repr(static) + repr(list(groups.items())) + repr((sensor_kf, light_kfs)),
-                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
-                 has_integrator=any(isinstance(v, dict) and v.get("type") in DTOF_INTEGRATORS
-                                    for v in scene.values()))
-
-
-def _correlated_sampler_replaced(key, value: dict, sampler_values: dict) -> dict:
-    """The published correlated sampler becomes Mitsuba's independent one; its
-    parameters go to ``sampler_values``."""
-    sampler = value.get("sampler")
-    if not (isinstance(sampler, dict) and sampler.get("type") == "correlated"):
+    def _observer(self, key, kind, value: dict, anim: Animation) -> dict:
+        """A moving sensor or light: its keyframes noted, loaded at its rest pose (a
+        light that follows the sensor: placed by place_lights_on_sensor)."""
+        where = f"<dict>[{key!r}]"
+        if kind in SENSOR_TYPES:
+            self.motions.append(MotionClaim(where, "sensor", follow=anim.follow))
+            if anim.follow is not None:  # (refused when the description is validated)
+                return value
+            self.sensor_kf = anim.to_keyframes(where)
+            return dict(value, to_world=_rest_transform(self.mi, self.sensor_kf))
+        self.motions.append(MotionClaim(where, "emitter", kind, anim.follow,
+                                        has_position="position" in value))
+        value = dict(value)
+        if anim.follow is not None:
+            self.light_kfs.append((key, "sensor"))
+            value.pop("to_world")  # placed at the camera
+        else:
+            kf = anim.to_keyframes(where)
+            self.light_kfs.append((key, kf))
+            value["to_world"] = _rest_transform(self.mi, kf)
         return value
-    sampler_values.update(correlated_sampler_params(
-        {k: v for k, v in sampler.items() if k != "type"}, f"<dict>[{key!r}]"))
-    plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
-    return dict(value, sampler=dict(plain, type="independent"))
+
+    def _body(self, key, kind, value: dict, anim: Animation) -> None:
+        """A moving shape: to the body of its keyframes, at its rest pose."""
+        where = f"<dict>[{key!r}]"
+        if kind in ("directional", "area", "envmap", "constant"):  # a light, not a shape
+            self.motions.append(MotionClaim(where, "emitter", kind))
+        self.motions.append(MotionClaim(where, "shape", has_area_emitter=any(
+            isinstance(v, dict) and v.get("type") == "area" for v in value.values())))
+        kf = anim.to_keyframes(where)
+        self.groups.setdefault(kf, []).append((key, dict(value, to_world=_rest_transform(
+            self.mi, kf))))
+
+    def place_lights_on_sensor(self) -> None:
+        """A light that follows the camera sits at the camera's rest pose."""
+        sensor_key = next((k for k, v in self.static.items() if isinstance(v, dict)
+                           and v.get("type") in SENSOR_TYPES), None)
+        for key, kind in self.light_kfs:
+            if (kind == "sensor" and sensor_key is not None
+                    and "to_world" in self.static[sensor_key]):
+                self.static[key] = dict(self.static[key],
+                                        to_world=self.static[sensor_key]["to_world"])
+
+    def _sampler_replaced(self, key, value: dict) -> dict:
+        """The published correlated sampler becomes Mitsuba's independent one; its
+        parameters go to the render parameters."""
+        sampler = value.get("sampler")
+        if not (isinstance(sampler, dict) and sampler.get("type") == "correlated"):
+            return value
+        self.sampler_values.update(correlated_sampler_params(
+            {k: v for k, v in sampler.items() if k != "type"}, f"<dict>[{key!r}]"))
+        plain = {k: v for k, v in sampler.items() if k not in CORRELATED_SAMPLER_PARAMS}
+        return dict(value, sampler=dict(plain, type="independent"))
+
+
+def _body_dict(scene: dict, shapes) -> dict:
+    """A scene dict holding a body's shapes and the entries they reference."""
+    body = {"type": "scene"}
+    todo = set().union(*(_refs(s) for _, s in shapes))
+    done = set()
+    while todo:
+        ident = todo.pop()
+        done.add(ident)
+        if ident in scene:
+            body[ident] = scene[ident]
+            todo |= _refs(scene[ident]) - done
+    body.update({k: s for k, s in shapes})
+    return body
+
+
+def _load(mi, d: dict, what: str):
+    """``mi.load_dict``; its error as a one-line SceneError naming ``what``."""
+    try:
+        return mi.load_dict(d)
+    except Exception as e:
+        lines = [x for x in str(e).strip().splitlines() if x.strip()]
+        raise SceneError(f"<dict> {what}: {lines[-1] if lines else 'load failed'}") from None

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
-from ..params import RenderParams
+from ..params import ParameterError, RenderParams
 
 
 #: the integrator types of a D-ToF scene (the second is the published name)
@@ -102,16 +102,71 @@ def default_integrator_note(source: str) -> str:
             f"{p.time_sampling_method}")
 
 
-def build(mi, static, bodies, params: RenderParams, source: str,
-          description: str = "", sensor_keyframes=None, light_keyframes=(),
-          has_integrator: bool = True) -> DopplerScene:
-    """Checks shared by the XML and dict loaders; camera and light motions.
+@dataclass(frozen=True)
+class MotionClaim:
+    """An <animation> (an Animation in a dict) as found: what the rule book
+    (:func:`check_motion`) judges when the description is validated."""
 
-    ``light_keyframes`` is ``[(emitter id, Keyframes or "sensor"), ...]``; "sensor"
-    moves the light rigidly with the camera.
-    """
+    where: str  #: the file and line, or the dict key, for the message
+    what: str  #: "sensor", "emitter" or "shape"
+    plugin_type: str | None = None  #: the emitter's type
+    follow: str | None = None  #: the animation's follow attribute (None: keyframes)
+    has_position: bool = False  #: an emitter that also sets its 'position'
+    has_area_emitter: bool = False  #: a shape that carries an area emitter
+
+
+@dataclass
+class SceneDescription:
+    """What a scene file or dict says, in one form for both loaders, before Mitsuba
+    loads it. The XML loader's parts are XML elements, the dict loader's dicts; a
+    loader's ``load_part(part, what)`` turns one into a Mitsuba scene and the text
+    that identifies it. :func:`build` validates the description and loads it."""
+
+    source: str  #: the file, "<string>" or "<dict>", for messages
+    static: object  #: the static scene (sensor, emitters, static shapes), loader's form
+    #: each moving body: (Keyframes, its shapes' names, its scene in the loader's form)
+    bodies: list = field(default_factory=list)
+    #: (where, {name: value}) of the correlated sampler and the integrator, in that order
+    parameters: list = field(default_factory=list)
+    params: RenderParams = field(default_factory=RenderParams)  #: what they override
+    sensor_keyframes: object = None  #: Keyframes of the camera (None: static)
+    #: (emitter id, Keyframes or "sensor") of each moving light; "sensor": on the camera
+    light_keyframes: list = field(default_factory=list)
+    motions: list = field(default_factory=list)  #: MotionClaim of every animation
+    has_integrator: bool = True  #: whether the scene names its integrator
+
+
+def build(mi, description: SceneDescription, load_part) -> DopplerScene:
+    """Validate ``description`` (what may move, the parameters, the sensor and the
+    lights), load its parts with ``load_part(part, what)`` -> (mi.Scene, text) and
+    assemble the DopplerScene: the one path of the XML and dict loaders and of the
+    Mitsuba plugin."""
+    from .bodies import MovingBody
     from .motion import Motion
 
+    d, source = description, description.source
+    # ---- What may move ----
+    for claim in d.motions:
+        check_motion(claim.where, claim.what, claim.plugin_type, claim.follow,
+                     claim.has_position, claim.has_area_emitter)
+    # ---- The parameters: the sampler's, then the integrator's ----
+    params = d.params
+    for where, values in d.parameters:
+        try:
+            params = RenderParams.from_mapping(values, where=where, base=params)
+        except ParameterError as e:
+            raise SceneError(str(e)) from None
+
+    # ---- Load the static scene and each body ----
+    static, text = load_part(d.static, "scene")
+    texts, bodies = [text], []
+    for kf, names, part in d.bodies:
+        body_scene, text = load_part(part, f"body {list(names)}")
+        texts += [text, repr(kf)]
+        bodies.append(MovingBody(body_scene, Motion(kf), tuple(names)))
+    texts += [repr(d.sensor_keyframes), repr(d.light_keyframes)]
+
+    # ---- The sensor and the lights ----
     sensors = static.sensors()
     if len(sensors) != 1:
         raise SceneError(f"{source}: a D-ToF scene needs exactly one sensor, found {len(sensors)}")
@@ -124,10 +179,10 @@ def build(mi, static, bodies, params: RenderParams, source: str,
     if not static.emitters():
         raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
     spp = int(sensors[0].sampler().sample_count())
-    sensor_motion = Motion(sensor_keyframes) if sensor_keyframes is not None else None
+    sensor_motion = Motion(d.sensor_keyframes) if d.sensor_keyframes is not None else None
     ids = [e.id() for e in static.emitters()]
     light_motions = []
-    for ident, kf in light_keyframes:
+    for ident, kf in d.light_keyframes:
         if ident not in ids:
             raise SceneError(f"{source}: moving light {ident!r} not found in the loaded scene")
         motion = sensor_motion if kf == "sensor" else Motion(kf)
@@ -135,7 +190,14 @@ def build(mi, static, bodies, params: RenderParams, source: str,
 
     import hashlib
 
-    fingerprint = hashlib.sha256(description.encode()).hexdigest() if description else ""
-    notes = () if has_integrator else (default_integrator_note(source),)
+    description_text = "\n".join(t for t in texts if t)
+    fingerprint = hashlib.sha256(description_text.encode()).hexdigest() if texts[0] else ""
+    notes = () if d.has_integrator else (default_integrator_note(source),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
                         sensor_motion, tuple(light_motions), notes)
+
+
+def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>") -> DopplerScene:
+    """A DopplerScene of a static scene Mitsuba has loaded already (the plugin's)."""
+    return build(mi, SceneDescription(source, scene, params=params),
+                 lambda part, what: (part, ""))

@@ -25,11 +25,10 @@ import xml.parsers.expat
 
 import numpy as np
 
-from ..params import ParameterError, RenderParams
 from ..hints import did_you_mean
-from .motion import Keyframes, MotionError, Motion
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, SceneError, build,
-                    check_motion, correlated_sampler_params)
+from .motion import Keyframes, MotionError
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MotionClaim,
+                    SceneDescription, SceneError, build, correlated_sampler_params)
 from .transforms import TransformError, compose
 
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
@@ -248,8 +247,9 @@ def _rest_pose(doc: _Doc, elem, anim, what: str) -> Keyframes:
     return kf
 
 
-def _split_observers(doc: _Doc):
-    """Sensor and light motion: (sensor Keyframes or None, [(emitter id, Keyframes | "sensor")]).
+def _split_observers(doc: _Doc, motions: list):
+    """Sensor and light motion: (sensor Keyframes or None, [(emitter id, Keyframes | "sensor")]);
+    each <animation> found goes to ``motions`` (MotionClaim).
 
     A moving point or spot light gives its keyframes, or ``follow="sensor"`` on its
     <animation> to move rigidly with the camera (a light on the camera)."""
@@ -260,8 +260,9 @@ def _split_observers(doc: _Doc):
     if len(anims) > 1:
         raise SceneError(f"{doc.where(anims[1])}: the sensor has more than one <animation>")
     if anims:
-        check_motion(doc.where(anims[0]), "sensor", follow=anims[0].get("follow"))
-        sensor_kf = _rest_pose(doc, sensor, anims[0], "sensor")
+        motions.append(MotionClaim(doc.where(anims[0]), "sensor", follow=anims[0].get("follow")))
+        if anims[0].get("follow") is None:  # (a follow is refused by the validation)
+            sensor_kf = _rest_pose(doc, sensor, anims[0], "sensor")
     lights = []
     for k, el in enumerate(root.findall("emitter")):
         anims = el.findall("animation")
@@ -271,12 +272,12 @@ def _split_observers(doc: _Doc):
         if len(anims) > 1:
             raise SceneError(f"{doc.where(anims[1])}: an emitter has more than one <animation>")
         follow = anim.get("follow")
-        check_motion(doc.where(anim), "emitter", el.get("type"), follow,
-                     has_position=any(c.get("name") == "position" for c in el))
+        motions.append(MotionClaim(doc.where(anim), "emitter", el.get("type"), follow,
+                                   has_position=any(c.get("name") == "position" for c in el)))
         ident = el.get("id") or f"__dopplertof_light_{k}"
         el.set("id", ident)
         if follow is not None:
-            if len(anim):
+            if len(anim) and follow == "sensor":
                 raise SceneError(f"{doc.where(anim)}: an <animation follow=\"sensor\"> takes "
                                  "no keyframes")
             el.remove(anim)
@@ -292,8 +293,9 @@ def _split_observers(doc: _Doc):
     return sensor_kf, lights
 
 
-def _split_bodies(doc: _Doc):
-    """Remove animated shapes from the tree; return [(Keyframes, [shape elements])]."""
+def _split_bodies(doc: _Doc, motions: list):
+    """Remove animated shapes from the tree; return [(Keyframes, [(shape element,
+    name)])]; each <animation> found goes to ``motions`` (MotionClaim)."""
     root = doc.root
     for el in root.iter("emitter"):
         if el.find("animation") is not None:
@@ -310,7 +312,8 @@ def _split_bodies(doc: _Doc):
         if any(t.get("name") == "to_world" for t in shape.findall("transform")):
             raise SceneError(f"{doc.where(anim)}: a shape with an <animation> must not also "
                              "have a <transform name=\"to_world\">")
-        check_motion(doc.where(anim), "shape", has_area_emitter=shape.find("emitter") is not None)
+        motions.append(MotionClaim(doc.where(anim), "shape",
+                                   has_area_emitter=shape.find("emitter") is not None))
         kf = _keyframes(doc, shape, anim)
         body_shape = doc.copy(shape)
         body_shape.remove(body_shape.find("animation"))
@@ -399,40 +402,33 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
 
     mi = require_variant()
     doc = _Doc(text, source)
+    return build(mi, describe(doc, overrides),
+                 lambda part, what: _load_string(mi, doc, part, base_dir))
+
+
+def describe(doc: _Doc, overrides: dict | None = None) -> SceneDescription:
+    """The SceneDescription of an XML document: ``<default>`` values substituted, the
+    integrator's and the correlated sampler's parameters taken out, the moving bodies
+    split off into documents of their own, the camera's and lights' keyframes
+    replaced by their rest poses (parts: XML elements)."""
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
     _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
     has_integrator = bool(doc.root.findall("integrator"))
-    integ = _integrator_params(doc)
-    sampler_params, _ = _sensor(doc)
-    sensor_kf, light_kfs = _split_observers(doc)
-    body_groups = _split_bodies(doc)
-
-    params = RenderParams()
-    for values in (sampler_params, integ):
-        if values:
-            where = values.pop("__where__")
-            try:
-                params = RenderParams.from_mapping(values, where=where, base=params)
-            except ParameterError as e:
-                raise SceneError(str(e)) from None
-
-    static, static_text = _load_string(mi, doc, doc.root, base_dir)
-    description = [static_text]
-    bodies = []
-    from .bodies import MovingBody
-
-    for kf, shapes in body_groups:
-        elems = [s for s, _ in shapes]
-        body_scene, body_text = _load_string(mi, doc, _body_document(doc, elems), base_dir)
-        description += [body_text, repr(kf)]
-        bodies.append(MovingBody(body_scene, Motion(kf), tuple(n for _, n in shapes)))
-    description += [repr(sensor_kf), repr(light_kfs)]
-    return build(mi, static, bodies, params, source, "\n".join(description),
-                 sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
-                 has_integrator=has_integrator)
+    integrator = _integrator_params(doc)
+    sampler = _sensor(doc)[0]
+    parameters = [(values.pop("__where__"), values) for values in (sampler, integrator)
+                  if values]
+    motions = []
+    sensor_kf, light_kfs = _split_observers(doc, motions)
+    bodies = [(kf, [name for _, name in shapes],
+               _body_document(doc, [shape for shape, _ in shapes]))
+              for kf, shapes in _split_bodies(doc, motions)]
+    return SceneDescription(doc.source, doc.root, bodies, parameters,
+                            sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
+                            motions=motions, has_integrator=has_integrator)
 
 
 def load_file(path, overrides: dict | None = None):
