@@ -1,5 +1,6 @@
-"""The package's import graph has no circle: every import, at module level or inside a
-function, points one way (design.md section 7)."""
+"""The package's shape: its import graph has no circle (every import, at module level or
+inside a function, points one way; design.md section 7), and no function is longer than
+MAX_FUNCTION_LINES without a stated reason."""
 
 import ast
 import os
@@ -63,3 +64,49 @@ def test_no_import_circle():
         if m not in state:
             visit(m, [m])
     assert not circles, "import circles: " + "; ".join(" -> ".join(c) for c in circles)
+
+
+#: the most lines a function in src/ has (its docstring included; a class it defines,
+#: such as the integrator made per variant, is measured method by method)
+MAX_FUNCTION_LINES = 60
+#: functions allowed to be longer, and why
+LONG_FUNCTIONS = {
+    "dopplertof.integrators.analytic.trace_analytic_pass":
+        "a symbolic path loop: its loop state is declared beside the loop (dr.syntax)",
+}
+
+
+def _classes_outside_functions(node):
+    """The class definitions in ``node``'s body that no nested function holds."""
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.ClassDef):
+            yield child
+        elif not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            yield from _classes_outside_functions(child)
+
+
+def function_lengths():
+    """(qualified name, lines) of every function and method in the package."""
+    for module, path in modules().items():
+        def visit(node, prefix):
+            for child in ast.iter_child_nodes(node):
+                if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    lines = child.end_lineno - child.lineno + 1 - sum(
+                        c.end_lineno - c.lineno + 1 for c in _classes_outside_functions(child))
+                    yield f"{prefix}.{child.name}", lines
+                    yield from visit(child, f"{prefix}.{child.name}")
+                elif isinstance(child, ast.ClassDef):
+                    yield from visit(child, f"{prefix}.{child.name}")
+                else:
+                    yield from visit(child, prefix)
+
+        yield from visit(ast.parse(open(path).read()), module)
+
+
+def test_no_function_is_long_without_a_reason():
+    lengths = dict(function_lengths())
+    long = {name: n for name, n in lengths.items()
+            if n > MAX_FUNCTION_LINES and name not in LONG_FUNCTIONS}
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+    stale = [name for name in LONG_FUNCTIONS if lengths.get(name, 0) <= MAX_FUNCTION_LINES]
+    assert not stale, f"LONG_FUNCTIONS names functions that are short now or gone: {stale}"
