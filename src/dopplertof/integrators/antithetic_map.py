@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import drjit as dr
 
-from ..scene.bodies import BodyFrames, body_transforms, nearest_hit, transformed_ray
+from ..scene.bodies import BodyFrames, body_transforms, nearest_hit
+from ..scene.motion import transformed_ray
 from ..scene.motion import determinant3, transform_normal, transform_point
 
 #: a mapped ray meets "the same point" within this fraction of the distance to it

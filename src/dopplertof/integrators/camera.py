@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.bodies import transformed_ray
+from ..scene.motion import transformed_ray
 from ..scene.motion import transform_point, transform_vector
 
 #: the sensor plugin whose rays all leave one point (the pinhole)

@@ -9,7 +9,8 @@ back to world space (docs/design.md section 3). A ray tests each body's own boun
 box in the body's frame at the lane's time, so that rays that cannot hit it skip it.
 
 This module is the one place that knows how motion is traced, so that upstream
-instance motion can replace it when Mitsuba ships it.
+instance motion can replace it when Mitsuba ships it; the per-lane transforms it, the
+lights and the camera apply are in :mod:`.motion`.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .motion import Motion, transform_normal, transform_point, transform_vector
+from .motion import (Motion, select_transform, transform_normal, transform_point,
+                     transform_vector, transformed_ray, vec3)
 
 
 @dataclass
@@ -69,25 +71,6 @@ class BodyFrames:
             rel, inv = body.motion.relative(time)
             self.to_world.append(rel)
             self.to_local.append(inv)
-
-
-def vec3(mi, cls, v):
-    return cls(v[0], v[1], v[2])
-
-
-def select_transform(mi, dr, masks, transforms):
-    """Per lane, the transform of the body whose mask is set (identity elsewhere)."""
-    Float = mi.Float
-    any_linear = any(T[0] is not None for T in transforms)
-    A = [[Float(1.0 if r == c else 0.0) for c in range(3)] for r in range(3)] if any_linear else None
-    b = [Float(0.0), Float(0.0), Float(0.0)]
-    for mask, (TA, Tb) in zip(masks, transforms):
-        b = [dr.select(mask, Tb[i], b[i]) for i in range(3)]
-        if any_linear:
-            TA = TA if TA is not None else [[1.0 if r == c else 0.0 for c in range(3)]
-                                            for r in range(3)]
-            A = [[dr.select(mask, TA[r][c], A[r][c]) for c in range(3)] for r in range(3)]
-    return A, b
 
 
 #: above this many bodies, a lane's candidate bodies no longer fit one 32-bit mask and
@@ -142,16 +125,6 @@ def _box_distances(mi, dr, frames, ray, active, upto):
 
 def _transform_by_index(mi, dr, index, transforms):
     return select_transform(mi, dr, [index == k for k in range(len(transforms))], transforms)
-
-
-def transformed_ray(mi, T, ray, maxt, normalize: bool = False):
-    """``ray`` moved by the transform ``T`` (A or None, b). Without ``normalize`` the
-    direction keeps its scale, so that ray parameters t stay the same in both frames."""
-    import drjit as dr
-
-    d = vec3(mi, mi.Vector3f, transform_vector(T, ray.d))
-    return mi.Ray3f(vec3(mi, mi.Point3f, transform_point(T, ray.o)),
-                    dr.normalize(d) if normalize else d, maxt, ray.time, ray.wavelengths)
 
 
 def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):

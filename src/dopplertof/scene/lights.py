@@ -10,8 +10,7 @@ the contribution stay valid. Static lights go through the same code with the ide
 
 from __future__ import annotations
 
-from .bodies import select_transform, vec3
-from .motion import transform_normal, transform_point, transform_vector
+from .motion import select_transform, transform_normal, transform_point, transform_vector, vec3
 
 
 class LightFrames:

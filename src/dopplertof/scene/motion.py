@@ -290,3 +290,36 @@ def transform_normal(T_inverse, n):
     """Normals move with the inverse transpose of the linear part."""
     A = T_inverse[0]
     return list(n) if A is None else _matvec3(_transpose3(A), n)
+
+
+# ---- Per-lane transforms (Dr.Jit: each lane its own body, time and transform) ----
+
+def vec3(mi, cls, v):
+    """A Dr.Jit 3-vector of type ``cls`` from the list ``v``."""
+    return cls(v[0], v[1], v[2])
+
+
+def select_transform(mi, dr, masks, transforms):
+    """Per lane, the transform of the body whose mask is set (identity elsewhere)."""
+    Float = mi.Float
+    any_linear = any(T[0] is not None for T in transforms)
+    A = ([[Float(1.0 if r == c else 0.0) for c in range(3)] for r in range(3)]
+         if any_linear else None)
+    b = [Float(0.0), Float(0.0), Float(0.0)]
+    for mask, (TA, Tb) in zip(masks, transforms):
+        b = [dr.select(mask, Tb[i], b[i]) for i in range(3)]
+        if any_linear:
+            TA = TA if TA is not None else [[1.0 if r == c else 0.0 for c in range(3)]
+                                            for r in range(3)]
+            A = [[dr.select(mask, TA[r][c], A[r][c]) for c in range(3)] for r in range(3)]
+    return A, b
+
+
+def transformed_ray(mi, T, ray, maxt, normalize: bool = False):
+    """``ray`` moved by the transform ``T`` (A or None, b). Without ``normalize`` the
+    direction keeps its scale, so that ray parameters t stay the same in both frames."""
+    import drjit as dr
+
+    d = vec3(mi, mi.Vector3f, transform_vector(T, ray.d))
+    return mi.Ray3f(vec3(mi, mi.Point3f, transform_point(T, ray.o)),
+                    dr.normalize(d) if normalize else d, maxt, ray.time, ray.wavelengths)
