@@ -1,4 +1,11 @@
-"""Supplementary Sec. 4: antithetic sampling with MIS."""
+"""Supplementary Sec. 4: antithetic sampling with MIS.
+
+Statistics: only test_two_strategy_variance_by_seeded_monte_carlo draws samples (3
+comparisons). Over 30 other seeds: the sampler's mean scatters by 0.004 (abs 0.02: 5.0
+standard deviations), the variance's relative standard deviation is 0.9% (rel 0.05:
+5.4) and the estimate's mean |z| bound is 5 (its standard deviation 0.87: 5.8): a
+false-failure rate of 7e-7 for the three.
+"""
 
 import math
 

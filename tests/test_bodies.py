@@ -1,4 +1,10 @@
-"""Moving bodies: rotation, the swept-box pre-test and the per-packet dispatch."""
+"""Moving bodies: rotation, the swept-box pre-test and the per-packet dispatch.
+
+The comparisons here use the same seed on both sides (equal up to float rounding), but
+for the variants' mean brightness: spectral and mono differ from RGB by 0.08% and 1.5%
+(colour conversion), with a standard deviation of 0.18% and 0.03% over 10 other seeds:
+the 10% tolerance is over 50 of them.
+"""
 
 import numpy as np
 import pytest

@@ -1,5 +1,14 @@
 """The capture pipeline on direct-only analytic scenes: velocity within 2%, depth within
-1 cm, unwrapping, noise, errors, summary and files."""
+1 cm, unwrapping, noise, errors, summary and files.
+
+Statistics: the errors bounded here are systematic (the reconstruction's second-order
+terms), not Monte Carlo noise. Measured over 4-10 other seeds: the largest velocity
+error is 0.27-0.73% (2%: 2.7x or more, its spread over seeds 3e-4, over 40 standard
+deviations), the waveforms' 0.11-0.61%, depth errors at most 2.5e-4 m (1 cm: 40x), the
+radiance's 3.3e-4 (rtol 2e-3: 6x), the close surface's bias 2.44% +- 0.02% of the
+predicted 2.3% (rel 0.15), the noise ratios 130x and 0.037x (bounds 5x and 0.1x): no
+false failures to speak of.
+"""
 
 import json
 import math

@@ -1,5 +1,11 @@
 """Camera and light motion: ego-motion, lights on the camera, moving lights; the
-renderer against quadrature, and the camera pipeline's ground truth relative to the camera."""
+renderer against quadrature, and the camera pipeline's ground truth relative to the camera.
+
+Statistics: the one-pixel renders against quadrature (6 comparisons, rtol 2e-3) scatter
+by under 1e-5 relative over 40 other seeds (0 homodyne): over 200 standard deviations;
+the ego-motion capture's median velocity is off by at most 0.48% over 5 other seeds
+(rtol 2%, systematic). No false failures to speak of.
+"""
 
 import numpy as np
 import pytest

@@ -106,6 +106,9 @@ def test_two_frequency_unwrapping():
     f1, f2 = 30e6, 25e6
     assert rec.unambiguous_range(f1, f2) == pytest.approx(SPEED_OF_LIGHT / (2 * 5e6))
     truth = rng.uniform(0.0, 29.0, 2000)
+    # noise 1 cm: the unwrapped depth's error (the frequency-squared weighted mean of
+    # both) has a standard deviation of 0.72 cm, so 5 cm is 6.9 of them for the largest
+    # of 2000 (1e-8), and over 300 other seeds it is 2.6 cm in the median, at most 3.6 cm
     d1 = np.mod(truth, rec.wrap_distance(f1)) + rng.normal(0, 0.01, truth.shape)
     d2 = np.mod(truth, rec.wrap_distance(f2)) + rng.normal(0, 0.01, truth.shape)
     unwrapped = rec.unwrap_two_frequencies(d1, f1, d2, f2)

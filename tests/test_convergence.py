@@ -71,7 +71,9 @@ def test_methods_agree(scene, naive, method, depth, stratify):
 
 
 def test_antithetic_full_correlation_reduces_variance(scene):
-    """At one beat period per exposure the paper's sampler beats naive sampling."""
+    """At one beat period per exposure the paper's sampler beats naive sampling (its
+    standard error below a third of naive's; measured over 3 x 12 other seeds at most
+    0.048 of it: no false failures to speak of)."""
     s = scene.with_params(hetero_frequency=1.0, hetero_offset=0.0)
     _, se_naive = estimate(s, "uniform", 0, False)
     _, se_anti = estimate(s, "antithetic", FULL_CORRELATION, True)

@@ -224,7 +224,9 @@ def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client)
     rows = (tmp_path / "report" / "metrics.csv").read_text().splitlines()
     assert len(rows) == 1 + 4
     # antithetic time with the whole path shared beats uniform time with independent
-    # paths on a heterodyne image (design.md section 2), even at 8 spp
+    # paths on a heterodyne image (design.md section 2), even at 8 spp (relative MSE
+    # ratio against a 64 spp reference: over 300 other seeds median 0.0014, 1% above
+    # 0.08, at most 0.15; a power-law tail fitted to them exceeds 1/4 with about 1e-4)
     metrics = {r.split(",")[0]: float(r.split(",")[5]) for r in rows[1:]}
     best = metrics["time_sampling_method=antithetic__path_correlation_depth=full"]
     worst = metrics["time_sampling_method=uniform__path_correlation_depth=0"]
