@@ -9,6 +9,7 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene, reference
+from bounds import student_bound
 from conftest import PUBLISHED, render_killed_then_resumed
 from dopplertof import allocation
 
@@ -69,7 +70,9 @@ def test_adaptive_render_matches_quadrature(monkeypatch, h, offset):
     # Plane receding at 30 m/s; h = 1: the value is the Doppler signal alone. Counts
     # forced to a checkerboard of 1024 and 2048 samples (off the budget, on purpose), so
     # that every pixel's sum and count must pair up; the mean over the 4x4 film of box
-    # pixels is the 1-pixel quadrature reference.
+    # pixels is the 1-pixel quadrature reference. The mean of 3 renders scatters by
+    # 1.7e-5 relative (h = 1; 2e-7 at h = 0; 24 other seeds): the 2e-3 tolerance is over
+    # 190 of it, no false failures to speak of.
     seen = {}
 
     def checkerboard(variance, spp, pilot, chunk):
@@ -90,27 +93,47 @@ def test_adaptive_render_matches_quadrature(monkeypatch, h, offset):
     assert abs(np.mean(values) - expected) <= 2e-3 * abs(expected) + 2e-7, (values, expected)
 
 
+#: the whole-image comparison's false-failure rate (both frequencies together): its |t|
+#: bound is the Student quantile at Welch's degrees of freedom (5 to 10), Bonferroni
+WHOLE_IMAGE_RATE = 5e-5
+#: pixels (of 192) allowed beyond 4 standard errors: under the Student tail of 5 degrees
+#: of freedom (P(|t| > 4) = 1.0%, conservatively) about 2 do; 10 or more with
+#: probability 4e-5 (Poisson), so the two frequencies together fail with about 1e-4
+PIXELS_BEYOND_4 = 9
+
+
 @pytest.mark.parametrize("h", [0.0, 1.0])
 def test_adaptive_agrees_with_uniform_on_the_published_scene(h):
     # Global illumination, moving boxes: the adaptive image and the uniform one
     # (independent seeds) agree pixel by pixel within their standard errors.
+    # False failures: about 1e-4 for both frequencies (PIXELS_BEYOND_4, WHOLE_IMAGE_RATE).
+    # Measured over 8 x 12 other seeds: up to 6 of the 576 pixel channels beyond 4 (the
+    # rule before, under 1% of them, failed 1 of those 8: a pixel's channels move
+    # together, so pixels' luminances are counted now: over 10 x 12 other seeds up to 4
+    # of 192, 0.8 on average). At h = 0 a pixel's relative standard error is 1.4% (6
+    # seeds), so sums divided by another pixel's count (off by 50% on half the pixels)
+    # fail the count; the whole image's is 0.17%, so a 1.5% bias of the whole image
+    # fails it (bound about 7 at 10 degrees of freedom).
     scene = dopplertof.load_file(PUBLISHED, {"resx": 16, "resy": 12})
     params = {"hetero_frequency": h, "hetero_offset": 0.2}
-    uni = np.array([dopplertof.render(scene, spp=256, seed=s, params=params)
+    uni = np.array([dopplertof.render(scene, spp=256, seed=s, params=params).mean(-1)
                     for s in range(6)])
     ada = []
     for s in range(6, 12):
         result = dopplertof.render_result(scene, spp=256, seed=s,
                                           params={**params, "adaptive_sampling": True})
         assert result.sample_counts.max() > 2 * result.sample_counts.min()  # it adapts
-        ada.append(result.image)
+        ada.append(result.image.mean(-1))
     ada = np.array(ada)
     se = np.sqrt((uni.var(0, ddof=1) + ada.var(0, ddof=1)) / 6)
     z = (ada.mean(0) - uni.mean(0)) / np.maximum(se, 1e-12)
-    assert np.mean(np.abs(z) > 4) < 0.01, np.sort(np.abs(z).ravel())[-10:]
-    # whole image: the mean difference within 4 standard errors
-    diff = (ada - uni).mean(axis=(1, 2, 3))
-    assert abs(diff.mean()) <= 4 * diff.std(ddof=1) / np.sqrt(6) + 1e-9
+    assert np.sum(np.abs(z) > 4) <= PIXELS_BEYOND_4, np.sort(np.abs(z).ravel())[-10:]
+    # whole image: the means' difference within the Student bound (Welch)
+    u, a = uni.mean(axis=(1, 2)), ada.mean(axis=(1, 2))
+    vu, va = u.var(ddof=1) / 6, a.var(ddof=1) / 6
+    dof = (vu + va) ** 2 / (vu**2 / 5 + va**2 / 5)
+    bound = student_bound(WHOLE_IMAGE_RATE, 2, dof)
+    assert abs(a.mean() - u.mean()) <= bound * np.sqrt(vu + va) + 1e-9, (a.mean(), u.mean())
 
 
 def test_adaptive_render_is_deterministic_whatever_the_passes():

@@ -1,4 +1,14 @@
-"""Supplementary Sec. 3: antithetic, mirrored, stratified and periodic time sampling."""
+"""Supplementary Sec. 3: antithetic, mirrored, stratified and periodic time sampling.
+
+Statistics: quadrature and closed forms, but for the drawn truncated signals. The
+expected variance's minimum at a = 1/2 over 256 draws held for 200 of 200 other seeds:
+its relative margin over the other shifts is 4.4% +- 0.9%, 4.9 standard deviations (a
+false-failure rate of 5e-7). The counterexample is an existence claim: 9% of the draws
+qualify as a local maximum, but the best draw of a search also has a minimum 10% below
+Var(1/2) elsewhere for 99 of 100 other seeds only; the test takes the first of three
+search seeds whose draw has it (failing with about 1e-6). The identities (symmetry, R(0) largest) hold for every
+draw.
+"""
 
 import math
 
@@ -117,12 +127,15 @@ def test_expected_truncated_variance_minimal_at_half():
 
 
 def test_truncated_signal_can_make_half_a_local_maximum():
-    example = find_truncated_counterexample(omega=PI)
-    assert example is not None
     keys = ("phi1", "phi2", "l1", "l2", "v1", "v2", "t_d")
-    signal = TruncatedAttenuatedSinusoid(example["omega"], *(example[k] for k in keys))
-    var = antithetic_variance(signal, SHIFTS)
-    assert var[50] > var[45] and var[50] > var[55]
+    for seed in (1, 2, 3):  # an existence claim: see the module docstring
+        example = find_truncated_counterexample(omega=PI, seed=seed)
+        assert example is not None  # 9% of draws qualify: none of 2048 has p = 1e-83
+        signal = TruncatedAttenuatedSinusoid(example["omega"], *(example[k] for k in keys))
+        var = antithetic_variance(signal, SHIFTS)
+        assert var[50] > var[45] and var[50] > var[55]
+        if var.min() < 0.9 * var[50]:
+            break
     assert var.min() < 0.9 * var[50]
 
 

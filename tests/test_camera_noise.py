@@ -1,12 +1,22 @@
-"""Sensor noise model: shot noise statistics, read noise, clipping, ADC, ambient, seeding."""
+"""Sensor noise model: shot noise statistics, read noise, clipping, ADC, ambient, seeding.
+
+Statistics (90000 draws each): the 6 mean comparisons hold |z| under Z_BOUND, the normal
+quantile that gives them a family-wise false-failure rate of 1e-4 (Bonferroni; 4
+standard errors before: 3.8e-4). The variance comparisons were measured over 20-30
+other seeds: the sample variance's relative standard deviation is 0.43-0.55% (the 3%
+tolerance is 5.4-7 of them, below 1e-7 for all 5) and the ambient light's extra
+variance's 0.9% (the 10% tolerance: 11 of them).
+"""
 
 import numpy as np
 import pytest
 
+from bounds import normal_bound
 from dopplertof.tof import NoiseError, NoiseModel, apply_noise
 
 T = 0.0015
 SHAPE = (300, 300)  # 90000 pixels: the sample variance is within ~1% (4 sigma ~ 2%)
+Z_BOUND = normal_bound(1e-4, 6)  # about 4.3
 
 
 def fine_adc(**kw):
@@ -22,7 +32,7 @@ def test_tap_is_poisson_mean_equals_variance():
     for mean in (4.0, 50.0, 2500.0):
         dn, saturated = model.read_tap(np.full(SHAPE, mean), rng)
         assert not saturated.any()
-        assert dn.mean() == pytest.approx(mean, abs=4 * np.sqrt(mean / dn.size))
+        assert dn.mean() == pytest.approx(mean, abs=Z_BOUND * np.sqrt(mean / dn.size))
         assert dn.var() == pytest.approx(mean, rel=0.03)
 
 
@@ -43,12 +53,12 @@ def test_signed_measurement_mean_and_variance_match_the_model():
     predicted_var = (e_a + e_b + 2 * 9.0 + 2 * 0.01**2 / 12) / k**2
     assert model.variance(value, unmodulated, T) == pytest.approx(predicted_var)
     n = noisy.size
-    assert noisy.mean() == pytest.approx(value, abs=4 * np.sqrt(predicted_var / n))
+    assert noisy.mean() == pytest.approx(value, abs=Z_BOUND * np.sqrt(predicted_var / n))
     assert noisy.var() == pytest.approx(predicted_var, rel=0.03)
     # the variance follows the unmodulated light (A + B), not the signed value
     noisy2, _ = model.measure(np.full(SHAPE, -value), np.full(SHAPE, unmodulated), T, rng)
     noisy2 = noisy2.astype(np.float64)
-    assert noisy2.mean() == pytest.approx(-value, abs=4 * np.sqrt(predicted_var / n))
+    assert noisy2.mean() == pytest.approx(-value, abs=Z_BOUND * np.sqrt(predicted_var / n))
     assert noisy2.var() == pytest.approx(predicted_var, rel=0.03)
 
 
@@ -62,7 +72,7 @@ def test_ambient_light_adds_variance_but_no_bias():
     dark, lit = dark.astype(np.float64), lit.astype(np.float64)
     k = model.electrons_per_unit(T)
     extra = 2 * 0.5 * ambient * T / 2 / k**2  # both taps' ambient electrons
-    assert lit.mean() == pytest.approx(value, abs=4 * np.sqrt(lit.var() / lit.size))
+    assert lit.mean() == pytest.approx(value, abs=Z_BOUND * np.sqrt(lit.var() / lit.size))
     assert lit.var() - dark.var() == pytest.approx(extra, rel=0.1)
 
 

@@ -1,6 +1,7 @@
 """Same seed, same image bitwise, whatever the pass size; zero motion equals static."""
 
 import numpy as np
+from scipy import stats
 
 import dopplertof
 from conftest import PUBLISHED
@@ -29,8 +30,13 @@ def test_different_seeds_give_independent_noise():
         return (dopplertof.render(scene, spp=8, seed=seed).mean(axis=-1) - ref).ravel()
 
     a, b = error(1), error(2)
-    corr = np.corrcoef(a, b)[0, 1]
-    assert abs(corr) < 0.15  # independent noise (768 pixels: 4 sigma ~ 0.14)
+    # rank correlation: the errors are heavy tailed, and Pearson's correlation of them
+    # scatters by 0.053 over seeds (measured, 40 pairs: 0.15 is only 2.8 of those, a
+    # false-failure rate of 5e-3); Spearman's scatters by 0.037 = 1 / sqrt(767) (measured
+    # too), so 0.15 is 4.1 of its standard deviations: a false-failure rate of 4e-5. A
+    # stream shared between seeds gives a correlation near 1.
+    corr = stats.spearmanr(a, b)[0]
+    assert abs(corr) < 0.15, corr  # independent noise
     assert np.array_equal(a, error(1))  # and the same seed replays bitwise
 
 
