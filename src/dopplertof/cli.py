@@ -7,7 +7,7 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
-from .experiments.cli import add_defines_option, add_params_option, parse_pairs
+from .cli_options import add_defines_option, add_params_option, parse_pairs
 from .io import FOLDER_HELP
 
 

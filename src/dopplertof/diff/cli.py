@@ -6,17 +6,7 @@ raises an exception with a one-line message before any work and any output.
 
 from __future__ import annotations
 
-import argparse
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+from ..cli_options import add_defines_option, parse_pairs, positive_int
 
 
 def add_subcommand(sub) -> None:
@@ -26,18 +16,17 @@ def add_subcommand(sub) -> None:
                        "through the renderer (fit.json, convergence.png)")
     f.add_argument("capture", help="folder written by `dopplertof capture`")
     f.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
-    f.add_argument("--spp", type=_positive_int, default=FIT_SPP,
+    f.add_argument("--spp", type=positive_int, default=FIT_SPP,
                    help=f"samples per pixel of the fit's renders (default {FIT_SPP})")
     f.add_argument("--seed", type=int, help="seed of the fit's renders (default: the "
                    "capture's + 1)")
-    f.add_argument("--iterations", type=_positive_int, default=12,
+    f.add_argument("--iterations", type=positive_int, default=12,
                    help="Gauss-Newton iterations at most (default 12)")
     f.add_argument("--angular", action="store_true", help="fit angular velocities too")
     f.add_argument("--start", action="append", metavar="K=VX,VY,VZ",
                    help="start body K's linear velocity (m/s) here instead of the closed "
                    "form (repeatable)")
-    f.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="the capture's -D values for the scene (repeatable)")
+    add_defines_option(f, "the capture's -D values for the scene (repeatable)")
     f.add_argument("--variant", default=None, help="an AD variant (default llvm_ad_rgb)")
     f.add_argument("--quiet", action="store_true", help="no progress bar")
     f.set_defaults(func=run)
@@ -62,7 +51,6 @@ def parse_start(items) -> dict:
 def run(args) -> int:
     import dopplertof
     from ..tof.output import prepare_folder
-    from ..experiments.cli import parse_pairs
     from .fit import fit, format_fit, write_fit
 
     start = parse_start(args.start)

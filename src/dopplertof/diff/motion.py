@@ -132,7 +132,7 @@ class VelocityMotion:
              for i in range(3)]
         # inverse: base^-1 D(t)^-1 (D's linear part is a rotation)
         Bi = np.linalg.inv(self.base)
-        Bi3, Bit = Bi[:3, :3].tolist(), Bi[:3, 3].tolist()
+        Bi3 = Bi[:3, :3].tolist()
         RT = [[R[j][i] for j in range(3)] for i in range(3)]
         IA = [[sum(Bi3[i][k] * RT[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
         ib = [-(IA[i][0] * b[0] + IA[i][1] * b[1] + IA[i][2] * b[2]) for i in range(3)]

@@ -11,25 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..cli_options import (add_defines_option, add_params_option, non_negative_int,
+                           parse_pairs, positive_int)
 from ..io import FOLDER_HELP
-
-
-def _int_at_least(minimum: int, wording: str):
-    """An argparse type: an integer >= ``minimum``."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < minimum:
-            raise argparse.ArgumentTypeError(f"expected {wording}, got {text!r}")
-        return value
-
-    return parse
-
-
-_positive_int = _int_at_least(1, "a positive integer")
-_non_negative_int = _int_at_least(0, "an integer >= 0")
 
 
 def _seconds(text: str) -> float:
@@ -50,36 +34,14 @@ def _seed_list(text: str) -> tuple:
     return seeds
 
 
-def parse_pairs(items, flag: str) -> dict:
-    out = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise ValueError(f"{flag} expects name=value, got {item!r}")
-        out[name.strip()] = value
-    return out
-
-
-def add_defines_option(p) -> None:
-    """``-D NAME=VALUE`` (repeatable; ``parse_pairs(args.defines, "-D")`` reads it)."""
-    p.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE",
-                   help="set a <default> value of the scene (repeatable)")
-
-
-def add_params_option(p, help: str) -> None:
-    """``-P NAME=VALUE`` (repeatable; ``parse_pairs(args.params, "-P")`` reads it), with
-    the command's own ``help``."""
-    p.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE", help=help)
-
-
 def _cluster_options(p) -> None:
     g = p.add_argument_group("cluster")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of a running Dask scheduler, e.g. tcp://host:8786 "
                         "(default: start a LocalCluster)")
-    g.add_argument("--workers", type=_positive_int, metavar="N",
+    g.add_argument("--workers", type=positive_int, metavar="N",
                    help="LocalCluster worker processes (default: CPU count, at most 8)")
-    g.add_argument("--retries", type=_non_negative_int, default=2,
+    g.add_argument("--retries", type=non_negative_int, default=2,
                    help="retries of a failing task before it is reported (default 2)")
     g.add_argument("--variant", help="Mitsuba variant of every worker (default llvm_ad_rgb)")
     g.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
@@ -96,8 +58,8 @@ def add_subcommands(subparsers) -> None:
     s.add_argument("-o", "--output", required=True, help=f"results folder ({FOLDER_HELP})")
     s.add_argument("--preset", choices=PRESETS, help="one of the paper's experiments")
     s.add_argument("--scene", help="scene file of a --preset")
-    s.add_argument("--spp", type=_positive_int, help="samples per pixel of a --preset")
-    s.add_argument("--reference-spp", type=_positive_int,
+    s.add_argument("--spp", type=positive_int, help="samples per pixel of a --preset")
+    s.add_argument("--reference-spp", type=positive_int,
                    help="samples per pixel of a --preset's references (default 4096)")
     s.add_argument("--seeds", type=_seed_list, default=(0,),
                    help="seeds of a --preset, comma-separated (default 0)")
@@ -121,14 +83,14 @@ def add_subcommands(subparsers) -> None:
         description="Frame k exposes [start + k * period, start + k * period + T]; each "
                     "frame runs the camera pipeline; velocity.gif is written beside them.")
     a.add_argument("scene", help="Mitsuba 3 XML scene with <animation> keyframes")
-    a.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
+    a.add_argument("--frames", type=positive_int, required=True, help="number of frames")
     a.add_argument("-o", "--output", required=True, help=f"frames folder ({FOLDER_HELP})")
     a.add_argument("--frame-period", type=_seconds, metavar="SECONDS",
                    help="time between exposure starts (default: the exposure T)")
     a.add_argument("--start", type=_seconds, metavar="SECONDS",
                    help="exposure start of frame 0 (default: the sensor's shutter_open)")
-    a.add_argument("--spp", type=_positive_int, help="samples per pixel per capture")
-    a.add_argument("--seed", type=_non_negative_int, default=0,
+    a.add_argument("--spp", type=positive_int, help="samples per pixel per capture")
+    a.add_argument("--seed", type=non_negative_int, default=0,
                    help="seed of every frame (default 0: noise coherent across frames)")
     a.add_argument("--fps", type=float, default=10.0, help="frames per second of the GIF")
     a.add_argument("--previews", action="store_true",

@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass, field
 
 from .cluster import DEFAULT_RETRIES, dask_client, run_tasks
-from .config import (ConfigError, SweepConfig, check_render_settings, load_scene_facts,
+from .config import (SweepConfig, check_render_settings, load_scene_facts,
                      measurement_key, point_name, split_point)
 from .tasks import RenderTask, is_complete, remove_partial_files, run_render_task
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import allocation, sampling
+from .. import allocation
 from ..params import RenderParams
 from ..sampling import check_sample_count
 

@@ -1,0 +1,48 @@
+"""Command-line pieces several commands share: integer argument types and the
+repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def int_at_least(minimum: int, wording: str):
+    """An argparse type: an integer >= ``minimum``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {wording}, got {text!r}")
+        return value
+
+    return parse
+
+
+positive_int = int_at_least(1, "a positive integer")
+non_negative_int = int_at_least(0, "an integer >= 0")
+
+
+def parse_pairs(items, flag: str) -> dict:
+    """``NAME=VALUE`` items of a repeatable option (``flag``, for the message) as a dict
+    of strings."""
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"{flag} expects name=value, got {item!r}")
+        out[name.strip()] = value
+    return out
+
+
+def add_defines_option(p, help: str = "set a <default> value of the scene (repeatable)"
+                       ) -> None:
+    """``-D NAME=VALUE`` (repeatable; ``parse_pairs(args.defines, "-D")`` reads it)."""
+    p.add_argument("-D", dest="defines", action="append", metavar="NAME=VALUE", help=help)
+
+
+def add_params_option(p, help: str) -> None:
+    """``-P NAME=VALUE`` (repeatable; ``parse_pairs(args.params, "-P")`` reads it), with
+    the command's own ``help``."""
+    p.add_argument("-P", dest="params", action="append", metavar="NAME=VALUE", help=help)
