@@ -6,8 +6,8 @@ its relative margin over the other shifts is 4.4% +- 0.9%, 4.9 standard deviatio
 false-failure rate of 5e-7). The counterexample is an existence claim: 9% of the draws
 qualify as a local maximum, but the best draw of a search also has a minimum 10% below
 Var(1/2) elsewhere for 99 of 100 other seeds only; the test takes the first of three
-search seeds whose draw has it (failing with about 1e-6). The identities (symmetry, R(0) largest) hold for every
-draw.
+search seeds whose draw has it (failing with about 1e-6). The identities (symmetry,
+R(0) largest) hold for every draw.
 """
 
 import math

@@ -8,8 +8,8 @@ freedom: about 6.4 and 7.5). Measured over 30 other seeds: the plane values' rel
 standard deviation is 0.8-1.3% per render at one beat (7e-5-1.3e-4 homodyne), their
 mean's difference from the quadrature consistent with zero (at most 1.5 of its own
 standard errors), so a bias of 3% fails the heterodyne comparisons (0.1% the
-homodyne ones). (4 standard errors of
-8 seeds, as before, is a Student tail of 5e-3 per comparison.)
+homodyne ones). (4 standard errors of 8 seeds, as before, is a Student tail of 5e-3 per
+comparison.)
 """
 
 import numpy as np

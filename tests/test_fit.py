@@ -1,10 +1,15 @@
 """Velocities fitted through the renderer (dopplertof.diff.fit and `dopplertof fit`).
 
 One small capture of the demo scene (48x48, 64 spp per capture) serves every test. The
-fit is deterministic for a seed (its renders take fixed seeds), so its checks do not
-fail at random: from a start 50% wrong the fitted radial velocities were measured
-within 2% of the truth on this capture (-10.16 for -9.98, +9.87 for +9.94) (the demo capture: within 1%, see
-docs/differentiable.md); the bound asserted is 10%, beside a start 50% off.
+fit is deterministic for a seed (its renders take fixed seeds): from a start 50% wrong
+the fitted radial velocities were measured within 2% of the truth on this capture
+(-10.16 for -9.98, +9.87 for +9.94) (the demo capture: within 1%, see
+docs/differentiable.md). That was luck: with the captures of 15 other seeds the fitted
+radial velocities are off by 6.4% RMS (7.2% for seeds 5-15, at most 14.5%; the fit's
+reported uncertainty, about 0.6 m/s, is 1.5x too small at this size), so the 10% bound
+asserted before failed 3 of 15 legitimate changes of seed. The bound is 35%: 5 of those
+standard deviations (a false-failure rate of about 1e-6 per body, 1e-4 if the RMS were
+8.5%); a fit that stays at its start (50% off) or moves the wrong way still fails it.
 """
 
 import json
@@ -41,7 +46,7 @@ def test_fit_recovers_radial_velocities_from_a_start_half_wrong(capture_dir, tmp
     for k, body in enumerate(result.bodies):
         start = body["start_radial_velocity_m_s"]
         assert abs(start / truth[k] - 1) > 0.4  # the start is far off
-        assert abs(body["radial_velocity_m_s"] / truth[k] - 1) < 0.10, (body, truth)
+        assert abs(body["radial_velocity_m_s"] / truth[k] - 1) < 0.35, (body, truth)
         assert body["radial_velocity_uncertainty_m_s"] > 0
         assert len(body["linear_velocity_m_s"]) == 3
     assert result.history[-1]["loss"] < result.history[0]["loss"]
