@@ -21,16 +21,21 @@ import numpy as np
 import pytest
 
 
-@pytest.fixture(scope="module")
-def capture_dir(tmp_path_factory):
+def _demo_capture(tmp_path_factory, name: str, spp: int) -> str:
+    """A folder holding a 48x48 capture of the demo scene at ``spp`` (seed 0)."""
     import dopplertof
     from dopplertof.demo import demo_scene_path
 
     dopplertof.set_variant("llvm_ad_rgb")
-    folder = tmp_path_factory.mktemp("capture")
-    scene = dopplertof.load_file(demo_scene_path(), {"res": 48, "spp": 64})
-    dopplertof.capture(scene, spp=64, seed=0, progress=False).write(str(folder))
+    folder = tmp_path_factory.mktemp(name)
+    scene = dopplertof.load_file(demo_scene_path(), {"res": 48, "spp": spp})
+    dopplertof.capture(scene, spp=spp, seed=0, progress=False).write(str(folder))
     return str(folder)
+
+
+@pytest.fixture(scope="module")
+def capture_dir(tmp_path_factory):
+    return _demo_capture(tmp_path_factory, "capture", 64)
 
 
 def _truths(folder):
@@ -40,14 +45,7 @@ def _truths(folder):
 
 @pytest.fixture(scope="module")
 def precise_capture_dir(tmp_path_factory):
-    import dopplertof
-    from dopplertof.demo import demo_scene_path
-
-    dopplertof.set_variant("llvm_ad_rgb")
-    folder = tmp_path_factory.mktemp("precise_capture")
-    scene = dopplertof.load_file(demo_scene_path(), {"res": 48, "spp": 256})
-    dopplertof.capture(scene, spp=256, seed=0, progress=False).write(str(folder))
-    return str(folder)
+    return _demo_capture(tmp_path_factory, "precise_capture", 256)
 
 
 @pytest.mark.slow  # a whole fit (about 20 s); the CLI test below keeps the module in the fast tier
