@@ -248,3 +248,20 @@ def test_a_description_is_validated_before_anything_loads():
                                                               {"max_depth": "deep"})])
     with pytest.raises(SceneError, match="max_depth"):
         build(mi, bad_depth, never)
+
+
+def test_an_empty_follow_on_the_sensor_keeps_its_keyframes():
+    """follow="" is no follow (the rule book refuses only a non-empty one on the sensor):
+    the loader reads the keyframes as before, rather than leaving the <animation> to
+    Mitsuba."""
+    text = """<scene version="3.0.0"><integrator type="dopplertof"/>
+      <sensor type="perspective"><animation name="to_world" follow="{follow}">
+        <transform time="0"><translate z="5"/></transform>
+        <transform time="0.0015"><translate z="5.01"/></transform></animation>
+        <film type="hdrfilm"><integer name="width" value="4"/>
+          <integer name="height" value="4"/></film></sensor>
+      <emitter type="point"><point name="position" x="0" y="0" z="5"/></emitter>
+      <shape type="rectangle"/></scene>"""
+    assert dopplertof.scene.load_string(text.format(follow="")).sensor_motion is not None
+    with pytest.raises(SceneError, match="'follow' is for lights, not the sensor"):
+        dopplertof.scene.load_string(text.format(follow="sensor"))

@@ -43,8 +43,7 @@ from __future__ import annotations
 import drjit as dr
 
 from ..scene.bodies import BodyFrames, body_transforms, nearest_hit
-from ..scene.motion import transformed_ray
-from ..scene.motion import determinant3, transform_normal, transform_point
+from ..scene.motion import determinant3, transform_normal, transform_point, transformed_ray
 
 #: a mapped ray meets "the same point" within this fraction of the distance to it
 SAME_POINT_TOLERANCE = 1e-4

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.motion import transformed_ray
-from ..scene.motion import transform_point, transform_vector
+from ..scene.motion import transform_point, transform_vector, transformed_ray
 
 #: the sensor plugin whose rays all leave one point (the pinhole)
 PINHOLE_CLASS = "PerspectiveCamera"

@@ -23,7 +23,7 @@ from .. import sampling
 from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
-from ..scene.scene import DTOF_INTEGRATORS
+from ..scene.scene import DTOF_INTEGRATORS, loaded
 from . import pipeline
 from .analytic import trace_analytic_pass
 from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
@@ -65,8 +65,6 @@ def _define_class(mi):
         def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
             """``mi.render``: the D-ToF image of a static Mitsuba scene (its first
             sensor), with this plugin's parameters."""
-            from ..scene.scene import loaded
-
             if not isinstance(sensor, int) and sensor is not scene.sensors()[0]:
                 raise ValueError("dopplertof renders the scene's first sensor only")
             dscene = loaded(mi, scene, self.params)

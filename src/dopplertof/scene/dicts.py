@@ -158,7 +158,7 @@ class _DictParts:
         where = f"<dict>[{key!r}]"
         if kind in SENSOR_TYPES:
             self.motions.append(MotionClaim(where, "sensor", follow=anim.follow))
-            if anim.follow is not None:  # (refused when the description is validated)
+            if anim.follow:  # (refused when the description is validated)
                 return value
             self.sensor_kf = anim.to_keyframes(where)
             return dict(value, to_world=_rest_transform(self.mi, self.sensor_kf))

@@ -33,19 +33,31 @@ def correlated_sampler_params(values: dict, where: str) -> dict:
     return {k: v for k, v in values.items() if k in CORRELATED_SAMPLER_PARAMS}
 
 
-def check_motion(where: str, what: str, plugin_type=None, follow=None,
-                 has_position: bool = False, has_area_emitter: bool = False) -> None:
-    """What may move, one rule book for both loaders: ``what`` is "sensor", "emitter"
-    or "shape", ``follow`` its animation's follow attribute (None: keyframes)."""
+@dataclass(frozen=True)
+class MotionClaim:
+    """An <animation> (an Animation in a dict) as found: what the rule book
+    (:func:`check_motion`) judges when the description is validated."""
+
+    where: str  #: the file and line, or the dict key, for the message
+    what: str  #: "sensor", "emitter" or "shape"
+    plugin_type: str | None = None  #: the emitter's type
+    follow: str | None = None  #: the animation's follow attribute (None: keyframes)
+    has_position: bool = False  #: an emitter that also sets its 'position'
+    has_area_emitter: bool = False  #: a shape that carries an area emitter
+
+
+def check_motion(claim: MotionClaim) -> None:
+    """What may move, one rule book for every scene (:func:`build` applies it)."""
+    where, what, follow = claim.where, claim.what, claim.follow
     if what == "sensor":
         if follow:
             raise SceneError(f"{where}: 'follow' is for lights, not the sensor")
         return
     if what == "emitter":
-        if plugin_type not in MOVABLE_EMITTERS:
+        if claim.plugin_type not in MOVABLE_EMITTERS:
             raise SceneError(f"{where}: only point and spot lights can move, "
-                             f"not type {plugin_type!r}")
-        if has_position:
+                             f"not type {claim.plugin_type!r}")
+        if claim.has_position:
             raise SceneError(f"{where}: a moving light takes its position from the "
                              "<animation> keyframes (an Animation in a dict): remove its "
                              "'position'")
@@ -53,7 +65,7 @@ def check_motion(where: str, what: str, plugin_type=None, follow=None,
             raise SceneError(f"{where}: follow={follow!r}: only follow=\"sensor\" is "
                              "supported")
         return
-    if has_area_emitter:
+    if claim.has_area_emitter:
         raise SceneError(f"{where}: moving area emitters are not supported yet")
 
 
@@ -102,19 +114,6 @@ def default_integrator_note(source: str) -> str:
             f"{p.time_sampling_method}")
 
 
-@dataclass(frozen=True)
-class MotionClaim:
-    """An <animation> (an Animation in a dict) as found: what the rule book
-    (:func:`check_motion`) judges when the description is validated."""
-
-    where: str  #: the file and line, or the dict key, for the message
-    what: str  #: "sensor", "emitter" or "shape"
-    plugin_type: str | None = None  #: the emitter's type
-    follow: str | None = None  #: the animation's follow attribute (None: keyframes)
-    has_position: bool = False  #: an emitter that also sets its 'position'
-    has_area_emitter: bool = False  #: a shape that carries an area emitter
-
-
 @dataclass
 class SceneDescription:
     """What a scene file or dict says, in one form for both loaders, before Mitsuba
@@ -147,8 +146,7 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     d, source = description, description.source
     # ---- What may move ----
     for claim in d.motions:
-        check_motion(claim.where, claim.what, claim.plugin_type, claim.follow,
-                     claim.has_position, claim.has_area_emitter)
+        check_motion(claim)
     # ---- The parameters: the sampler's, then the integrator's ----
     params = d.params
     for where, values in d.parameters:

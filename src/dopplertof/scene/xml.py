@@ -235,7 +235,6 @@ def _referenced_ids(elements) -> set:
     return {el.get("id") for e in elements for el in e.iter("ref") if el.get("id")}
 
 
-
 def _rest_pose(doc: _Doc, elem, anim, what: str) -> Keyframes:
     """Replace ``anim`` by a to_world transform at the first keyframe; the keyframes."""
     if any(t.get("name") == "to_world" for t in elem.findall("transform")):
@@ -261,7 +260,7 @@ def _split_observers(doc: _Doc, motions: list):
         raise SceneError(f"{doc.where(anims[1])}: the sensor has more than one <animation>")
     if anims:
         motions.append(MotionClaim(doc.where(anims[0]), "sensor", follow=anims[0].get("follow")))
-        if anims[0].get("follow") is None:  # (a follow is refused by the validation)
+        if not anims[0].get("follow"):  # (a follow is refused by the validation)
             sensor_kf = _rest_pose(doc, sensor, anims[0], "sensor")
     lights = []
     for k, el in enumerate(root.findall("emitter")):
@@ -309,15 +308,10 @@ def _split_bodies(doc: _Doc, motions: list):
         if len(anims) > 1:
             raise SceneError(f"{doc.where(anims[1])}: a shape has more than one <animation>")
         anim = anims[0]
-        if any(t.get("name") == "to_world" for t in shape.findall("transform")):
-            raise SceneError(f"{doc.where(anim)}: a shape with an <animation> must not also "
-                             "have a <transform name=\"to_world\">")
         motions.append(MotionClaim(doc.where(anim), "shape",
                                    has_area_emitter=shape.find("emitter") is not None))
-        kf = _keyframes(doc, shape, anim)
-        body_shape = doc.copy(shape)
-        body_shape.remove(body_shape.find("animation"))
-        body_shape.insert(0, _matrix_element(kf.matrix_array()[0]))
+        body_shape = doc.copy(shape)  # (the copy keeps the lines, for the messages)
+        kf = _rest_pose(doc, body_shape, body_shape.find("animation"), "shape")
         groups.setdefault(kf, []).append((body_shape, shape.get("id", "shape")))
         root.remove(shape)
     return list(groups.items())
