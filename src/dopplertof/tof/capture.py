@@ -286,7 +286,6 @@ class _Settings:
     base: RenderParams  #: the scene's parameters with the overrides
     spp: int  #: samples per pixel per capture
     seed: int
-    exposure: float  #: T, s
     model: rec.CaptureModel  #: what the reconstruction inverts (h included)
     unwrap: float | None  #: second modulation frequency, MHz
     calibration: str  #: "none" or "inverse-square"
@@ -321,7 +320,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
         mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
-    return _Settings(base, spp, seed, exposure, model, unwrap, calibration, noise,
+    return _Settings(base, spp, seed, model, unwrap, calibration, noise,
                      min_signal_fraction, common_random_numbers, limits, mc_batches)
 
 
@@ -331,14 +330,14 @@ def _sensor_readout(rendered, unmodulated, clean: Reconstruction, settings: _Set
     the renders and ``clean`` (and None for the rest)."""
     if settings.noise is None:
         return rendered, clean, None, None, None
-    captures, saturated, noise = apply_noise(rendered, unmodulated, settings.exposure,
+    captures, saturated, noise = apply_noise(rendered, unmodulated, settings.model.exposure,
                                              settings.noise)
     reconstruction = _reconstruct(captures, settings.model, settings.unwrap,
                                   settings.min_signal_fraction, settings.calibration,
                                   saturated)
     noise_info = noise.describe()
     noise_info["saturated_pixels"] = int(saturated.sum())
-    noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(settings.exposure)
+    noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(settings.model.exposure)
     return captures, reconstruction, clean, noise, noise_info
 
 
@@ -349,7 +348,7 @@ def _predict_precision(rendered, batches, unmodulated, clean: Reconstruction,
     masks, which it applies to ``reconstruction``; (None, None) without mc_batches."""
     if not settings.mc_batches:
         return None, None
-    variances = (prec.capture_variances(rendered, unmodulated, settings.exposure, noise)
+    variances = (prec.capture_variances(rendered, unmodulated, settings.model.exposure, noise)
                  if noise is not None else None)
     uncertainty = prec.predict(rendered, batches, settings.model, settings.unwrap,
                                settings.calibration, clean.depth, variances,
