@@ -165,7 +165,8 @@ def test_good_scene_renders(tmp_path, capsys, output):
 @pytest.mark.parametrize("args,expected", [
     (["--spp", "3"], "not a multiple of the group size"),
     (["--spp", "0"], "spp must be >= 1"),
-    (["--seed", "-1"], "seed must be a non-negative integer"),
+    (["--seed", "-1"], "seed must be an integer in [0, 2^64)"),
+    (["--seed", str(1 << 64)], "seed must be an integer in [0, 2^64), got 18446744073709551616"),
     (["-D", "resolution=4"], "unknown scene parameter 'resolution'"),
     (["-D", "res"], "-D expects name=value"),
     (["-P", "hetero_frequncy=1"], "unknown parameter 'hetero_frequncy'"),
@@ -225,17 +226,48 @@ def test_scene_that_is_not_xml(tmp_path, capsys, output):
 
 
 @pytest.mark.parametrize("rfilter", ["box", "tent"])  # (tent: the splat film's own kernel)
-def test_nonfinite_samples_are_dropped_and_counted(rfilter):
-    """A NaN that reaches the renderer (dict scenes are not checked) is dropped per sample,
-    counted in the metadata, and leaves the image finite."""
+def test_a_few_nonfinite_samples_are_dropped_counted_and_said(rfilter, capfd):
+    """A NaN that reaches the renderer (dict scenes are not checked) on a speck seen by
+    a few samples: dropped per sample, counted in the metadata and on stderr (also
+    without progress output, as --quiet renders), the image finite."""
+    import dopplertof
+    from analytic import plane_scene
+
+    d = plane_scene(3.0, 0.0, spp=16, res=16)
+    d["sensor"]["film"]["rfilter"] = {"type": rfilter}
+    d["nan"] = {"type": "diffuse",
+                "reflectance": {"type": "rgb", "value": [float("nan"), 0.5, 0.5]}}
+    d["speck"] = {"type": "sphere", "center": [0.0, 0.0, 2.9], "radius": 0.004,
+                  "bsdf": {"type": "ref", "id": "nan"}}
+    result = dopplertof.render_result(dopplertof.load_dict(d), seed=0, progress=False)
+    dropped = result.metadata["nonfinite_samples_dropped"]
+    assert 0 < dropped <= 0.01 * 16 * 16 * 16  # (5 of 4096 at seed 0)
+    assert np.all(np.isfinite(result.image))
+    err = capfd.readouterr().err
+    assert f"dopplertof: {dropped} of 4096 samples" in err and "dropped" in err
+
+
+def test_mostly_nonfinite_samples_fail_the_render_naming_the_count():
+    """Every sample meets a NaN (issue 22, item 6: an all-zero image and exit 0 before):
+    a SceneError naming the count, the limit and the likely cause."""
     import dopplertof
     from analytic import plane_scene
 
     d = plane_scene(5.0, 0.0, spp=16, res=4)
-    d["sensor"]["film"]["rfilter"] = {"type": rfilter}
     d["white"] = {"type": "diffuse",
                   "reflectance": {"type": "rgb", "value": [float("nan"), 0.5, 0.5]}}
-    result = dopplertof.render_result(dopplertof.load_dict(d), seed=0)
-    assert np.all(np.isfinite(result.image))
-    assert result.metadata["nonfinite_samples_dropped"] == 4 * 4 * 16
-    assert np.all(result.image == 0)  # every sample met the NaN: nothing of them is left
+    with pytest.raises(dopplertof.SceneError, match=r"256 of 256 samples \(100.00%\) were "
+                       r"non-finite.*more than the 1%.*NaN or infinite values in the scene"):
+        dopplertof.render_result(dopplertof.load_dict(d), seed=0, progress=False)
+
+
+def test_a_phase_float32_cannot_evaluate_fails_the_render(tmp_path, capsys, output):
+    """-P hetero_frequency=1e12 made every sample NaN and wrote an all-zero image with
+    exit 0 (with --quiet, not a word): one line naming the count and the cause, exit 2."""
+    scene = tmp_path / "scene.xml"
+    scene.write_text(GOOD)
+    before = output.read_bytes()
+    code, err = run_cli(capsys, "render", str(scene), "-o", str(output), "--quiet",
+                        "-P", "hetero_frequency=1e12")
+    assert_clean_failure(code, err, "of 144 samples", output, before)  # (6x6, 4 spp)
+    assert "were non-finite" in err and "likely cause: hetero_frequency 1e+12" in err

@@ -198,3 +198,49 @@ def test_auto_sampling_rule():
     p = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=1.0,
                                 time=0.001).resolved(0.0)
     assert p.time_sampling_method == "antithetic" and p.path_correlation_depth == FULL_CORRELATION
+
+
+# ---- Seeds: all 64 bits key the streams (issue 22, item 4) ----------------------------
+
+#: seeds of 2^32 and more, which wrapped modulo 2^32 onto seeds 0 and 1 (and each other)
+LARGE_SEEDS = (1 << 32, (1 << 32) + 1, 1 << 40, (1 << 64) - 1)
+
+
+def _seed_images(seeds):
+    from analytic import plane_scene
+
+    scene = dopplertof.load_dict(plane_scene(3.0, 10.0, spp=8, res=4,
+                                             integrator={"hetero_frequency": 1.0}))
+    return {s: dopplertof.render(scene, seed=s) for s in seeds}
+
+
+def test_seeds_of_2_to_the_32_and_more_give_images_of_their_own():
+    images = _seed_images((0, 1) + LARGE_SEEDS)
+    keys = list(images)
+    for i, a in enumerate(keys):
+        for b in keys[i + 1:]:
+            assert not np.array_equal(images[a], images[b]), (a, b)
+    # NumPy's unsigned integers are the same seeds
+    again = _seed_images([np.uint64((1 << 64) - 1), np.uint64(1 << 32)])
+    assert np.array_equal(again[np.uint64((1 << 64) - 1)], images[(1 << 64) - 1])
+    assert np.array_equal(again[np.uint64(1 << 32)], images[1 << 32])
+
+
+def test_stream_keys_are_the_seeds_words():
+    assert sampling.seed_words(7) == (7, None)  # below 2^32: the key it always had
+    assert sampling.seed_words((1 << 32) + 7) == (7, 1)
+    assert len({sampling.seed_words(s) for s in (0, 1) + LARGE_SEEDS}) == 6
+    with pytest.raises(ValueError, match=r"\[0, 2\^64\)"):
+        sampling.seed_words(1 << 64)
+
+
+@pytest.mark.parametrize("seed, error", [(1 << 64, ValueError), (-1, ValueError),
+                                         (1.5, TypeError), (True, TypeError),
+                                         ("3", TypeError)])
+def test_seeds_outside_the_64_bit_range_or_not_integers_are_refused(seed, error):
+    from analytic import plane_scene
+
+    scene = dopplertof.load_dict(plane_scene(3.0, 0.0, spp=8, res=2))
+    with pytest.raises(error, match="seed must be an integer in") as info:
+        dopplertof.render(scene, seed=seed)
+    assert "\n" not in str(info.value)

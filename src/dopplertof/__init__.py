@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+from . import arguments as _arguments
 from . import backend as _backend
 
 __version__ = "0.1.0"
@@ -29,6 +30,8 @@ from .scene import Animation, DopplerScene, SceneError  # noqa: E402
 def set_variant(variant: str | None = None) -> str:
     """Choose the Mitsuba variant (LLVM RGB by default; checks libLLVM and the GPU) and
     register the D-ToF integrator plugins for it (``<integrator type="dopplertof">``)."""
+    if variant is not None:
+        _arguments.check_text(variant, "variant")
     variant = _backend.set_variant(variant)
     from . import integrators
 
@@ -51,18 +54,23 @@ def _ensure_variant():
 def load_file(path, overrides=None, **kwargs):
     """Load a Mitsuba 3 XML scene (with <animation> keyframes); sets LLVM RGB if no
     JIT variant is set. ``overrides`` (or keyword arguments) set <default> values."""
+    path = _arguments.check_path(path, "path")
+    _arguments.check_mapping(overrides, "overrides")
     _ensure_variant()
     return scene.load_file(path, {**(overrides or {}), **kwargs})
 
 
 def load_string(text: str, overrides=None, **kwargs):
     """Load a scene from XML text; see load_file."""
+    _arguments.check_text(text, "text")
+    _arguments.check_mapping(overrides, "overrides")
     _ensure_variant()
     return scene.load_string(text, {**(overrides or {}), **kwargs})
 
 
 def load_dict(scene_dict: dict):
     """Load a dict scene (Mitsuba's load_dict format, with dopplertof.Animation)."""
+    _arguments.check_mapping(scene_dict, "scene_dict", optional=False)
     _ensure_variant()
     return scene.load_dict(scene_dict)
 
@@ -79,6 +87,7 @@ def capture(scene, spp=None, seed=0, **kwargs):
     if isinstance(scene, (str, os.PathLike)):
         scene = load_file(scene)
     else:
+        _arguments.check_scene(scene, "scene")
         _ensure_variant()
     return _capture(scene, spp, seed, **kwargs)
 

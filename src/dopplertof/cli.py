@@ -238,9 +238,7 @@ def _cmd_render(args) -> int:
               f"{md['spp']} spp"
               + (f" (adaptive: {md['sample_counts']['min']}-{md['sample_counts']['max']} "
                  "per pixel)" if "sample_counts" in md else "")
-              + f", {md['render_seconds']:.1f} s"
-              + (f", {md['nonfinite_samples_dropped']} non-finite samples dropped"
-                 if md["nonfinite_samples_dropped"] else ""))
+              + f", {md['render_seconds']:.1f} s")
     return 0
 
 

@@ -92,6 +92,45 @@ def hashed_uniform(mi, key, dim):
 #: largest sample count per pixel the 32-bit stream keys allow
 MAX_SPP = 1 << 30
 
+#: seeds are the integers in [0, SEED_LIMIT): all 64 bits key the streams (seed_words)
+SEED_LIMIT = 1 << 64
+
+
+def seed_words(seed: int) -> tuple:
+    """The stream key of a seed in [0, 2^64): its (low, high) 32-bit words, the one map
+    from a seed to what the kernel reads (``high`` is None below 2^32). Distinct seeds
+    give distinct words: comparing them compares what the streams are keyed by."""
+    seed = int(seed)
+    if not 0 <= seed < SEED_LIMIT:
+        raise ValueError(f"seed must be an integer in [0, 2^64), got {seed}")
+    high = seed >> 32
+    return seed & 0xFFFFFFFF, (high or None)
+
+
+def _pixel_key(mi, pixel, seed_low, seed_high):
+    """A pixel's 32-bit key, from which all its streams derive: TEA of (pixel, low
+    word), and for a seed of 2^32 or more that key encrypted once more with the high
+    word as the second half of the block.
+
+    Seeds below 2^32 (``seed_high`` None) keep the one TEA they always had: their images
+    are bitwise unchanged. Folding the high word into the low one (low ^ f(high)) would
+    alias seed low ^ f(high) exactly; the second encryption cannot: its block (first
+    key, high word) differs at every pixel, and two seeds give the same image only if
+    their keys agree at every pixel of the film. A key is half of a TEA block (8 rounds
+    of a Feistel cipher, a bijection of 64-bit blocks), so the keys of two seeds agree
+    at a pixel by chance only, 2^-32, independently over the pixels: over N pixels a
+    pair of seeds aliases with chance 2^-32N, and any of the 2^32 seeds below 2^32
+    aliases a given large seed with chance 2^(32 - 32N), at most 2^-96 for films of 4
+    pixels or more: the odds two seeds below 2^32 have always had. (A one-pixel film
+    has only 2^32 keys: seeds alias there by counting, whatever the hash.)
+    tests/test_sampling.py checks 2^32, 2^32 + 1, 2^40 and 2^64 - 1 against seeds 0, 1
+    and each other."""
+    key, _ = mi.sample_tea_32(pixel, seed_low, _KEY_ROUNDS)
+    if seed_high is None:
+        return key
+    key, _ = mi.sample_tea_32(key, seed_high, _KEY_ROUNDS)
+    return key
+
 
 def method_index(name: str) -> int:
     try:
@@ -205,13 +244,15 @@ class CorrelatedStreams:
     Parameters are Dr.Jit UInt32 arrays (one entry per lane) except ``seed`` and
     ``correlation_depth``, which may be opaque scalars. ``group`` keys the time
     stream (``key_group``), ``path_group`` (default: ``group``) the shared path stream
-    (``key_path``); with Kp = K they are one stream, as published.
+    (``key_path``); with Kp = K they are one stream, as published. ``seed`` and
+    ``seed_high`` are the words of :func:`seed_words` (``seed_high`` None below 2^32).
     """
 
-    def __init__(self, mi, pixel, group, sample, seed, correlation_depth, path_group=None):
+    def __init__(self, mi, pixel, group, sample, seed, correlation_depth, path_group=None,
+                 seed_high=None):
         self.mi = mi
-        base, _ = mi.sample_tea_32(pixel, seed, _KEY_ROUNDS)
-        self.base = base
+        self.base = _pixel_key(mi, pixel, seed, seed_high)
+        base = self.base
         self.key_group, _ = mi.sample_tea_32(base, group * 2, _KEY_ROUNDS)
         self.path_group = group if path_group is None else path_group
         self.key_path = (self.key_group if path_group is None
@@ -366,4 +407,6 @@ __all__ = [
     "method_index",
     "check_sample_count",
     "bounce_dim",
+    "seed_words",
+    "SEED_LIMIT",
 ]

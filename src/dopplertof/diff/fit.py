@@ -40,6 +40,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..arguments import check_seed
 from .motion import VelocityMotion
 
 #: captures fitted (their Doppler content is what the velocities change)
@@ -219,7 +220,10 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     data = load_capture(folder, defines)
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
-    seed = int(data.summary.get("seed", 0)) + 1 if seed is None else int(seed)
+    seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
+    # (its renders use seed and seed + 1: both below 2^64)
+    seed = check_seed(seed, "seed", FitError)
+    check_seed(seed + 1, "seed + 1 (the Jacobian's renders)", FitError)
     # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
     motions, t_mid = _motions_at_mid_exposure(data)
     geometry = _truth(data.scene, motions, data.base)

@@ -171,6 +171,7 @@ def plan_animation(scene, output, frames: int, *, frame_period: float | None = N
                    defines: dict | None = None, params: dict | None = None,
                    variant: str | None = None, previews: bool = False) -> list[FrameTask]:
     """Every frame task, checked (scene, parameters, times) before anything runs."""
+    from ..arguments import check_seed
     from ..backend import DEFAULT_VARIANT
     from ..params import RenderParams
 
@@ -179,8 +180,7 @@ def plan_animation(scene, output, frames: int, *, frame_period: float | None = N
         raise ConfigError(f"scene file not found: {scene}")
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
         raise ConfigError(f"--frames must be a positive integer, got {frames!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"--seed must be a non-negative integer, got {seed!r}")
+    seed = check_seed(seed, "--seed", ConfigError)
     variant = variant or DEFAULT_VARIANT
     defines = {k: str(v) for k, v in (defines or {}).items()}
     facts = load_scene_facts(scene, defines, variant)

@@ -14,6 +14,7 @@ import sys
 from ..cli_options import (add_defines_option, add_params_option, non_negative_int,
                            parse_pairs, positive_int)
 from ..io import FOLDER_HELP
+from ..sampling import SEED_LIMIT
 
 
 def _seconds(text: str) -> float:
@@ -29,8 +30,8 @@ def _seed_list(text: str) -> tuple:
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated seeds such as 0,1,2, got {text!r}") from None
-    if not seeds or min(seeds) < 0:
-        raise argparse.ArgumentTypeError(f"expected seeds >= 0, got {text!r}")
+    if not seeds or min(seeds) < 0 or max(seeds) >= SEED_LIMIT:
+        raise argparse.ArgumentTypeError(f"expected seeds in [0, 2^64), got {text!r}")
     return seeds
 
 

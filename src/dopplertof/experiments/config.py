@@ -35,8 +35,10 @@ try:  # Python 3.11+
 except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
+from ..arguments import check_seed
 from ..hints import did_you_mean
 from ..params import FULL_CORRELATION, ParameterError, RenderParams
+from ..sampling import seed_words
 
 #: grid and fixed keys besides the render parameters
 SAMPLE_KEYS = ("spp", "seed")
@@ -116,8 +118,8 @@ def typed_value(name: str, value, where: str):
                 raise ConfigError(f"{where}: {name} must be an integer, got {value!r}")
         if name == "spp" and value < 1:
             raise ConfigError(f"{where}: spp must be >= 1, got {value}")
-        if name == "seed" and value < 0:
-            raise ConfigError(f"{where}: seed must be >= 0, got {value}")
+        if name == "seed":
+            check_seed(value, f"{where}: seed", ConfigError)
         return value
     if isinstance(value, (list, dict)):
         raise ConfigError(f"{where}: {name} must be a single value, got {value!r}")
@@ -263,8 +265,9 @@ def _reference(table: dict, fixed: dict, grid: dict, source: str) -> ReferenceCo
         raise ConfigError(f"{where}: give the reference's spp (a high sample count)")
     spp = typed_value("spp", table["spp"], f"{where}.spp")
     seed = typed_value("seed", table.get("seed", DEFAULT_REFERENCE_SEED), f"{where}.seed")
-    run_seeds = set(grid.get("seed", (fixed.get("seed", 0),)))
-    if seed in run_seeds:
+    # the stream keys compared, not the numbers: what would share random numbers
+    run_keys = {seed_words(s) for s in grid.get("seed", (fixed.get("seed", 0),))}
+    if seed_words(seed) in run_keys:
         raise ConfigError(f"{where}.seed {seed} is also a seed of the runs: a reference must "
                           "not share random numbers with the images it measures")
     params = {}

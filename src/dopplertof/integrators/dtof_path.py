@@ -104,7 +104,10 @@ def _define_class(mi):
             self.params = params  #: RenderParams, ``auto`` resolved
             self.modulation = mod  #: params.Modulation: frequencies, phase, waveform (SI)
             self.modulation_weight = ModulationWeight(mi, mod)  #: w(L, t) of a contribution
-            self.seed = dr.opaque(mi.UInt32, seed & 0xFFFFFFFF)
+            # the seed's stream key: both words of a seed of 2^32 or more (sampling.seed_words)
+            low, high = sampling.seed_words(seed)
+            self.seed = dr.opaque(mi.UInt32, low)
+            self.seed_high = None if high is None else dr.opaque(mi.UInt32, high)
             # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
             # (analytic: a sample's two paths share everything, and samples nothing)
             self.correlation_depth = dr.opaque(

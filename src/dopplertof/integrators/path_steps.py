@@ -129,7 +129,7 @@ def lane_streams(mi, setup, layout: PassLayout):
     return sampling.CorrelatedStreams(
         mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth,
         path_group=(None if setup.path_group_size == setup.group_size
-                    else layout.sample // setup.path_group_size))
+                    else layout.sample // setup.path_group_size), seed_high=setup.seed_high)
 
 
 def film_position(mi, setup, layout: PassLayout, streams):

@@ -27,6 +27,14 @@ DEFAULT_MAX_LANES = 1 << 21
 #: groups per accumulation chunk
 GROUPS_PER_CHUNK = 8
 
+#: the largest share of a render's samples that may be non-finite (NaN or infinite) and
+#: dropped (a few stray samples); above it the render fails (docs/reliability.md)
+MAX_NONFINITE_FRACTION = 0.01
+
+#: phases (radians) beyond which float32 cannot evaluate the modulation: a sine of them
+#: is noise or NaN (2^24: where float32's spacing reaches 1 radian)
+FLOAT32_PHASE_LIMIT = float(1 << 24)
+
 
 @dataclass
 class RenderResult:
@@ -45,10 +53,14 @@ def _show_progress(progress) -> bool:
 
 
 def _resolve(scene, spp, seed, params):
-    """The variant, the parameters (the scene's, overridden, ``auto`` resolved) and
-    the sample count of a render; checks what the kernel cannot."""
+    """The variant, the parameters (the scene's, overridden, ``auto`` resolved), the
+    sample count and the seed of a render; checks what the kernel cannot."""
+    from ..arguments import check_params, check_scene, check_seed, check_spp
     from ..backend import require_variant
 
+    # ---- The arguments' types and ranges (one line naming the argument) ----
+    check_scene(scene, "scene")
+    spp, seed, params = check_spp(spp, "spp"), check_seed(seed, "seed"), check_params(params)
     mi = require_variant()
     if scene.variant != mi.variant():
         raise RuntimeError(
@@ -59,11 +71,9 @@ def _resolve(scene, spp, seed, params):
         p = params if isinstance(params, RenderParams) else RenderParams.from_mapping(
             dict(params), where="render parameters", base=p)
     p = p.resolved(scene.shutter_interval)
-    spp = scene.spp if spp is None else int(spp)
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    spp = scene.spp if spp is None else spp
     check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
-    return mi, p, spp
+    return mi, p, spp, seed
 
 
 class PassPlanner:
@@ -275,7 +285,7 @@ def render_result(integrator, scene, spp: int | None = None, seed: int = 0, para
     refused for a different render (scene, parameters, spp, seed, variant). A complete
     checkpoint returns the image at once; delete the file when the output is safe.
     """
-    mi, p, spp = _resolve(scene, spp, seed, params)
+    mi, p, spp, seed = _resolve(scene, spp, seed, params)
     width, height = (int(v) for v in scene.sensor.film().crop_size())
     setup = integrator.prepared(scene, p, spp, int(seed))
     plan = PassPlanner(spp, setup.group_size, width * height, p, max_lanes, pass_chunks)
@@ -350,6 +360,7 @@ class _Passes:
         per_pixel, timed_out = _samples_taken(
             np.full(self.plan.n_pixels, spp) if counts is None else counts, spp,
             self.reached * chunk, p.timeout, self.saved is not None)
+        _check_nonfinite(self.sums.nonfinite, float(per_pixel.sum()), self.setup.modulation)
         image = self.sums.image(per_pixel, shape)
         metadata = _metadata(self.mi, self.setup, p, spp, seed, per_pixel, timed_out,
                              self.sums.nonfinite, self.started)
@@ -370,6 +381,42 @@ def _check_budget(width, height, channels, spp, plan, p, sums, progress) -> None
         sums.columns, device_columns=sums.columns if sums.weighted else 0))
     if progress is not False and cost.seconds > budget.LONG_RENDER_SECONDS:
         print(f"dopplertof: rendering {cost.describe()}", file=sys.stderr, flush=True)
+
+
+def _check_nonfinite(dropped: int, traced: float, modulation) -> None:
+    """Say on stderr how many of the ``traced`` samples were non-finite and dropped
+    (whenever any were); above MAX_NONFINITE_FRACTION of them the image is not a
+    measurement: a ParameterError or SceneError naming the count and the likely cause."""
+    if not dropped:
+        return
+    share = dropped / max(traced, 1.0)
+    counted = (f"{dropped} of {traced:.0f} samples ({share:.2%}) were non-finite (NaN or "
+               "infinite)")
+    if share <= MAX_NONFINITE_FRACTION:
+        print(f"dopplertof: {counted} and dropped", file=sys.stderr, flush=True)
+        return
+    error, cause = _nonfinite_cause(modulation)
+    raise error(f"{counted}, more than the {MAX_NONFINITE_FRACTION:.0%} a render may drop; "
+                f"likely cause: {cause}")
+
+
+def _nonfinite_cause(modulation):
+    """(error class, text) of what most likely made a render's samples non-finite: a
+    modulation phase float32 cannot evaluate, else the scene's values."""
+    from ..params import ParameterError
+    from ..scene.scene import SceneError
+
+    beat_phase = abs(modulation.omega_d) * modulation.exposure
+    if beat_phase > FLOAT32_PHASE_LIMIT:
+        return ParameterError, (
+            f"hetero_frequency {modulation.hetero_frequency:g} beat periods per exposure: "
+            f"the sensor's phase reaches {beat_phase:.3g} rad, beyond what float32 "
+            f"evaluates ({FLOAT32_PHASE_LIMIT:.3g} rad); use a smaller hetero_frequency")
+    if abs(modulation.psi) > FLOAT32_PHASE_LIMIT:
+        return ParameterError, (f"the sensor phase offset {modulation.psi:.3g} rad is beyond "
+                                f"what float32 evaluates ({FLOAT32_PHASE_LIMIT:.3g} rad)")
+    return SceneError, ("NaN or infinite values in the scene (a texture, an emitter, a "
+                        "mesh) or in its parameters")
 
 
 def _samples_taken(wanted, spp: int, reached: int, timeout: float, resumable: bool):

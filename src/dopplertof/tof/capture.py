@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..arguments import check_params, check_scene, check_seed, check_spp
 from ..modulation import SPEED_OF_LIGHT
 from ..params import RenderParams
 from . import reconstruct as rec
@@ -206,10 +207,8 @@ def _check_unwrap(unwrap_frequency, w_g):
 
 
 def _check_spp_seed(base, spp, seed):
-    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise CaptureError(f"spp must be a positive integer, got {spp!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise CaptureError(f"seed must be a non-negative integer, got {seed!r}")
+    check_spp(spp, "spp", CaptureError)
+    check_seed(seed, "seed", CaptureError)
     if spp % base.time_correlate_number:
         raise CaptureError(f"spp {spp} is not a multiple of the group size "
                            f"time_correlate_number={base.time_correlate_number}")
@@ -301,8 +300,9 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
                     mc_batches, max_velocity_std, max_depth_std) -> _Settings:
     """:func:`capture`'s arguments checked and resolved, in the order of its error
     messages (a CaptureError or PrecisionError names the first bad one)."""
+    check_scene(scene, "scene")
     base = scene.params
-    if params:
+    if check_params(params):
         base = (params if isinstance(params, RenderParams) else
                 RenderParams.from_mapping(dict(params), where="capture parameters", base=base))
     spp = scene.spp if spp is None else spp
@@ -395,9 +395,15 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
     stack's channel mean."""
     from ..render import render_result
 
+    # ---- Every render's seed, checked before the first render (all below 2^64) ----
+    capture_seeds = [check_seed(int(seed) + (0 if common_random_numbers else index),
+                                "seed + capture index", CaptureError)
+                     for index in range(len(specs))]
+    for capture_seed in capture_seeds if mc_batches else ():
+        prec.batch_seeds(capture_seed, mc_batches)
     rendered, records, radiance, batches = {}, [], None, {}
     for index, spec in enumerate(specs):
-        capture_seed = int(seed) if common_random_numbers else int(seed) + index
+        capture_seed = capture_seeds[index]
         if mc_batches:
             image, stack, seconds, dropped = prec.render_batches(
                 scene, spp, capture_seed, spec.params(base), mc_batches, progress)

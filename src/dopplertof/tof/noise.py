@@ -32,6 +32,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ..arguments import check_seed
+
 
 class NoiseError(ValueError):
     """A noise parameter out of range."""
@@ -72,8 +74,7 @@ class NoiseModel:
             fail(f"bits must be an integer in 1..32, got {self.bits!r}")
         if not (math.isfinite(self.ambient) and self.ambient >= 0):
             fail(f"ambient must be >= 0 photons/s, got {self.ambient}")
-        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
-            fail(f"seed must be a non-negative integer, got {self.seed!r}")
+        check_seed(self.seed, "noise: seed", NoiseError)
 
     @property
     def adc_max(self) -> int:

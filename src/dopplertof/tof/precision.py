@@ -51,8 +51,13 @@ class PrecisionError(ValueError):
 
 def batch_seeds(seed: int, batches: int) -> list:
     """Seeds of the B independent batches of a capture rendered with ``seed``:
-    seed * B + b (distinct for distinct seeds at the same B)."""
-    return [int(seed) * int(batches) + b for b in range(int(batches))]
+    seed * B + b (distinct for distinct seeds at the same B), each below 2^64."""
+    from ..arguments import check_seed
+
+    seeds = [int(seed) * int(batches) + b for b in range(int(batches))]
+    check_seed(seeds[-1], f"the batch seeds (seed x mc_batches + batch, mc_batches={batches})",
+               PrecisionError)
+    return seeds
 
 
 def check_batches(batches, spp: int, group_size: int) -> int:

@@ -1,0 +1,90 @@
+"""The arguments of the public entry points, checked one way everywhere.
+
+One function per kind of argument (a seed, a sample count, render parameters, a scene,
+a path, a mapping, a text), shared by render, render_result, capture, the loaders and
+the commands: a TypeError when a value has the wrong type, a ValueError (or the
+caller's subclass of it, ``error``) when it is out of range, each one line naming the
+argument and what it expects. Nothing is converted silently: ``spp=16.7``, ``spp="16"``
+and ``seed=True`` are refused, not read as 16 and 1.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from .params import RenderParams
+from .sampling import SEED_LIMIT
+
+
+def _wrong_type(name: str, expected: str, value) -> TypeError:
+    return TypeError(f"{name} must be {expected}, got {type(value).__name__} {value!r}")
+
+
+def _is_integer(value) -> bool:
+    """A Python or NumPy integer, not a boolean (True is not seed 1)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def check_seed(value, name: str = "seed", error=ValueError) -> int:
+    """A seed: an integer in [0, 2^64) (all 64 bits key the random streams)."""
+    if not _is_integer(value):
+        raise _wrong_type(name, "an integer in [0, 2^64)", value)
+    if not 0 <= int(value) < SEED_LIMIT:
+        raise error(f"{name} must be an integer in [0, 2^64), got {int(value)}")
+    return int(value)
+
+
+def check_spp(value, name: str = "spp", error=ValueError):
+    """A sample count per pixel: a positive integer, or None (the scene's)."""
+    if value is None:
+        return None
+    if not _is_integer(value):
+        raise _wrong_type(name, "a positive integer (None: the scene's sample count)", value)
+    if value < 1:
+        raise error(f"{name} must be >= 1, got {int(value)}")
+    return int(value)
+
+
+def check_params(value, name: str = "params"):
+    """Render parameter overrides: None, a mapping {name: value} or a RenderParams."""
+    if value is None or isinstance(value, (Mapping, RenderParams)):
+        return value
+    raise _wrong_type(name, "a dict {name: value} of render parameters or a RenderParams "
+                            "(None: the scene's)", value)
+
+
+def check_scene(value, name: str = "scene"):
+    """A loaded scene (a DopplerScene)."""
+    from .scene.scene import DopplerScene
+
+    if isinstance(value, DopplerScene):
+        return value
+    hint = (": load it first with dopplertof.load_file(path)"
+            if isinstance(value, (str, os.PathLike)) else "")
+    raise _wrong_type(name, f"a DopplerScene (from dopplertof.load_file){hint}", value)
+
+
+def check_path(value, name: str = "path") -> str:
+    """A file path: a str or an os.PathLike."""
+    if isinstance(value, (str, os.PathLike)) and not isinstance(value, bytes):
+        path = os.fspath(value)
+        if isinstance(path, str):
+            return path
+    raise _wrong_type(name, "a file path (str or os.PathLike)", value)
+
+
+def check_mapping(value, name: str, optional: bool = True):
+    """A dict (``optional``: or None)."""
+    if (value is None and optional) or isinstance(value, Mapping):
+        return value
+    raise _wrong_type(name, "a dict" + (" or None" if optional else ""), value)
+
+
+def check_text(value, name: str = "text") -> str:
+    """A text (str)."""
+    if isinstance(value, str):
+        return value
+    raise _wrong_type(name, "a str", value)
