@@ -144,7 +144,7 @@ def emitter_facing_camera(kind, normalization):
     import mitsuba as mi
 
     d = plane_scene(4.0, 0.0, res=6, integrator={
-        "max_depth": 1, "w_g": 1e-9, "film_normalization": normalization})
+        "max_depth": 1, "w_g": 1e-6, "film_normalization": normalization})
     d["sensor"]["film"].update(rfilter={"type": kind}, height=5, crop_offset_x=1,
                                crop_offset_y=1, crop_width=4, crop_height=3)
     del d["plane"], d["light"]

@@ -45,7 +45,7 @@ WEIGHT = 0.5 * 0.5 * np.cos(2 * np.pi * 0.1)
 
 def dtof(max_depth, **extra):
     """The D-ToF integrator whose image is WEIGHT times stock `path`'s."""
-    return {"type": "dopplertof", "max_depth": max_depth, "w_g": 1e-9, "hetero_offset": 0.1,
+    return {"type": "dopplertof", "max_depth": max_depth, "w_g": 1e-6, "hetero_offset": 0.1,
             "time_sampling_method": "uniform", "path_correlation_depth": 0, **extra}
 
 

@@ -230,6 +230,7 @@ def _cmd_render(args) -> int:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
+    _print_warnings(result.metadata)
     if args.checkpoint and not result.metadata["timed_out"]:  # the output is safe:
         os.unlink(args.checkpoint)  # the checkpoint has served (a timed-out one resumes)
     md = result.metadata
@@ -240,6 +241,12 @@ def _cmd_render(args) -> int:
                  "per pixel)" if "sample_counts" in md else "")
               + f", {md['render_seconds']:.1f} s")
     return 0
+
+
+def _print_warnings(record: dict) -> None:
+    """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
+    for warning in record.get("warnings", ()):
+        print(f"dopplertof: warning: {warning}", file=sys.stderr)
 
 
 _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
@@ -272,6 +279,7 @@ def _cmd_capture(args) -> int:
                                 max_velocity_std=args.max_velocity_std,
                                 max_depth_std=args.max_depth_std)
     result.write(args.output)
+    _print_warnings(result.summary)
     print(format_summary(result.summary, args.output))
     from .tof.precision import format_precision
 
@@ -290,12 +298,13 @@ def _noise_model(args, default: bool):
 
 def _cmd_precision(args) -> int:
     from . import io
+    from .params import FREQUENCY_RANGE_MHZ
     from .tof import study
 
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     w_g = (None if args.w_g is None else
-           study.parse_range(args.w_g, "--w-g (MHz)", 1e-3, 1e5))
+           study.parse_range(args.w_g, "--w-g (MHz)", *FREQUENCY_RANGE_MHZ))
     exposure = (None if args.exposure is None else
                 study.parse_range(args.exposure, "--exposure (s)", 1e-7, 10.0))
     ranged = isinstance(w_g, tuple) or isinstance(exposure, tuple)

@@ -24,6 +24,27 @@ FILM_NORMALIZATIONS = ("expected", "weights")
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
 
+#: the modulation frequencies accepted, in MHz (w_g, w_s, capture's unwrap frequency,
+#: precision's --w-g): 1 Hz (the radiance capture's constant weight) to 100 GHz, every
+#: ToF camera's and far beyond; a value above is a unit mistake (Hz for MHz: w_g=30e6)
+#: or not a camera (docs/parameters.md)
+FREQUENCY_RANGE_MHZ = (1e-6, 1e5)
+
+
+def frequency_problem(name: str, mhz: float) -> str | None:
+    """Why a modulation frequency in MHz is refused (with a did-you-mean in MHz when it
+    reads as Hz), or None."""
+    lo, hi = FREQUENCY_RANGE_MHZ
+    if lo <= mhz <= hi:
+        return None
+    if mhz <= 0:
+        return f"{name} must be > 0 MHz, got {mhz:g}"
+    as_hz = mhz * 1e-6
+    hint = (f"{name} is in MHz: did you mean {name}={as_hz:g}? " if lo <= as_hz <= hi
+            else "")
+    return (f"{hint}{name} must be a modulation frequency in [{lo:g}, {hi:g}] MHz "
+            f"(1 Hz to 100 GHz), got {mhz:g}")
+
 
 
 class ParameterError(ValueError):
@@ -126,10 +147,11 @@ class RenderParams:
                 return f"{name} must be finite, got {v}"
         if self.time is not None and self.time <= 0:
             return f"time (the exposure) must be > 0 seconds, got {self.time}"
-        if self.w_g <= 0:
-            return f"w_g must be > 0 MHz, got {self.w_g}"
-        if self.w_s is not None and self.w_s <= 0:
-            return f"w_s must be > 0 MHz, got {self.w_s}"
+        for name in ("w_g", "w_s"):
+            problem = getattr(self, name) is not None and frequency_problem(
+                name, getattr(self, name))
+            if problem:
+                return problem
         if self.w_s is not None and self.hetero_frequency is not None:
             return ("give w_s or hetero_frequency, not both (hetero_frequency sets "
                     "w_s = w_g + h / T)")

@@ -80,6 +80,7 @@ class AnimationSummary:
     seconds: float = 0.0
     output: str = ""
     video: str | None = None
+    warnings: list = field(default_factory=list)  #: for the caller to say (animate prints)
 
     @property
     def ok(self) -> bool:
@@ -211,6 +212,22 @@ def plan_animation(scene, output, frames: int, *, frame_period: float | None = N
     return tasks
 
 
+def frames_past_keyframes(tasks, span) -> str | None:
+    """A warning naming the frames whose exposure ends after the last keyframe (``span``:
+    the scene's first and last keyframe times; None: nothing moves), else None: there
+    everything holds its last pose and the motion stops, as precision's check points
+    beyond the scene's shutter may."""
+    if span is None:
+        return None
+    slack = 1e-6 * (tasks[0].shutter_close - tasks[0].shutter_open)  # (rounding)
+    past = [t.index for t in tasks if t.shutter_close > span[1] + slack]
+    if not past:
+        return None
+    which = f"frame {past[0]}" if len(past) == 1 else f"frames {past[0]} to {past[-1]}"
+    return (f"{which} of {len(tasks)} end after the last keyframe ({span[1]:g} s): there "
+            "everything holds its last pose and the motion stops (velocity 0)")
+
+
 def run_animation(scene, output, frames: int, *, frame_period: float | None = None,
                   start: float | None = None, spp: int | None = None, seed: int = 0,
                   defines: dict | None = None, params: dict | None = None,
@@ -236,8 +253,10 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
         if os.path.isdir(task.folder):
             remove_partial_files(task.folder)
         pending.append(task)
+    warning = frames_past_keyframes(tasks, load_scene_facts(
+        tasks[0].scene, tasks[0].defines, tasks[0].variant).keyframe_span)
     summary = AnimationSummary(frames=len(tasks), skipped=len(tasks) - len(pending), done=0,
-                               output=output)
+                               output=output, warnings=[warning] if warning else [])
     if pending:
         with dask_client(scheduler, workers, client) as (dask, threads):
             if threads:
@@ -258,6 +277,7 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
         "exposure_starts_s": [t.shutter_open for t in tasks],
         "spp": tasks[0].spp, "seed": tasks[0].seed, "params": tasks[0].params,
         "video": os.path.basename(summary.video) if summary.video else None,
+        "warnings": summary.warnings,
         "last_run": {"done": summary.done, "skipped": summary.skipped,
                      "failed": [{"task": n, "error": e} for n, e in summary.failed],
                      "seconds": round(summary.seconds, 3)},

@@ -186,6 +186,8 @@ def cmd_animate(args) -> int:
         print(f"animate: {summary.frames} frames: {summary.done} done now, {summary.skipped} "
               f"already complete, {len(summary.failed)} failed ({summary.seconds:.1f} s)"
               + (f" -> {summary.video}" if summary.video else f" -> {summary.output}"))
+    for warning in summary.warnings:
+        print(f"dopplertof: warning: {warning}", file=sys.stderr)
     for name, error in summary.failed:
         print(f"dopplertof: frame failed: {name}: {error}", file=sys.stderr)
     return 0 if summary.ok else 1

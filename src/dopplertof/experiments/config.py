@@ -307,6 +307,7 @@ class SceneFacts:
     exposure: float  #: T (s) from the scene's parameters and shutter
     shutter_open: float  #: exposure start (s)
     shutter_interval: float  #: shutter_close - shutter_open (s)
+    keyframe_span: tuple | None = None  #: (first, last) keyframe time (s); None: static
 
 
 def load_scene_facts(scene_path: str, defines: dict, variant: str | None) -> SceneFacts:
@@ -320,7 +321,8 @@ def load_scene_facts(scene_path: str, defines: dict, variant: str | None) -> Sce
     return SceneFacts(params=scene.params, spp=scene.spp, sha256=file_sha256(scene_path),
                       exposure=scene.params.exposure(scene.shutter_interval),
                       shutter_open=scene.shutter_open,
-                      shutter_interval=scene.shutter_interval)
+                      shutter_interval=scene.shutter_interval,
+                      keyframe_span=scene.keyframe_span)
 
 
 def check_render_settings(params: dict, spp: int, facts: SceneFacts, where: str) -> RenderParams:

@@ -20,6 +20,7 @@ import numpy as np
 from .. import allocation
 from ..params import RenderParams
 from ..sampling import check_sample_count
+from ..scene.scene import keyframe_coverage_warning
 
 #: lanes per pass (memory bound: a few hundred MB of JIT state at most)
 DEFAULT_MAX_LANES = 1 << 21
@@ -364,6 +365,10 @@ class _Passes:
         image = self.sums.image(per_pixel, shape)
         metadata = _metadata(self.mi, self.setup, p, spp, seed, per_pixel, timed_out,
                              self.sums.nonfinite, self.started)
+        warning = keyframe_coverage_warning(self.setup.scene.keyframe_span,
+                                            self.setup.shutter_open, metadata["exposure_s"])
+        if warning:  # (for the caller to say: the render command prints it)
+            metadata["warnings"] = [warning]
         if counts is None:
             return RenderResult(image, metadata)
         metadata["sample_counts"] = {"pilot": self.plan.pilot_chunks * chunk,

@@ -21,7 +21,7 @@ import numpy as np
 
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
-                    MotionClaim, SceneDescription, SceneError, build,
+                    SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
                     correlated_sampler_params)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
@@ -110,7 +110,8 @@ def describe(mi, scene: dict) -> SceneDescription:
         if values]
     return SceneDescription("<dict>", parts.static, bodies, parameters,
                             sensor_keyframes=parts.sensor_kf, light_keyframes=parts.light_kfs,
-                            motions=parts.motions, has_integrator=parts.has_integrator)
+                            motions=parts.motions, has_integrator=parts.has_integrator,
+                            shutter_given=parts.shutter_given)
 
 
 class _DictParts:
@@ -126,6 +127,7 @@ class _DictParts:
         self.integrator_values, self.sampler_values = {}, {}
         self.has_integrator = False
         self.motions = []  #: MotionClaim of every Animation
+        self.shutter_given = None  #: the sensor's key when it gives its shutter
 
     def add(self, key, value) -> None:
         """Sort one entry of the scene dict."""
@@ -133,6 +135,8 @@ class _DictParts:
             self.static[key] = value
             return
         kind = value.get("type")
+        if kind in SENSOR_TYPES and any(name in value for name in SHUTTER_NAMES):
+            self.shutter_given = f"<dict>[{key!r}]"
         if key == "integrator" and kind not in DTOF_INTEGRATORS:
             raise SceneError(f"<dict>[{key!r}]: integrator type {kind!r} is not a D-ToF "
                              "integrator: use \"dopplertof\"")

@@ -16,6 +16,8 @@ CORRELATED_SAMPLER_PARAMS = ("time_correlate_number", "path_correlate_number",
                              "use_stratified_sampling_for_each_interval")
 #: every parameter name of the correlated sampler
 SAMPLER_NAMES = ("sample_count", "seed") + CORRELATED_SAMPLER_PARAMS
+#: the sensor properties that give its shutter (the exposure when ``time`` is not given)
+SHUTTER_NAMES = ("shutter_open", "shutter_close")
 
 
 def correlated_sampler_params(values: dict, where: str) -> dict:
@@ -98,10 +100,47 @@ class DopplerScene:
     def shutter_interval(self) -> float:
         return float(self.sensor.shutter_open_time())
 
+    @property
+    def keyframe_span(self):
+        """(first, last) keyframe time (s) over everything that moves (bodies, camera,
+        lights), or None when nothing does."""
+        motions = ([b.motion for b in self.bodies] + [m for _, m in self.light_motions]
+                   + ([self.sensor_motion] if self.sensor_motion is not None else []))
+        if not motions:
+            return None
+        return (min(float(m.times[0]) for m in motions),
+                max(float(m.times[-1]) for m in motions))
+
     def with_params(self, **changes) -> "DopplerScene":
         """A copy with integrator parameters changed (validated)."""
         params = RenderParams.from_mapping(changes, where="parameters", base=self.params)
         return replace(self, params=params)
+
+
+#: the least share of an exposure its keyframes should cover: below it, a render or
+#: capture warns (bodies hold their first or last pose outside the keyframes)
+MIN_KEYFRAME_COVERAGE = 0.5
+
+
+def keyframe_coverage(span, start: float, exposure: float) -> float:
+    """The share of the exposure [start, start + exposure] (s) inside the keyframe
+    ``span`` (first, last), 1 when nothing moves (``span`` None)."""
+    if span is None:
+        return 1.0
+    inside = min(span[1], start + exposure) - max(span[0], start)
+    return max(0.0, inside) / exposure
+
+
+def keyframe_coverage_warning(span, start: float, exposure: float) -> str | None:
+    """A warning when the keyframes cover less than MIN_KEYFRAME_COVERAGE of the
+    exposure (a unit mistake: ``time=1.5`` meant as ms, keyframe times in ms), else None."""
+    share = keyframe_coverage(span, start, exposure)
+    if share >= MIN_KEYFRAME_COVERAGE:
+        return None
+    return (f"the keyframes ({span[0]:g} to {span[1]:g} s) cover {share:.1%} of the exposure "
+            f"({start:g} to {start + exposure:g} s): outside them everything holds its first "
+            "or last pose, and the measured motion stops; time and keyframe times are in "
+            "seconds")
 
 
 def default_integrator_note(source: str) -> str:
@@ -133,6 +172,9 @@ class SceneDescription:
     light_keyframes: list = field(default_factory=list)
     motions: list = field(default_factory=list)  #: MotionClaim of every animation
     has_integrator: bool = True  #: whether the scene names its integrator
+    #: where the sensor gives its shutter (shutter_open or shutter_close), for messages;
+    #: None: not given, the exposure is ``time`` or the default 1.5 ms
+    shutter_given: str | None = None
 
 
 def build(mi, description: SceneDescription, load_part) -> DopplerScene:
@@ -176,6 +218,7 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
             )
     if not static.emitters():
         raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
+    _check_sensor(sensors[0], source, d.shutter_given, params)
     spp = int(sensors[0].sampler().sample_count())
     sensor_motion = Motion(d.sensor_keyframes) if d.sensor_keyframes is not None else None
     ids = [e.id() for e in static.emitters()]
@@ -193,6 +236,25 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     notes = () if d.has_integrator else (default_integrator_note(source),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
                         sensor_motion, tuple(light_motions), notes)
+
+
+def _check_sensor(sensor, source: str, shutter_given: str | None,
+                  params: RenderParams) -> None:
+    """A film of at least one pixel, and a shutter that is open for a while when the
+    scene gives it and it sets the exposure (no ``time``): a zero-length one is refused,
+    as ``time=0`` is (Mitsuba's default shutter, 0 to 0, means none was given: the
+    default exposure)."""
+    width, height = (int(v) for v in sensor.film().crop_size())
+    if width < 1 or height < 1:
+        raise SceneError(f"{source}: the film is {width}x{height} pixels: its width and "
+                         "height must be >= 1")
+    if (shutter_given is None or params.time is not None
+            or float(sensor.shutter_open_time()) > 0):
+        return
+    opens = float(sensor.shutter_open())
+    raise SceneError(f"{shutter_given}: the sensor's shutter (the exposure) must be open "
+                     f"for > 0 seconds, got shutter_open = shutter_close = {opens:g}: set "
+                     "shutter_close > shutter_open, or the integrator's time")
 
 
 def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>") -> DopplerScene:

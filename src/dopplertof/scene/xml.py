@@ -27,7 +27,7 @@ import numpy as np
 
 from ..hints import did_you_mean
 from .motion import Keyframes, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MotionClaim,
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, SHUTTER_NAMES, MotionClaim,
                     SceneDescription, SceneError, build, correlated_sampler_params)
 from .transforms import TransformError, compose
 
@@ -365,10 +365,30 @@ def _mitsuba_error(doc: _Doc, root: ET.Element, text: str, error: Exception) -> 
     el = _element_at(doc, root, text, int(at.group(1)))
     if el is None:
         return f"{doc.source}: {detail}"
+    return f"{doc.where(el)}: {detail}{_origin(doc, el)}"
+
+
+def _origin(doc: _Doc, el) -> str:
+    """"; from -D name=value" when ``el``'s values came from overrides, else ""."""
     given = doc.overridden.get(id(el))
-    origin = ("; from " + ", ".join(f"-D {name}={value}" for name, value in given)
-              if given else "")
-    return f"{doc.where(el)}: {detail}{origin}"
+    return ("; from " + ", ".join(f"-D {name}={value}" for name, value in given)
+            if given else "")
+
+
+def _check_film_size(doc: _Doc, sensor) -> None:
+    """A film of 0 pixels (Mitsuba accepts one) is an error naming the line."""
+    film = sensor.find("film")
+    for child in [] if film is None else film.findall("integer"):
+        name = child.get("name")
+        if name not in ("width", "height", "crop_width", "crop_height"):
+            continue
+        try:
+            value = int(child.get("value", ""))
+        except ValueError:
+            continue  # not an integer: Mitsuba names the problem
+        if value < 1:
+            raise SceneError(f"{doc.where(child)}: the film's {name} must be >= 1 pixel, "
+                             f"got {value}{_origin(doc, child)}")
 
 
 def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
@@ -412,7 +432,10 @@ def describe(doc: _Doc, overrides: dict | None = None) -> SceneDescription:
     _check_finite(doc)
     has_integrator = bool(doc.root.findall("integrator"))
     integrator = _integrator_params(doc)
-    sampler = _sensor(doc)[0]
+    sampler, sensor = _sensor(doc)
+    _check_film_size(doc, sensor)
+    shutter_given = (doc.where(sensor) if any(child.get("name") in SHUTTER_NAMES
+                                             for child in sensor) else None)
     parameters = [(values.pop("__where__"), values) for values in (sampler, integrator)
                   if values]
     motions = []
@@ -422,7 +445,8 @@ def describe(doc: _Doc, overrides: dict | None = None) -> SceneDescription:
               for kf, shapes in _split_bodies(doc, motions)]
     return SceneDescription(doc.source, doc.root, bodies, parameters,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
-                            motions=motions, has_integrator=has_integrator)
+                            motions=motions, has_integrator=has_integrator,
+                            shutter_given=shutter_given)
 
 
 def load_file(path, overrides: dict | None = None):

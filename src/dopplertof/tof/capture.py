@@ -34,7 +34,8 @@ import numpy as np
 
 from ..arguments import check_params, check_scene, check_seed, check_spp
 from ..modulation import SPEED_OF_LIGHT
-from ..params import RenderParams
+from ..params import RenderParams, frequency_problem
+from ..scene.scene import keyframe_coverage_warning
 from . import reconstruct as rec
 from .ground_truth import GroundTruth, ground_truth, light_colocation
 from .noise import NoiseModel, apply_noise
@@ -198,8 +199,10 @@ def _check_unwrap(unwrap_frequency, w_g):
     except (TypeError, ValueError):
         raise CaptureError(f"unwrap frequency must be a number of MHz, got {unwrap_frequency!r}"
                            ) from None
-    if not (math.isfinite(f) and f > 0):
-        raise CaptureError(f"unwrap frequency must be > 0 MHz, got {unwrap_frequency!r}")
+    problem = (frequency_problem("unwrap frequency", f) if math.isfinite(f)
+               else f"unwrap frequency must be finite, got {unwrap_frequency!r}")
+    if problem:
+        raise CaptureError(problem)
     if abs(f - w_g) * 1e6 < 1.0:
         raise CaptureError(f"unwrap frequency {f:g} MHz equals the modulation frequency w_g: "
                            "choose a different one")
@@ -600,6 +603,10 @@ def _summary(scene, settings: _Settings, records, recon, noise_free, truth, nois
         "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),
                     "total": round(seconds, 3)},
     }
+    warning = keyframe_coverage_warning(scene.keyframe_span, scene.shutter_open,
+                                        model.exposure)
+    if warning:  # (the capture command prints it on stderr)
+        summary["warnings"] = [warning]
     if noise_free is not None:
         summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
         summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
