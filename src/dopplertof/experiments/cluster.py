@@ -11,8 +11,8 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-#: fewest Dr.Jit threads a worker is given: with one thread, Mitsuba 3.9.1's EXR writer
-#: (mi.Bitmap.write) waits forever on Dr.Jit's thread pool
+#: fewest Dr.Jit threads a worker is given (its EXR writes need two, and io.write_exr
+#: raises the count for the write in any case: io.MIN_EXR_THREADS)
 MIN_DRJIT_THREADS = 2
 
 #: retries of a task that raised, before it is reported as failed
