@@ -156,10 +156,10 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
             raise SceneError(str(e)) from None
 
     # ---- Load the static scene and each body ----
-    static, text = load_part(d.static, "scene")
+    static, text = _load_checked(mi, load_part, d.static, "scene", source)
     texts, bodies = [text], []
     for kf, names, part in d.bodies:
-        body_scene, text = load_part(part, f"body {list(names)}")
+        body_scene, text = _load_checked(mi, load_part, part, f"body {list(names)}", source)
         texts += [text, repr(kf)]
         bodies.append(MovingBody(body_scene, Motion(kf), tuple(names)))
     texts += [repr(d.sensor_keyframes), repr(d.light_keyframes)]
@@ -193,6 +193,18 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     notes = () if d.has_integrator else (default_integrator_note(source),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
                         sensor_motion, tuple(light_motions), notes)
+
+
+def _load_checked(mi, load_part, part, what: str, source: str):
+    """``load_part(part, what)``, its meshes checked (no faces, indices past the last
+    vertex, non-finite positions: Mitsuba loads some of these)."""
+    from .meshes import loaded_meshes_problem
+
+    scene, text = load_part(part, what)
+    problem = loaded_meshes_problem(mi, scene)
+    if problem:
+        raise SceneError(f"{source}: {problem}")
+    return scene, text
 
 
 def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>") -> DopplerScene:
