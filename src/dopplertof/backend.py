@@ -13,6 +13,7 @@ import glob
 import os
 import re
 import signal
+import sys
 import threading
 
 #: oldest libLLVM major version that Dr.Jit 1.5 runs on (14 and 15 abort; 19 is tested)
@@ -109,6 +110,10 @@ def set_variant(variant: str | None = None) -> str:
         )
     if variant.startswith("llvm_"):
         ensure_libllvm()
+        if "drjit" not in sys.modules:  # ---- before Dr.Jit starts: can it, in this limit?
+            from .budget import check_address_space_to_start
+
+            check_address_space_to_start()
     with interrupts_deferred():
         return _set_mitsuba_variant(variant)
 
