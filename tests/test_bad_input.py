@@ -271,3 +271,94 @@ def test_a_phase_float32_cannot_evaluate_fails_the_render(tmp_path, capsys, outp
                         "-P", "hetero_frequency=1e12")
     assert_clean_failure(code, err, "of 144 samples", output, before)  # (6x6, 4 spp)
     assert "were non-finite" in err and "likely cause: hetero_frequency 1e+12" in err
+
+
+# ---- Bad mesh files (issue 22, item 15): the file named and what is wrong with it ------
+
+QUAD_OBJ = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n"
+
+
+def binary_ply(vertices, faces, vertex_count=None) -> bytes:
+    """A binary little-endian PLY of float xyz vertices and triangles (uchar, int)."""
+    import struct
+
+    header = (f"ply\nformat binary_little_endian 1.0\n"
+              f"element vertex {len(vertices) if vertex_count is None else vertex_count}\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              f"element face {len(faces)}\nproperty list uchar int vertex_indices\n"
+              "end_header\n")
+    return (header.encode() + np.asarray(vertices, "<f4").tobytes()
+            + b"".join(struct.pack("<B3i", 3, *face) for face in faces))
+
+
+QUAD = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+ASCII_PLY = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+             "end_header\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2\n3 0 2 3\n")
+
+# (case id, file name, contents, expected text in the message besides the file name)
+MESH_CASES = [
+    ("obj-empty", "wall.obj", b"", "the file is empty"),
+    ("obj-binary-junk", "wall.obj", bytes(range(256)) * 2, "not an OBJ text file"),
+    ("obj-cut-in-a-face", "wall.obj", QUAD_OBJ[:41].encode(), "line 5: a face with only 2"),
+    ("obj-cut-in-a-vertex", "wall.obj", QUAD_OBJ[:14].encode(), "line 2: a vertex with 1"),
+    ("obj-no-faces", "wall.obj", QUAD_OBJ[:36].encode(), "no faces"),
+    ("obj-index-out-of-range", "wall.obj", QUAD_OBJ.replace("f 1 3 4", "f 1 3 9").encode(),
+     "line 6: a face uses vertex 9, but 4 vertices"),
+    ("obj-nan-vertex", "wall.obj", QUAD_OBJ.replace("v 1 1 0", "v 1 nan 0").encode(),
+     "line 3: non-finite vertex"),
+    ("ply-empty", "wall.ply", b"", "the file is empty"),
+    ("ply-not-ply", "wall.ply", b"\x89PNG" + bytes(100), "not a PLY file"),
+    ("ply-cut-off", "wall.ply", binary_ply(QUAD, [[0, 1, 2], [0, 2, 3]])[:-10],
+     "cut off: 64 bytes of data, the header's counts need at least 74"),
+    ("ply-counts-disagree", "wall.ply", binary_ply(QUAD, [[0, 1, 2]], vertex_count=6),
+     "the header's counts need at least"),
+    ("ply-no-faces", "wall.ply", binary_ply(QUAD, []), "no faces"),
+    ("ply-index-out-of-range", "wall.ply", binary_ply(QUAD, [[0, 1, 2], [0, 2, 9]]),
+     "face 1 uses vertex 9 (counting from 0), but the mesh has 4 vertices"),
+    ("ply-ascii-cut-off", "wall.ply", ASCII_PLY[:-5].encode(),
+     "data line 6 (face 1): '3 0' is not a whole face"),
+]
+
+
+def scene_with_mesh(tmp_path, name: str) -> str:
+    scene = tmp_path / "scene.xml"
+    scene.write_text(GOOD.replace(
+        '<bsdf type="diffuse" id="white"/>',
+        f'<bsdf type="diffuse" id="white"/><shape type="{name[-3:]}" id="wall">'
+        f'<string name="filename" value="{name}"/><ref id="white"/></shape>'))
+    return str(scene)
+
+
+@pytest.mark.parametrize("name,contents,expected", [c[1:] for c in MESH_CASES],
+                         ids=[c[0] for c in MESH_CASES])
+def test_bad_mesh_file(tmp_path, capsys, output, name, contents, expected):
+    (tmp_path / name).write_bytes(contents)
+    scene = scene_with_mesh(tmp_path, name)
+    before = output.read_bytes()
+    code, err = run_cli(capsys, "render", scene, "-o", str(output), "--quiet")
+    assert_clean_failure(code, err, expected, output, before)
+    assert "wall" in err  # the mesh named: its file, or its id for what Mitsuba loaded
+
+
+@pytest.mark.parametrize("name,contents", [
+    ("wall.obj", QUAD_OBJ.encode()), ("wall.ply", binary_ply(QUAD, [[0, 1, 2], [0, 2, 3]])),
+    ("wall.ply", ASCII_PLY.encode())], ids=["obj", "binary-ply", "ascii-ply"])
+def test_good_mesh_files_render(tmp_path, capsys, output, name, contents):
+    (tmp_path / name).write_bytes(contents)
+    code, err = run_cli(capsys, "render", scene_with_mesh(tmp_path, name), "-o", str(output),
+                        "--quiet")
+    assert code == 0, err
+
+
+def test_bad_mesh_in_a_dict_scene(tmp_path, monkeypatch):
+    import dopplertof
+    from analytic import plane_scene
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "empty.obj").write_bytes(b"")
+    d = plane_scene(5.0, 0.0, spp=4, res=4)
+    d["wall"] = {"type": "obj", "filename": "empty.obj"}
+    with pytest.raises(dopplertof.SceneError, match="'wall': mesh file empty.obj: the file is "
+                       "empty"):
+        dopplertof.load_dict(d)

@@ -51,3 +51,54 @@ def test_ctrl_c_during_animate_is_one_line_and_stops_the_workers(tmp_path):
     assert not _group_alive(proc.pid), "worker processes left running"
     assert not glob.glob(str(out / "**" / ".*.tmp*"), recursive=True)
     assert not glob.glob(str(out / "frame_*" / "*.npy"))  # no frame was complete
+
+
+# ---- Ctrl-C during a render (issue 22, item 13) --------------------------------------
+
+def test_interrupt_wrapped_by_drjit_is_the_interrupt_line(tmp_path, monkeypatch, capsys):
+    """Dr.Jit turns a KeyboardInterrupt raised inside a loop it traces into
+    ``RuntimeError: dr.while_loop(): encountered an exception (see above)``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    import dopplertof
+    from dopplertof.cli import main
+
+    def render_interrupted_in_a_loop(*args, **kwargs):
+        def body(i):
+            raise KeyboardInterrupt
+
+        dr.while_loop((mi.UInt32(0, 1),), lambda i: i < 10, body)
+
+    monkeypatch.setattr(dopplertof, "render_result", render_interrupted_in_a_loop)
+    code = main(["render", SPHERE, "-D", "res=8", "-o", str(tmp_path / "x.npy"), "--quiet"])
+    assert (code, capsys.readouterr().err) == (130, "dopplertof: interrupted\n")
+
+
+@pytest.mark.slow
+def test_sigint_at_any_moment_of_a_render_is_one_line(tmp_path):
+    """SIGINT at several moments after the CLI's main starts: while it builds its parser,
+    sets the variant, loads the scene, renders. Always the one line and exit 130."""
+    out = tmp_path / "x.npy"
+    code = ("import sys, dopplertof.cli as cli; print('ready', flush=True); "
+            "sys.exit(cli.main(sys.argv[1:]))")
+    argv = [sys.executable, "-c", code, "render", SPHERE, "-D", "res=64", "--spp", "1024",
+            "-o", str(out), "--quiet"]
+    outcomes = []
+    for delay in (0.05, 0.2, 0.4, 0.7, 1.0, 1.5, 2.5):
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        try:
+            assert proc.stdout.readline() == "ready\n"
+            time.sleep(delay)
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        outcomes.append((delay, proc.returncode, err))
+    bad = [o for o in outcomes if o[1:] != (130, "dopplertof: interrupted\n")]
+    assert not bad, bad
+    assert not out.exists() and not list(tmp_path.glob(".*.tmp*"))

@@ -8,9 +8,13 @@ usable libLLVM and point ``DRJIT_LIBLLVM_PATH`` at it, or stop with a clear mess
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import re
+import signal
+import sys
+import threading
 
 #: oldest libLLVM major version that Dr.Jit 1.5 runs on (14 and 15 abort; 19 is tested)
 MIN_LLVM_MAJOR = 16
@@ -106,6 +110,16 @@ def set_variant(variant: str | None = None) -> str:
         )
     if variant.startswith("llvm_"):
         ensure_libllvm()
+        if "drjit" not in sys.modules:  # ---- before Dr.Jit starts: can it, in this limit?
+            from .budget import check_address_space_to_start
+
+            check_address_space_to_start()
+    with interrupts_deferred():
+        return _set_mitsuba_variant(variant)
+
+
+def _set_mitsuba_variant(variant: str) -> str:
+    """Import Mitsuba and select ``variant`` (checked by :func:`set_variant`)."""
     import mitsuba as mi
 
     if variant not in mi.variants():
@@ -122,6 +136,27 @@ def set_variant(variant: str | None = None) -> str:
         raise BackendError(f"cannot use variant {variant!r}: {exc}") from None
     _log_to_stderr(mi)
     return variant
+
+
+@contextlib.contextmanager
+def interrupts_deferred():
+    """Hold a Ctrl-C (SIGINT) back until the block ends, then deliver it to the handler
+    that was there: a KeyboardInterrupt raised while Mitsuba's and Dr.Jit's C++ modules
+    initialise comes back as an unrelated error or aborts the process (SIGABRT). Only in
+    the main thread, where Python runs signal handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if held and callable(previous):
+        previous(signal.SIGINT, held[0])  # the default handler raises KeyboardInterrupt
+    elif held and previous == signal.SIG_DFL:
+        signal.raise_signal(signal.SIGINT)
 
 
 def _has_cuda() -> bool:

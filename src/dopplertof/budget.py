@@ -75,31 +75,191 @@ def estimate(width: int, height: int, channels: int, spp: int, chunk: int,
                     max(lanes, pixels * device_columns))
 
 
+#: address space a render takes beyond its estimate: LLVM compiling its kernels, thread
+#: stacks (VmPeak of a 16x16 render 140 MiB above its VmSize before)
+RENDER_ADDRESS_SPACE = 192 << 20
+#: address space Mitsuba and Dr.Jit take to start, load a scene and pass the budget of a
+#: tiny render, measured on the development machine: VmSize 482 MiB once the variant is
+#: set, 670 MiB after loading with 2 threads (916 MiB with 8), plus RENDER_ADDRESS_SPACE.
+#: Below about 680 MiB (2 threads) Dr.Jit hangs in an allocator (620 MiB), aborts
+#: (450 MiB) or reports a missing libLLVM (300 MiB). A base and a part per thread:
+START_ADDRESS_SPACE = 800 << 20
+ADDRESS_SPACE_PER_THREAD = 32 << 20
+#: where cgroup file systems are mounted (v2: one hierarchy; v1: memory/)
+CGROUP_ROOT = "/sys/fs/cgroup"
+
+
+@dataclass(frozen=True)
+class MemoryLimit:
+    """The memory a render may use now, and which limit sets it (for the message)."""
+
+    available: int  #: bytes
+    source: str  #: e.g. "MemAvailable", "the address-space limit (ulimit -v) of 3 GiB"
+
+
 def available_memory() -> int | None:
-    """Bytes of memory available now (Linux MemAvailable), else the physical memory."""
+    """Bytes a render may allocate now: the smallest of :func:`memory_limits`."""
+    limit = tightest_memory_limit()
+    return None if limit is None else limit.available
+
+
+def tightest_memory_limit() -> MemoryLimit | None:
+    limits = memory_limits()
+    return min(limits, key=lambda limit: limit.available) if limits else None
+
+
+def memory_limits() -> list[MemoryLimit]:
+    """Every limit found: the system's MemAvailable (else its physical memory), the
+    cgroup's memory limit less its usage, the address-space limit (RLIMIT_AS, ``ulimit
+    -v``) less the address space in use and what a render needs beside its arrays."""
+    limits = [limit for limit in (_system_memory(), cgroup_memory(), _address_space_left())
+              if limit is not None]
+    return limits
+
+
+def _system_memory() -> MemoryLimit | None:
     try:
         with open("/proc/meminfo") as f:
             for line in f:
                 if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
+                    return MemoryLimit(int(line.split()[1]) * 1024, "MemAvailable")
     except (OSError, ValueError, IndexError):
         pass
     try:
-        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        return MemoryLimit(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"),
+                           "the physical memory")
     except (ValueError, OSError, AttributeError):
         return None
 
 
+def address_space_limit() -> int | None:
+    """The soft RLIMIT_AS in bytes (``ulimit -v``), None when unlimited."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
+def _address_space_in_use() -> int:
+    """This process's virtual size (VmSize), 0 where /proc does not say."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
+def _address_space_left() -> MemoryLimit | None:
+    limit = address_space_limit()
+    if limit is None:
+        return None
+    left = max(0, limit - _address_space_in_use() - RENDER_ADDRESS_SPACE)
+    return MemoryLimit(left, f"the address-space limit (ulimit -v) of {_mib(limit)}, less "
+                       f"the {_mib(limit - left)} this process and a render's kernels take")
+
+
+def cgroup_memory(root: str | None = None) -> MemoryLimit | None:
+    """The cgroup's memory limit less its usage (v2 ``memory.max`` - ``memory.current``,
+    v1 ``memory.limit_in_bytes`` - ``memory.usage_in_bytes``; page cache it may drop,
+    ``inactive_file``, counts as free), None without a limit."""
+    root = CGROUP_ROOT if root is None else root
+    for folder in _cgroup_folders(root):
+        for limit_file, usage_file, cache_key in (
+                ("memory.max", "memory.current", "inactive_file"),
+                ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")):
+            limit = _read_int(os.path.join(folder, limit_file))
+            if limit is None or limit >= 1 << 60:  # "max", or v1's "no limit"
+                continue
+            usage = _read_int(os.path.join(folder, usage_file)) or 0
+            usage -= _memory_stat(os.path.join(folder, "memory.stat"), cache_key)
+            return MemoryLimit(max(0, limit - max(0, usage)),
+                               f"the cgroup memory limit of {_mib(limit)} ({limit_file}) "
+                               f"less the {_mib(max(0, usage))} in use")
+    return None
+
+
+def _cgroup_folders(root: str) -> list[str]:
+    """The folders that may hold this process's cgroup memory files: its own cgroup
+    (from /proc/self/cgroup) under the v2 root and v1's memory/, then those roots (a
+    container sees its own cgroup as the root)."""
+    paths = []
+    try:
+        with open("/proc/self/cgroup") as f:
+            for line in f:
+                _, controllers, path = line.rstrip("\n").split(":", 2)
+                if controllers in ("", "memory") or "memory" in controllers.split(","):
+                    paths.append(os.path.join(root, "" if controllers == "" else "memory",
+                                              path.lstrip("/")))
+    except (OSError, ValueError):
+        pass
+    return [p for p in paths + [root, os.path.join(root, "memory")] if os.path.isdir(p)]
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path) as f:
+            return int(f.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _memory_stat(path: str, key: str) -> int:
+    try:
+        with open(path) as f:
+            for line in f:
+                name, _, value = line.partition(" ")
+                if name == key:
+                    return int(value)
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def address_space_to_start(threads: int) -> int:
+    """Bytes of address space Mitsuba and Dr.Jit need to start with ``threads`` threads
+    and render a tiny image."""
+    return START_ADDRESS_SPACE + ADDRESS_SPACE_PER_THREAD * max(1, threads)
+
+
+def check_address_space_to_start(threads: int | None = None) -> None:
+    """Refuse, before Mitsuba starts, an address-space limit below what it needs to start
+    (below it, Dr.Jit reports a missing libLLVM, aborts, or hangs in an allocator)."""
+    limit = address_space_limit()
+    if limit is None:
+        return
+    threads = threads or _cpus()
+    needed = address_space_to_start(threads)
+    if limit < needed:
+        raise ResourceError(
+            f"the address-space limit (ulimit -v) of {_mib(limit)} is below the ~"
+            f"{_mib(needed)} that Mitsuba and Dr.Jit need to start with {threads} "
+            "thread(s): memory is the cause; raise the limit (ulimit -v), or run on fewer "
+            "CPUs (taskset)")
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def check(est: Estimate, available: int | None = None) -> Estimate:
-    """Refuse a render that cannot fit, naming the estimate and what to lower."""
-    available = available_memory() if available is None else available
+    """Refuse a render that cannot fit, naming the estimate, the limit that refuses it
+    and what to lower."""
+    limit = tightest_memory_limit() if available is None else MemoryLimit(available, "")
+    available = None if limit is None else limit.available
     too_big = available is not None and est.bytes > available
     too_long = est.largest_array > MAX_LANES
     if not (too_big or too_long):
         return est
     reasons = []
     if too_big:
-        reasons.append(f"more than the {_gib(available)} available")
+        reasons.append(f"more than the {_gib(available)} of memory available"
+                       + (f" ({limit.source})" if limit.source else ""))
     if too_long:
         reasons.append(f"an array of {est.largest_array:.3g} entries (a pass of "
                        f"{est.lanes_per_pass:.3g} samples), more than Dr.Jit's "
@@ -119,6 +279,10 @@ def _gib(n: float) -> str:
         if n >= size:
             return f"{n / size:.3g} {unit}"
     return f"{n / 2**20:.3g} MiB"
+
+
+def _mib(n: float) -> str:
+    return f"{n / 2**20:.0f} MiB"
 
 
 def _duration(seconds: float) -> str:

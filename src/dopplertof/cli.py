@@ -366,22 +366,73 @@ def _cmd_figures(args) -> int:
 
 
 def main(argv=None) -> int:
-    parser = _parser()
-    args = parser.parse_args(argv)
+    interrupt, args = _InterruptWatch(), None
     try:
-        commands = {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
-                    "precision": _cmd_precision,
-                    "figures": _cmd_figures}
-        return commands[args.command](args) if args.command in commands else args.func(args)
+        with interrupt:
+            args = _parser().parse_args(argv)
+            commands = {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
+                        "precision": _cmd_precision,
+                        "figures": _cmd_figures}
+            return commands[args.command](args) if args.command in commands else \
+                args.func(args)
     except KeyboardInterrupt:
-        print("dopplertof: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
     except Exception as exc:  # one line for the user; --debug for the traceback
-        if args.debug:
+        if interrupt.seen or _caused_by_interrupt(exc):
+            return _interrupted()  # Dr.Jit and Mitsuba wrap the KeyboardInterrupt
+        if args is None or args.debug:
             raise
         msg = " ".join(str(exc).split()) or type(exc).__name__
         print(f"dopplertof: error: {msg}", file=sys.stderr)
         return 2
+
+
+def _interrupted() -> int:
+    print("dopplertof: interrupted", file=sys.stderr)
+    return 130
+
+
+class _InterruptWatch:
+    """While a command runs, Ctrl-C (SIGINT) raises KeyboardInterrupt as usual and is
+    remembered: Dr.Jit turns a KeyboardInterrupt raised inside its loops into
+    ``dr.while_loop(): encountered an exception (see above)``, with nothing above, and
+    an exception that follows an interrupt is the interrupt's doing. Only in the main
+    thread, and only over Python's own handler (a caller's handler is left alone)."""
+
+    def __init__(self):
+        self.seen = False
+        self._previous = None
+
+    def _on_sigint(self, signum, frame):
+        self.seen = True
+        raise KeyboardInterrupt
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread() and \
+                signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def __exit__(self, *exc_info):
+        import signal
+
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in ``exc``'s chain (its causes and contexts)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 if __name__ == "__main__":

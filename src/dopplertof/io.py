@@ -16,6 +16,7 @@ import contextlib
 import json
 import os
 import tempfile
+import threading
 
 import numpy as np
 
@@ -127,8 +128,34 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
         for key, value in metadata.items():
             text = value if isinstance(value, str) else json.dumps(value, default=_json_default)
             props[f"dopplertof.{key}"] = text
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, _exr_writer_threads():
         bitmap.write(tmp)
+
+
+#: fewest Dr.Jit threads Mitsuba's EXR writer needs: OpenEXR (mi.Bitmap.write, Mitsuba
+#: 3.9) hands its scan lines to Dr.Jit's thread pool and, with a pool of one thread (a
+#: process on one CPU, ``taskset -c 0``), waits forever on a semaphore in writePixels
+MIN_EXR_THREADS = 2
+#: one thread-count change at a time (a writer restores the count it found)
+_THREAD_COUNT_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _exr_writer_threads():
+    """Give Dr.Jit's pool at least MIN_EXR_THREADS threads while an EXR is written, then
+    give it back the count it had."""
+    import drjit as dr
+
+    with _THREAD_COUNT_LOCK:
+        before = dr.thread_count()
+        if before >= MIN_EXR_THREADS:
+            yield
+            return
+        dr.set_thread_count(MIN_EXR_THREADS)
+        try:
+            yield
+        finally:
+            dr.set_thread_count(before)
 
 
 def measurement_title(kind: str, hetero_frequency: float, offset: float, w_g_mhz: float,

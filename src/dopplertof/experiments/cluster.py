@@ -11,12 +11,24 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-#: fewest Dr.Jit threads a worker is given: with one thread, Mitsuba 3.9.1's EXR writer
-#: (mi.Bitmap.write) waits forever on Dr.Jit's thread pool
+#: fewest Dr.Jit threads a worker is given (its EXR writes need two, and io.write_exr
+#: raises the count for the write in any case: io.MIN_EXR_THREADS)
 MIN_DRJIT_THREADS = 2
 
 #: retries of a task that raised, before it is reported as failed
 DEFAULT_RETRIES = 2
+
+#: longest one-line error kept of a failed task
+MAX_ERROR_CHARS = 800
+
+#: the workers' log in a sweep's or an animation's output folder
+WORKER_LOG = os.path.join("logs", "workers.log")
+
+#: seconds without any worker after which the tasks not done are reported failed
+NO_WORKER_TIMEOUT = 60.0
+#: how often a run looks for completed tasks, and for workers
+POLL_SECONDS = 0.1
+WORKER_CHECK_SECONDS = 1.0
 
 
 class ClusterError(RuntimeError):
@@ -38,12 +50,14 @@ def default_workers() -> int:
 
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, workers: int | None = None,
-                client=None):
+                client=None, log_file: str | None = None):
     """Yield ``(client, threads_per_render)``.
 
     ``client``: use this one as is. ``scheduler``: connect to that address.
     Otherwise start a LocalCluster of ``workers`` single-threaded process workers and
     give each render ``cpu_count / workers`` Dr.Jit threads (at least 2).
+    ``log_file``: where the workers' stderr (Dask's logs and tracebacks of failing
+    tasks) and this process's Dask messages go, instead of the terminal.
     """
     if client is not None:
         yield client, None
@@ -57,7 +71,8 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise ClusterError(f"cannot reach the Dask scheduler at {scheduler}: "
                                f"{' '.join(str(e).split())}") from None
         try:
-            yield c, None
+            with _dask_logs_to(c, log_file):
+                yield c, None
         finally:
             c.close()
         return
@@ -70,10 +85,39 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     try:
-        with Client(cluster) as c:
+        with Client(cluster) as c, _dask_logs_to(c, log_file):
             yield c, threads
     finally:
         cluster.close()
+
+
+@contextlib.contextmanager
+def _dask_logs_to(client, log_file: str | None):
+    """Send the workers' stderr (present and restarted ones) and this process's Dask
+    log records to ``log_file`` (appended) while the block runs."""
+    if log_file is None:
+        yield
+        return
+    from .worker_log import WorkerStderrToFile
+
+    os.makedirs(os.path.dirname(log_file), exist_ok=True)
+    client.register_plugin(WorkerStderrToFile(log_file), name="dopplertof-worker-log")
+    handler = logging.FileHandler(log_file, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    dask_logger = logging.getLogger("distributed")
+    consoles = [(h, h.level) for h in dask_logger.handlers
+                if isinstance(h, logging.StreamHandler)
+                and not isinstance(h, logging.FileHandler)]
+    for console, _ in consoles:
+        console.setLevel(logging.CRITICAL + 1)  # (silenced, not removed: Dask owns them)
+    dask_logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        dask_logger.removeHandler(handler)
+        handler.close()
+        for console, level in consoles:
+            console.setLevel(level)
 
 
 def _start_resource_tracker_quietly() -> None:
@@ -118,9 +162,13 @@ def show_progress(progress) -> bool:
 
 
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
-              description: str = "tasks", already_done: int = 0) -> RunOutcome:
+              description: str = "tasks", already_done: int = 0,
+              no_worker_timeout: float | None = None) -> RunOutcome:
     """Submit ``function(task)`` for every task (``task.name`` names it); collect
-    results and failures as they complete. A failing task does not stop the others."""
+    results and failures as they complete. A failing task does not stop the others.
+    When the cluster has had no worker for ``no_worker_timeout`` seconds (default
+    NO_WORKER_TIMEOUT), the tasks not finished are failures ("no Dask worker ...") and
+    the run ends."""
     from distributed import as_completed
     from tqdm import tqdm
 
@@ -134,15 +182,20 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
     bar = tqdm(total=len(tasks) + already_done, initial=already_done, unit="task",
                desc=description, disable=not show_progress(progress), file=sys.stderr,
                dynamic_ncols=True)
+    watch = _WorkerWatch(client, NO_WORKER_TIMEOUT if no_worker_timeout is None
+                         else no_worker_timeout)
     try:
-        for future in as_completed(list(futures)):
-            task = futures.pop(future)
-            if future.status == "finished":
-                outcome.done.append(future.result())
-            else:
-                outcome.failed.append((task.name, one_line_error(future)))
-            future.release()
-            bar.update(1)
+        completed = as_completed(list(futures))
+        while futures:
+            batch = completed.next_batch(block=False)
+            if not batch:
+                if watch.gone_for_good():
+                    outcome.failed += [(task.name, watch.error()) for task in futures.values()]
+                    break
+                time.sleep(POLL_SECONDS)
+            for future in batch:
+                _collect(future, futures.pop(future), outcome)
+                bar.update(1)
             if outcome.failed:
                 bar.set_postfix(failed=len(outcome.failed))
     finally:
@@ -153,6 +206,43 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
     return outcome
 
 
+def _collect(future, task, outcome: RunOutcome) -> None:
+    """A completed future's result, or its task's one-line failure, into ``outcome``."""
+    if future.status == "finished":
+        outcome.done.append(future.result())
+    else:
+        outcome.failed.append((task.name, one_line_error(future)))
+    future.release()
+
+
+class _WorkerWatch:
+    """Whether the cluster has had no worker for ``timeout`` seconds (asked at most
+    every WORKER_CHECK_SECONDS: a killed worker's nanny restarts it in a few seconds)."""
+
+    def __init__(self, client, timeout: float):
+        self.client, self.timeout = client, timeout
+        self.checked = self.alone_since = None
+
+    def gone_for_good(self) -> bool:
+        now = time.monotonic()
+        if self.checked is not None and now - self.checked < WORKER_CHECK_SECONDS:
+            return self.alone_since is not None and now - self.alone_since >= self.timeout
+        self.checked = now
+        try:
+            workers = len(self.client.scheduler_info().get("workers", {}))
+        except Exception:  # the scheduler itself is gone: no worker will come back
+            workers = 0
+        if workers:
+            self.alone_since = None
+        elif self.alone_since is None:
+            self.alone_since = now
+        return self.alone_since is not None and now - self.alone_since >= self.timeout
+
+    def error(self) -> str:
+        return (f"no Dask worker left for {self.timeout:g} s (workers killed or out of "
+                "memory, faster than they restart); not run")
+
+
 def one_line_error(future) -> str:
     try:
         exc = future.exception()
@@ -161,5 +251,7 @@ def one_line_error(future) -> str:
     if exc is None:
         return f"task ended as {future.status}"
     text = " ".join(str(exc).split())
+    if len(text) > MAX_ERROR_CHARS:  # (summary.json keeps room for this much per task)
+        text = text[:MAX_ERROR_CHARS - 3] + "..."
     name = type(exc).__name__
     return f"{name}: {text}" if text else name

@@ -5,6 +5,7 @@ Results folder::
     results/
       sweep.json                   the configuration and the task list (read by the report)
       summary.json                 what the last run did: done, skipped, failed (with errors)
+      logs/workers.log             the workers' stderr: Dask's logs, failing tasks' tracebacks
       runs/<name>/                 one folder per grid point, name = its grid values
         image.npy image.exr params.json complete.json
       reference/<name>/            one per distinct measurement (what errors are measured against)
@@ -12,11 +13,13 @@ Results folder::
 
 from __future__ import annotations
 
+import errno
+import json
 import os
 import time
 from dataclasses import dataclass, field
 
-from .cluster import DEFAULT_RETRIES, dask_client, run_tasks
+from .cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
 from .config import (SweepConfig, check_render_settings, load_scene_facts,
                      measurement_key, point_name, split_point)
 from .tasks import RenderTask, is_complete, remove_partial_files, run_render_task
@@ -35,6 +38,7 @@ class SweepSummary:
     failed: list = field(default_factory=list)  #: (task name, error)
     seconds: float = 0.0
     output: str = ""
+    worker_log: str = ""  #: the workers' stderr (Dask's logs, failing tasks' tracebacks)
 
     @property
     def ok(self) -> bool:
@@ -43,7 +47,8 @@ class SweepSummary:
     def to_json(self) -> dict:
         return {"total": self.total, "skipped": self.skipped, "done": self.done,
                 "failed": [{"task": n, "error": e} for n, e in self.failed],
-                "seconds": round(self.seconds, 3), "output": self.output}
+                "seconds": round(self.seconds, 3), "output": self.output,
+                "worker_log": self.worker_log or None}
 
 
 def plan_sweep(config: SweepConfig, output: str) -> list[RenderTask]:
@@ -140,8 +145,12 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     pending = pending_tasks(tasks)
     summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
                            output=output)
+    summary_path = os.path.join(output, SUMMARY_JSON)
     if pending:
-        with dask_client(scheduler, workers, client) as (dask, threads):
+        reserve_summary(summary_path, summary, len(pending))
+        summary.worker_log = os.path.join(output, WORKER_LOG) if client is None else ""
+        with dask_client(scheduler, workers, client, summary.worker_log or None) as \
+                (dask, threads):
             if threads:
                 pending = [_with_threads(t, threads) for t in pending]
             outcome = run_tasks(dask, run_render_task, pending, retries=retries,
@@ -150,8 +159,42 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
         summary.done = len(outcome.done)
         summary.failed = outcome.failed
     summary.seconds = time.perf_counter() - started
-    io.write_json(os.path.join(output, SUMMARY_JSON), summary.to_json())
+    write_summary(summary_path, summary)
     return summary
+
+
+#: bytes of summary.json kept per pending task, for its failure (task name and error)
+SUMMARY_BYTES_PER_TASK = 1024
+
+
+def reserve_summary(path: str, summary: SweepSummary, pending: int) -> None:
+    """Before any task runs: summary.json of this run (nothing done yet), padded with
+    spaces to the size the final one takes when every pending task fails, so that a disk
+    the tasks fill up still takes the final summary (:func:`write_summary`)."""
+    from .. import io
+
+    text = json.dumps(summary.to_json(), indent=2, sort_keys=True)
+    with io.atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text + "\n" + " " * (SUMMARY_BYTES_PER_TASK * pending) + "\n")
+
+
+def write_summary(path: str, summary: SweepSummary) -> None:
+    """summary.json, atomically; on a full disk, over the space :func:`reserve_summary`
+    kept (in place: the one write that is not atomic, and only when nothing else can be
+    written)."""
+    from .. import io
+
+    try:
+        io.write_json(path, summary.to_json())
+    except OSError as e:
+        if e.errno not in (errno.ENOSPC, errno.EDQUOT) or not os.path.isfile(path):
+            raise
+        text = json.dumps(summary.to_json(), indent=2, sort_keys=True,
+                          default=str) + "\n"
+        with open(path, "r+", encoding="utf-8") as f:
+            f.write(text)
+            f.truncate()
 
 
 def _with_threads(task: RenderTask, threads: int) -> RenderTask:

@@ -15,10 +15,12 @@ Keyframe transforms may be ``mi.ScalarTransform4f`` or 4x4 arrays.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
                     SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
@@ -228,6 +230,11 @@ def _body_dict(scene: dict, shapes) -> dict:
 
 def _load(mi, d: dict, what: str):
     """``mi.load_dict``; its error as a one-line SceneError naming ``what``."""
+    for key, shape in d.items():  # ---- mesh files, before Mitsuba reads them
+        problem = isinstance(shape, dict) and mesh_file_message(
+            shape.get("type"), shape.get("filename"), os.getcwd())
+        if problem:
+            raise SceneError(f"<dict> {what}: {key!r}: {problem}")
     try:
         return mi.load_dict(d)
     except Exception as e:

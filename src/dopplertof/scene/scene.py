@@ -198,10 +198,10 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
             raise SceneError(str(e)) from None
 
     # ---- Load the static scene and each body ----
-    static, text = load_part(d.static, "scene")
+    static, text = _load_checked(mi, load_part, d.static, "scene", source)
     texts, bodies = [text], []
     for kf, names, part in d.bodies:
-        body_scene, text = load_part(part, f"body {list(names)}")
+        body_scene, text = _load_checked(mi, load_part, part, f"body {list(names)}", source)
         texts += [text, repr(kf)]
         bodies.append(MovingBody(body_scene, Motion(kf), tuple(names)))
     texts += [repr(d.sensor_keyframes), repr(d.light_keyframes)]
@@ -255,6 +255,18 @@ def _check_sensor(sensor, source: str, shutter_given: str | None,
     raise SceneError(f"{shutter_given}: the sensor's shutter (the exposure) must be open "
                      f"for > 0 seconds, got shutter_open = shutter_close = {opens:g}: set "
                      "shutter_close > shutter_open, or the integrator's time")
+
+
+def _load_checked(mi, load_part, part, what: str, source: str):
+    """``load_part(part, what)``, its meshes checked (no faces, indices past the last
+    vertex, non-finite positions: Mitsuba loads some of these)."""
+    from .meshes import loaded_meshes_problem
+
+    scene, text = load_part(part, what)
+    problem = loaded_meshes_problem(mi, scene)
+    if problem:
+        raise SceneError(f"{source}: {problem}")
+    return scene, text
 
 
 def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>") -> DopplerScene:

@@ -26,6 +26,7 @@ import xml.parsers.expat
 import numpy as np
 
 from ..hints import did_you_mean
+from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, SHUTTER_NAMES, MotionClaim,
                     SceneDescription, SceneError, build, correlated_sampler_params)
@@ -394,6 +395,12 @@ def _check_film_size(doc: _Doc, sensor) -> None:
 def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
     """Load ``root`` (the document or a body's) with Mitsuba; errors name the user's file
     and line."""
+    for shape in root.iter("shape"):  # ---- mesh files, before Mitsuba reads them
+        filename = next((el.get("value") for el in shape.findall("string")
+                         if el.get("name") == "filename"), None)
+        problem = mesh_file_message(shape.get("type"), filename, base_dir)
+        if problem:
+            raise SceneError(f"{doc.where(shape)}: {problem}")
     text = ET.tostring(root, encoding="unicode")
     resolver = mi.file_resolver()
     resolver.prepend(base_dir)
