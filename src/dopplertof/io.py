@@ -155,7 +155,8 @@ class _PlainStream:
 # needs space) and the manifest last. Files the set did not write are never touched.
 
 
-def _manifest_name(name: str) -> str:
+def manifest_name(name: str) -> str:
+    """The file name of output set ``name``'s manifest (hidden, in its folder)."""
     return f".dopplertof-{name}.json"
 
 
@@ -164,11 +165,13 @@ def _staging_prefix(name: str) -> str:
 
 
 class StagedFolder:
-    """The staging side of :func:`output_folder`: write file NAME at ``path(NAME)``;
-    after the block, ``written`` lists the final paths in the order first asked for."""
+    """The staging side of :func:`output_folder`: write file NAME at ``path(NAME)`` (or
+    anywhere in ``staging``); after the block, ``written`` lists the final paths, those
+    asked for through ``path`` first, in that order."""
 
     def __init__(self, target: str, staging: str):
         self.target, self.staging, self.names = target, staging, []
+        self.written = []
 
     def path(self, name: str) -> str:
         if not _plain_name(name):
@@ -177,10 +180,12 @@ class StagedFolder:
             self.names.append(name)
         return os.path.join(self.staging, name)
 
-    @property
-    def written(self) -> list:
-        return [os.path.join(self.target, n) for n in self.names
-                if os.path.isfile(os.path.join(self.target, n))]
+    def staged_files(self) -> list:
+        """The set's files: those asked for, then any other file written in ``staging``."""
+        present = [n for n in os.listdir(self.staging) if _plain_name(n)
+                   and os.path.isfile(os.path.join(self.staging, n))]
+        return ([n for n in self.names if n in present]
+                + sorted(n for n in present if n not in self.names))
 
 
 def _plain_name(name) -> bool:
@@ -214,7 +219,7 @@ def output_folder(folder, name: str):
         with _locked(target):
             _commit(staged, name)
     except BaseException as exc:
-        if not os.path.exists(os.path.join(staging, _manifest_name(name))):
+        if not os.path.exists(os.path.join(staging, manifest_name(name))):
             shutil.rmtree(staging, ignore_errors=True)  # not committed: drop the new files
             _remove_created(created)
         renamed = _named_in_target(exc, staging, target)
@@ -236,22 +241,23 @@ def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseExcep
 
 def _commit(staged: StagedFolder, name: str) -> None:
     """The commit point (the staging folder's manifest), then the moves."""
-    present = [n for n in staged.names if os.path.isfile(os.path.join(staged.staging, n))]
-    write_json(os.path.join(staged.staging, _manifest_name(name)), {"files": present})
+    files = staged.staged_files()
+    write_json(os.path.join(staged.staging, manifest_name(name)), {"files": files})
     _finish_commit(staged.target, staged.staging, name)
+    staged.written = [os.path.join(staged.target, n) for n in files]
 
 
 def _finish_commit(target: str, staging: str, name: str) -> None:
     """Delete the old run's files that the new one lacks, move the new ones (the new
     manifest last), remove the staging folder. Also completes a killed commit: files
     already moved are skipped."""
-    new = _manifest_files(os.path.join(staging, _manifest_name(name)))
-    old = _manifest_files(os.path.join(target, _manifest_name(name)))
+    new = _manifest_files(os.path.join(staging, manifest_name(name)))
+    old = _manifest_files(os.path.join(target, manifest_name(name)))
     for stale in old:
         path = os.path.join(target, stale)
         if stale not in new and (os.path.isfile(path) or os.path.islink(path)):
             os.unlink(path)
-    for file in [*new, _manifest_name(name)]:
+    for file in [*new, manifest_name(name)]:
         if os.path.exists(os.path.join(staging, file)):
             os.replace(os.path.join(staging, file), os.path.join(target, file))
     shutil.rmtree(staging, ignore_errors=True)
@@ -285,7 +291,7 @@ def _recover_leftovers(target: str) -> None:
             os.close(fd)
             continue
         try:
-            if os.path.exists(os.path.join(staging, _manifest_name(name))):
+            if os.path.exists(os.path.join(staging, manifest_name(name))):
                 _finish_commit(target, staging, name)
             else:
                 shutil.rmtree(staging, ignore_errors=True)

@@ -110,10 +110,22 @@ def pending_count(config: SweepConfig, output) -> tuple[list, list]:
     return tasks, pending_tasks(tasks, clean=False)
 
 
-def write_sweep_json(config: SweepConfig, tasks, output: str) -> None:
+def write_sweep_files(config: SweepConfig, tasks, output: str, summary=None) -> None:
+    """sweep.json (the plan) and, at the end of a run, its summary.json: one output set
+    (:func:`dopplertof.io.output_folder`), so that a summary.json never stays beside the
+    plan of another run (at the start, the previous run's goes)."""
     from .. import io
 
-    io.write_json(os.path.join(output, SWEEP_JSON), {
+    with io.output_folder(output, "sweep") as staged:
+        write_sweep_json(config, tasks, output, staged.path(SWEEP_JSON))
+        if summary is not None:
+            io.write_json(staged.path(SUMMARY_JSON), summary.to_json())
+
+
+def write_sweep_json(config: SweepConfig, tasks, output: str, path: str) -> None:
+    from .. import io
+
+    io.write_json(path, {
         "config": config.to_json(),
         "tasks": [{"kind": t.kind, "name": t.name,
                    "folder": os.path.relpath(t.folder, output), "grid_point": t.grid_point,
@@ -130,13 +142,10 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     Nothing starts before the whole configuration is checked (against the scene
     too). No cluster is started when everything is complete.
     """
-    from .. import io
-
     started = time.perf_counter()
     output = check_output_folder(os.fspath(output))
     tasks = plan_sweep(config, output)
-    io.make_output_folder(output)
-    write_sweep_json(config, tasks, output)
+    write_sweep_files(config, tasks, output)
     pending = pending_tasks(tasks)
     summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
                            output=output)
@@ -150,7 +159,7 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
         summary.done = len(outcome.done)
         summary.failed = outcome.failed
     summary.seconds = time.perf_counter() - started
-    io.write_json(os.path.join(output, SUMMARY_JSON), summary.to_json())
+    write_sweep_files(config, tasks, output, summary)
     return summary
 
 
