@@ -170,6 +170,82 @@ def test_files_that_are_not_the_captures_are_left_alone(captures, cheap_previews
     assert not list(tmp_path.glob("*_std*")) and not _staging_left(tmp_path)
 
 
+# ---- Item 11: the other commands' output sets -----------------------------------------
+
+def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatch):
+    from dopplertof.diff import fit
+
+    result = fit.FitResult(bodies=[{"name": "box"}], iterations=1, loss=1.0,
+                           history=[{"iteration": 0, "loss": 1.0, "radial_velocity_m_s": [2.0]}])
+    fit.write_fit(result, tmp_path)
+    before = _snapshot(tmp_path)
+
+    def plot_fails(result, path):
+        raise RuntimeError("injected failure in the plot")
+
+    monkeypatch.setattr(fit, "write_convergence_plot", plot_fails)
+    with pytest.raises(RuntimeError, match="injected"):
+        fit.write_fit(fit.FitResult(bodies=[], iterations=2, loss=0.5), tmp_path)
+    assert _snapshot(tmp_path) == before  # fit.json is still the first fit's
+
+
+def _report_runs(folder, errors: bool) -> list:
+    """Two sweep runs (8x8 images in their folders), with errors against a reference or
+    without."""
+    from dopplertof.experiments.report import RunRecord
+
+    runs = []
+    for k, method in enumerate(("uniform", "antithetic")):
+        run_folder = folder / method
+        run_folder.mkdir(parents=True, exist_ok=True)
+        np.save(run_folder / "image.npy", np.full((8, 8, 3), 0.1 * (k + 1), np.float32))
+        runs.append(RunRecord(name=f"time_sampling_method={method}",
+                              point={"time_sampling_method": method}, spp=8, seed=0,
+                              seconds=1.0, folder=str(run_folder), reference=None,
+                              mse=1e-3 * (k + 1) if errors else None,
+                              relative_mse=0.1 * (k + 1) if errors else None))
+    return runs
+
+
+def test_a_report_replaces_the_previous_one_all_or_nothing(tmp_path, monkeypatch):
+    """A report without errors removes the error figures of one with them; a report
+    that fails half-way leaves the previous one as it was."""
+    from dopplertof.experiments import report
+
+    sweep = {"config": {"name": "t", "grid": {"time_sampling_method": ["uniform", "antithetic"]},
+                        "grid_axes": ["time_sampling_method"]}}
+    (tmp_path / "results").mkdir()
+    out = tmp_path / "report"
+    for errors in (True, False):
+        runs = _report_runs(tmp_path / "results", errors)
+        monkeypatch.setattr(report, "read_results", lambda results: (sweep, runs, {}, []))
+        written = report.write_report(tmp_path / "results", out)
+        assert written.files and all(os.path.isfile(f) for f in written.files)
+        assert any("mse" in os.path.basename(f) for f in written.files) == errors
+    assert not list(out.glob("*mse*.png"))  # the first report's error figures are gone
+    before = _snapshot(out)
+    monkeypatch.setattr(report, "_metrics_csv", lambda *args: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        report.write_report(tmp_path / "results", out)
+    assert _snapshot(out) == before
+
+
+def test_a_new_sweep_plan_never_sits_beside_the_last_runs_summary(tmp_path):
+    from types import SimpleNamespace
+
+    from dopplertof.experiments.sweep import write_sweep_files
+
+    def config(name):
+        return SimpleNamespace(to_json=lambda: {"name": name})
+
+    summary = SimpleNamespace(to_json=lambda: {"done": 5})
+    write_sweep_files(config("first"), [], str(tmp_path), summary)
+    assert (tmp_path / "summary.json").is_file()
+    write_sweep_files(config("second"), [], str(tmp_path))  # a new run starts
+    assert not (tmp_path / "summary.json").exists()
+    assert '"second"' in (tmp_path / "sweep.json").read_text()
+
+
 # ---- Item 11: kills, and leftovers cleaned at the next run ------------------------------
 
 _KILLED_WRITER = """
