@@ -135,15 +135,6 @@ def _umask() -> int:
     return mask
 
 
-class _PlainStream:
-    """A file that NumPy sees as a stream: it then writes through ``write`` (whose
-    errors carry the system's reason) instead of C's fwrite (whose errors say only
-    "problem writing element N")."""
-
-    def __init__(self, file):
-        self.write = file.write
-
-
 # ---- Output folders: a set of files, all or nothing ---------------------------------------
 #
 # Inside the output folder, an output set NAME (capture, report...) has
@@ -338,10 +329,28 @@ def _remove_created(created: list) -> None:
             return
 
 
+class _PlainStream:
+    """A file that NumPy sees as a stream: it then writes through ``write`` (whose
+    errors carry the system's reason) instead of C's fwrite (whose errors say only
+    "problem writing element N", and which left a truncated file without an error
+    under a small file size limit)."""
+
+    def __init__(self, file):
+        self.write = file.write
+
+
 def write_npy(path, array: np.ndarray) -> None:
+    """The bytes ``np.save`` writes, through Python's ``write``: numeric arrays in one
+    call (the header, then the data), others through NumPy's chunked stream writes."""
+    array = np.asarray(array)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.save(_PlainStream(f), np.asarray(array))
+            if array.dtype.hasobject:
+                np.save(_PlainStream(f), array)
+                return
+            header = np.lib.format.header_data_from_array_1_0(array)
+            np.lib.format.write_array_header_1_0(f, header)
+            f.write(np.ascontiguousarray(array.T if header["fortran_order"] else array).data)
 
 
 def write_json(path, data: dict) -> None:
