@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import dopplertof
+from dopplertof import io
 from analytic import plane_scene
 from dopplertof.tof import CaptureError, NoiseModel, ReconstructionError, capture
 from dopplertof.modulation import SPEED_OF_LIGHT
@@ -161,7 +162,7 @@ def test_public_api_writes_every_file(tmp_path):
     assert seen == [c["name"] for c in result.summary["captures"]]
     folder = tmp_path / "out"
     paths = result.write(folder)
-    names = sorted(os.listdir(folder))
+    names = sorted(n for n in os.listdir(folder) if n != io.manifest_name("capture"))
     assert sorted(os.path.basename(p) for p in paths) == names
     arrays = ["homodyne_0", "homodyne_0.25", "homodyne_0.5", "homodyne_0.75", "heterodyne_0",
               "heterodyne_0.25", "velocity", "velocity_gt", "velocity_point", "depth",
@@ -172,7 +173,7 @@ def test_public_api_writes_every_file(tmp_path):
     assert np.load(folder / "radiance.npy").shape == (6, 6, 3)
     for name in ("radiance.png", "comparison.png", "velocity_error.png"):
         assert (folder / name).stat().st_size > 1000
-    assert not [n for n in names if n.startswith(".")]  # no temporaries left
+    assert not [n for n in names if n.startswith(".")]  # no temporaries left (but the manifest)
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["spp_per_capture"] == 16 and summary["seed"] == 2
     assert summary["units"]["velocity"].startswith("m/s")

@@ -341,9 +341,13 @@ def _cmd_precision(args) -> int:
     if args.output:
         scale = ("auto photon scale" if noise.photons_per_unit is None else
                  f"{noise.photons_per_unit:.3g} photons/s per unit")
-        study.write_map(args.output, result, f"{os.path.basename(args.scene)}: predicted "
-                        f"velocity precision (sensor: {noise.full_well:g} e- well, {scale})")
-        io.write_json(os.path.splitext(args.output)[0] + ".json", result.describe())
+        folder, map_name = os.path.split(os.path.abspath(args.output))
+        stem = os.path.splitext(map_name)[0]
+        with io.output_folder(folder, f"precision-{stem}") as staged:  # the map and its numbers
+            study.write_map(staged.path(map_name), result, f"{os.path.basename(args.scene)}: "
+                            f"predicted velocity precision (sensor: {noise.full_well:g} e- "
+                            f"well, {scale})")
+            io.write_json(staged.path(stem + ".json"), result.describe())
         print(f"wrote {args.output}")
     return 0
 

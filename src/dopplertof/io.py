@@ -8,13 +8,24 @@ Output folders, one rule for every command: a missing output folder (and its mis
 parents) is created when the first file is written into it; before any work,
 :func:`check_output_folder` refuses a path that cannot become one (a file in the way,
 no write permission), so that bad input writes nothing, not even a folder.
+
+Multi-file outputs (a capture, a report, the figures...), one rule for every command:
+all or nothing (:func:`output_folder`). The files are written into a staging folder
+inside the output folder and moved into place together at the end, so that a failure
+(full disk, an exception, a kill) leaves the previous output complete and untouched.
+
+A failed write raises :class:`WriteError`, one line naming the file and the reason
+("out/depth.npy: file too large (the file size limit)").
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import json
 import os
+import shutil
 import tempfile
 import threading
 
@@ -25,6 +36,40 @@ FORMATS = (".exr", ".npy", ".png")
 
 class OutputError(ValueError):
     """An output path that cannot be written (unknown extension, missing folder...)."""
+
+
+class WriteError(OutputError):
+    """A write that failed (full disk, file size limit, I/O error): ``path`` is the file
+    the user asked for (never a temporary one), ``reason`` what the system said."""
+
+    def __init__(self, path, reason: str):
+        self.path, self.reason = os.fspath(path), reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+#: the system's reasons that need a word of explanation
+_WRITE_REASONS = {errno.EFBIG: "file too large (the file size limit)",
+                  errno.ENOSPC: "No space left on device",
+                  errno.EDQUOT: "disk quota exceeded"}
+
+
+def write_error(path, exc: BaseException) -> WriteError:
+    """The one-line :class:`WriteError` for ``exc`` (an OSError, or a library's message
+    that ends in the system's reason) raised while writing ``path``."""
+    if isinstance(exc, WriteError):
+        return exc
+    code = getattr(exc, "errno", None)
+    text = getattr(exc, "strerror", None) or " ".join(str(exc).split()).rsplit(": ", 1)[-1]
+    code = code or next((c for c in _WRITE_REASONS if os.strerror(c) == text), None)
+    return WriteError(path, _WRITE_REASONS.get(code, text or type(exc).__name__))
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` (an OSError or a :class:`WriteError`) says the disk or the quota
+    is full."""
+    if isinstance(exc, WriteError):
+        return exc.reason in (_WRITE_REASONS[errno.ENOSPC], _WRITE_REASONS[errno.EDQUOT])
+    return getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT)
 
 
 #: what every command's --help says about its output folder
@@ -74,17 +119,22 @@ def atomic_path(path):
     """Yield a temporary path beside ``path`` (same extension); rename on success.
     A missing folder is created first."""
     path = os.fspath(path)
-    folder = make_output_folder(os.path.dirname(os.path.abspath(path)))
     base, ext = os.path.splitext(os.path.basename(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
-    os.close(fd)
+    try:
+        folder = make_output_folder(os.path.dirname(os.path.abspath(path)))
+        fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise write_error(path, exc) from exc
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600: follow the umask instead
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):  # full disk, file size limit: name the file
+            raise write_error(path, exc) from exc
         raise
 
 
@@ -94,10 +144,222 @@ def _umask() -> int:
     return mask
 
 
+# ---- Output folders: a set of files, all or nothing ---------------------------------------
+#
+# Inside the output folder, an output set NAME (capture, report...) has
+#   .dopplertof-NAME.json             its manifest: the files the last complete run wrote
+#   .dopplertof-NAME.staging-XXXXXXXX a run in progress, locked (flock) by its process
+# Committing a set: the staging folder gets the new manifest (from then on the new output
+# wins), the files of the old manifest that the new run did not write are deleted, the new
+# files are renamed into place (same folder, same filesystem: each rename is atomic, none
+# needs space) and the manifest last. Files the set did not write are never touched.
+
+
+def manifest_name(name: str) -> str:
+    """The file name of output set ``name``'s manifest (hidden, in its folder)."""
+    return f".dopplertof-{name}.json"
+
+
+def _staging_prefix(name: str) -> str:
+    return f".dopplertof-{name}.staging-"
+
+
+class StagedFolder:
+    """The staging side of :func:`output_folder`: write file NAME at ``path(NAME)`` (or
+    anywhere in ``staging``); after the block, ``written`` lists the final paths, those
+    asked for through ``path`` first, in that order."""
+
+    def __init__(self, target: str, staging: str):
+        self.target, self.staging, self.names = target, staging, []
+        self.written = []
+
+    def path(self, name: str) -> str:
+        if not _plain_name(name):
+            raise ValueError(f"not a plain file name for an output set: {name!r}")
+        if name not in self.names:
+            self.names.append(name)
+        return os.path.join(self.staging, name)
+
+    def staged_files(self) -> list:
+        """The set's files: those asked for, then any other file written in ``staging``."""
+        present = [n for n in os.listdir(self.staging) if _plain_name(n)
+                   and os.path.isfile(os.path.join(self.staging, n))]
+        return ([n for n in self.names if n in present]
+                + sorted(n for n in present if n not in self.names))
+
+
+def _plain_name(name) -> bool:
+    return (isinstance(name, str) and name not in ("", ".", "..") and not name.startswith(".")
+            and os.sep not in name and (os.altsep is None or os.altsep not in name))
+
+
+@contextlib.contextmanager
+def output_folder(folder, name: str):
+    """Write a set of files into ``folder`` all or nothing: yields a
+    :class:`StagedFolder`, whose files replace the set's previous ones when the block
+    ends without an exception. On a failure (an exception, a full disk, a kill) the
+    previous files are left complete and untouched, the staging folder is removed (a
+    killed run's at the next run into the folder) and folders this call created are
+    removed again. Files of the previous run of the set that this one did not write are
+    deleted; any other file in ``folder`` (the user's, another set's) is left alone."""
+    target = check_output_folder(folder)
+    created = _missing_folders(target)
+    try:
+        os.makedirs(target, exist_ok=True)
+        with _locked(target):
+            _recover_leftovers(target)
+            staging = tempfile.mkdtemp(prefix=_staging_prefix(name), dir=target)
+            owner = _hold_lock(staging)
+    except OSError as exc:
+        _remove_created(created)
+        raise write_error(target, exc) from exc
+    try:
+        staged = StagedFolder(target, staging)
+        yield staged
+        with _locked(target):
+            _commit(staged, name)
+    except BaseException as exc:
+        if not os.path.exists(os.path.join(staging, manifest_name(name))):
+            shutil.rmtree(staging, ignore_errors=True)  # not committed: drop the new files
+            _remove_created(created)
+        renamed = _named_in_target(exc, staging, target)
+        if renamed is exc:
+            raise
+        raise renamed from exc
+    finally:
+        os.close(owner)
+
+
+def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseException:
+    """``exc`` with a staging path in its message replaced by the output's own path."""
+    if isinstance(exc, WriteError) and exc.path.startswith(staging + os.sep):
+        return WriteError(os.path.join(target, os.path.relpath(exc.path, staging)), exc.reason)
+    if isinstance(exc, OSError):
+        return write_error(target, exc)
+    return exc
+
+
+def _commit(staged: StagedFolder, name: str) -> None:
+    """The commit point (the staging folder's manifest), then the moves."""
+    files = staged.staged_files()
+    write_json(os.path.join(staged.staging, manifest_name(name)), {"files": files})
+    _finish_commit(staged.target, staged.staging, name)
+    staged.written = [os.path.join(staged.target, n) for n in files]
+
+
+def _finish_commit(target: str, staging: str, name: str) -> None:
+    """Delete the old run's files that the new one lacks, move the new ones (the new
+    manifest last), remove the staging folder. Also completes a killed commit: files
+    already moved are skipped."""
+    new = _manifest_files(os.path.join(staging, manifest_name(name)))
+    old = _manifest_files(os.path.join(target, manifest_name(name)))
+    for stale in old:
+        path = os.path.join(target, stale)
+        if stale not in new and (os.path.isfile(path) or os.path.islink(path)):
+            os.unlink(path)
+    for file in [*new, manifest_name(name)]:
+        if os.path.exists(os.path.join(staging, file)):
+            os.replace(os.path.join(staging, file), os.path.join(target, file))
+    shutil.rmtree(staging, ignore_errors=True)
+
+
+def _manifest_files(path: str) -> list:
+    """The plain file names a manifest lists; none when it is missing or unreadable."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            files = json.load(f).get("files", [])
+    except (OSError, ValueError, AttributeError):
+        return []
+    return [n for n in files if _plain_name(n)] if isinstance(files, list) else []
+
+
+def _recover_leftovers(target: str) -> None:
+    """The staging folders of killed runs (their lock is free): a committed one is
+    completed, any other removed. Live runs' folders are left alone."""
+    for entry in os.listdir(target):
+        if not (entry.startswith(".dopplertof-") and ".staging-" in entry):
+            continue
+        staging = os.path.join(target, entry)
+        name = entry[len(".dopplertof-"):entry.rindex(".staging-")]
+        try:
+            fd = os.open(staging, os.O_RDONLY | os.O_DIRECTORY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # held: a run in progress (or locks unsupported: keep it)
+            os.close(fd)
+            continue
+        try:
+            if os.path.exists(os.path.join(staging, manifest_name(name))):
+                _finish_commit(target, staging, name)
+            else:
+                shutil.rmtree(staging, ignore_errors=True)
+        finally:
+            os.close(fd)
+
+
+def _hold_lock(folder: str) -> int:
+    """An open descriptor of ``folder`` holding its lock until closed (or the process
+    dies); where the filesystem has no locks, the descriptor alone."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    with contextlib.suppress(OSError):
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    return fd
+
+
+@contextlib.contextmanager
+def _locked(folder: str):
+    """The output folder locked against other runs' recoveries and commits."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        with contextlib.suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _missing_folders(folder: str) -> list:
+    """``folder`` and its ancestors that do not exist yet, deepest first."""
+    missing = []
+    while not os.path.exists(folder):
+        missing.append(folder)
+        folder = os.path.dirname(folder)
+    return missing
+
+
+def _remove_created(created: list) -> None:
+    """Remove again the folders an output set created, where they stayed empty."""
+    for folder in created:
+        try:
+            os.rmdir(folder)
+        except OSError:
+            return
+
+
+class _PlainStream:
+    """A file that NumPy sees as a stream: it then writes through ``write`` (whose
+    errors carry the system's reason) instead of C's fwrite (whose errors say only
+    "problem writing element N", and which left a truncated file without an error
+    under a small file size limit)."""
+
+    def __init__(self, file):
+        self.write = file.write
+
+
 def write_npy(path, array: np.ndarray) -> None:
+    """The bytes ``np.save`` writes, through Python's ``write``: numeric arrays in one
+    call (the header, then the data), others through NumPy's chunked stream writes."""
+    array = np.asarray(array)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.save(f, np.asarray(array))
+            if array.dtype.hasobject:
+                np.save(_PlainStream(f), array)
+                return
+            header = np.lib.format.header_data_from_array_1_0(array)
+            np.lib.format.write_array_header_1_0(f, header)
+            f.write(np.ascontiguousarray(array.T if header["fortran_order"] else array).data)
 
 
 def write_json(path, data: dict) -> None:
@@ -129,7 +391,10 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
             text = value if isinstance(value, str) else json.dumps(value, default=_json_default)
             props[f"dopplertof.{key}"] = text
     with atomic_path(path) as tmp, _exr_writer_threads():
-        bitmap.write(tmp)
+        try:
+            bitmap.write(tmp)
+        except RuntimeError as exc:  # Mitsuba's stream error ends in the system's reason
+            raise write_error(path, exc) from exc
 
 
 #: fewest Dr.Jit threads Mitsuba's EXR writer needs: OpenEXR (mi.Bitmap.write, Mitsuba

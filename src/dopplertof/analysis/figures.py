@@ -2,7 +2,8 @@
 
 ``write_figures(outdir)`` writes one PNG per analysis, ``closed_forms.csv`` and
 ``rates.json``; ``quick=True`` uses small grids (a few seconds, for the test suite).  Every
-file is written atomically: to a temporary file in the same folder, then ``os.replace``.
+file is written atomically: to a temporary file in the same folder, then ``os.replace``;
+the files replace the previous ones all or nothing (:func:`dopplertof.io.output_folder`).
 
 Figures are drawn with matplotlib's object-oriented API on an Agg canvas created here, so
 they work headless and never change the global (pyplot) backend of the caller.
@@ -20,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import modulation
-from ..io import atomic_path, make_output_folder
+from ..io import atomic_path, check_output_folder, output_folder
 from . import antithetic, doppler, mis, waveforms
 from .signals import PeriodicWaveform, Sinusoid, TruncatedAttenuatedSinusoid
 
@@ -602,7 +603,7 @@ def write_figures(outdir, quick: bool = False) -> list:
 
     Returns the paths written, figures first.  ``quick=True``: small grids, a few seconds.
     """
-    outdir = pathlib.Path(make_output_folder(outdir))
+    check_output_folder(outdir)  # before any work
     settings = Settings.for_mode(quick)
     rows = antithetic.closed_form_table(closed_form_omegas(settings))
     study, slopes = convergence_rates(settings)
@@ -619,14 +620,10 @@ def write_figures(outdir, quick: bool = False) -> list:
         "closed_forms.png": lambda: figure_closed_forms(settings, rows),
         "mis_antithetic.png": lambda: figure_mis(settings),
     }
-    written = [_save_figure(builders[name](), outdir / name, settings.dpi)
-               for name in FIGURE_FILES]
-
     table = io.StringIO()
     writer = csv.writer(table, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
     writer.writerows((repr(w), m, repr(c), repr(n)) for w, m, c, n in rows)
-    written.append(_save_text(outdir / "closed_forms.csv", table.getvalue()))
 
     rates = {
         "slopes": slopes,
@@ -636,5 +633,10 @@ def write_figures(outdir, quick: bool = False) -> list:
         "mean_variance": study,
         "quick": bool(quick),
     }
-    written.append(_save_text(outdir / "rates.json", json.dumps(rates, indent=2) + "\n"))
-    return written
+    # ---- every file, replacing the previous ones all or nothing
+    with output_folder(outdir, "figures") as staged:
+        for name in FIGURE_FILES:
+            _save_figure(builders[name](), staged.path(name), settings.dpi)
+        _save_text(staged.path("closed_forms.csv"), table.getvalue())
+        _save_text(staged.path("rates.json"), json.dumps(rates, indent=2) + "\n")
+    return [pathlib.Path(p) for p in staged.written]

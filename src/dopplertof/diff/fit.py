@@ -614,15 +614,14 @@ def _or_none(values):
 # ---- Output --------------------------------------------------------------------------
 
 def write_fit(result: FitResult, folder) -> list:
-    """fit.json and convergence.png into ``folder`` (created if missing; atomic)."""
+    """fit.json and convergence.png into ``folder`` (created if missing), both or
+    neither (the output set "fit" of :func:`dopplertof.io.output_folder`)."""
     from .. import io
-    from ..tof.output import prepare_folder
 
-    folder = prepare_folder(folder, create=True)
-    paths = [os.path.join(folder, "fit.json"), os.path.join(folder, "convergence.png")]
-    io.write_json(paths[0], result.as_json())
-    write_convergence_plot(result, paths[1])
-    return paths
+    with io.output_folder(folder, "fit") as staged:
+        io.write_json(staged.path("fit.json"), result.as_json())
+        write_convergence_plot(result, staged.path("convergence.png"))
+    return staged.written
 
 
 def write_convergence_plot(result: FitResult, path) -> None:

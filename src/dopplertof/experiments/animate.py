@@ -245,7 +245,7 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
     tasks = plan_animation(scene, output, frames, frame_period=frame_period, start=start,
                            spp=spp, seed=seed, defines=defines, params=params,
                            variant=variant, previews=previews)
-    io.make_output_folder(output)
+    io.make_output_folder(output)  # the frames' folders go in it
     pending = []
     for task in tasks:
         if is_complete(task.folder, task.hash, task.outputs):
@@ -267,10 +267,21 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
                                 already_done=summary.skipped)
         summary.done = len(outcome.done)
         summary.failed = outcome.failed
-    if summary.ok:
-        summary.video = write_velocity_gif(tasks, os.path.join(output, VELOCITY_GIF), fps)
-    summary.seconds = time.perf_counter() - started
-    io.write_json(os.path.join(output, ANIMATION_JSON), {
+    # ---- the video and animation.json: one output set, all or nothing (no video of an
+    # earlier run stays beside an animation.json without one)
+    with io.output_folder(output, "animation") as staged:
+        if summary.ok:
+            write_velocity_gif(tasks, staged.path(VELOCITY_GIF), fps)
+            summary.video = os.path.join(output, VELOCITY_GIF)
+        summary.seconds = time.perf_counter() - started
+        _write_animation_json(staged.path(ANIMATION_JSON), tasks, summary, fps, frame_period)
+    return summary
+
+
+def _write_animation_json(path, tasks, summary, fps, frame_period) -> None:
+    from .. import io
+
+    io.write_json(path, {
         "scene": tasks[0].scene, "frames": len(tasks), "fps": fps,
         "exposure_s": tasks[0].params["time"],
         "frame_period_s": (tasks[1].shutter_open - tasks[0].shutter_open
@@ -283,7 +294,6 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
                      "failed": [{"task": n, "error": e} for n, e in summary.failed],
                      "seconds": round(summary.seconds, 3)},
     })
-    return summary
 
 
 # ---- The video ------------------------------------------------------------------------------

@@ -552,7 +552,9 @@ def _metrics_csv(runs, grid, path, files):
 # ---- Entry point --------------------------------------------------------------------------
 
 def write_report(results, output) -> Report:
-    """Read a sweep results folder and write figures, ``metrics.csv`` and ``summary.md``."""
+    """Read a sweep results folder and write figures, ``metrics.csv`` and ``summary.md``
+    into ``output``, replacing the previous report there all or nothing (the output set
+    "report" of :func:`dopplertof.io.output_folder`)."""
     from .. import io
 
     results = os.path.abspath(os.fspath(results))
@@ -564,30 +566,31 @@ def write_report(results, output) -> Report:
     if not runs:
         raise ReportError(f"{results}: no completed grid point yet "
                           f"({len(missing)} task(s) incomplete); run the sweep first")
-    io.make_output_folder(output)
     report = Report(output=output, runs=len(runs), missing=missing,
                     with_errors=sum(r.relative_mse is not None for r in runs))
-    suffix = f" — {config.get('name', 'sweep')}"
-    files = report.files
-    if report.with_errors:
-        _bars_by_method(runs, grid, output, files, suffix)
-        _heatmaps(runs, grid, output, files, suffix)
-        _mse_vs_spp(runs, grid, output, files, suffix)
-        _lines(runs, grid, output, files, suffix)
-    _image_grid(runs, references, grid, output, files, suffix)
-    _metrics_csv(runs, grid, os.path.join(output, "metrics.csv"), files)
-
     summary_path = os.path.join(results, SUMMARY_JSON)
     last_run = None
     if os.path.isfile(summary_path):
         with open(summary_path, encoding="utf-8") as f:
             last_run = json.load(f)
-    md = _markdown(config, runs, grid, report, last_run, results)
-    md_path = os.path.join(output, "summary.md")
-    with io.atomic_path(md_path) as tmp:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(md)
-    files.append(md_path)
+    suffix = f" — {config.get('name', 'sweep')}"
+    files = report.files
+    # ---- every file of the report, replacing the last report's all or nothing
+    with io.output_folder(output, "report") as staged:
+        staging = staged.staging
+        if report.with_errors:
+            _bars_by_method(runs, grid, staging, files, suffix)
+            _heatmaps(runs, grid, staging, files, suffix)
+            _mse_vs_spp(runs, grid, staging, files, suffix)
+            _lines(runs, grid, staging, files, suffix)
+        _image_grid(runs, references, grid, staging, files, suffix)
+        _metrics_csv(runs, grid, staged.path("metrics.csv"), files)
+        md = _markdown(config, runs, grid, report, last_run, results)
+        with io.atomic_path(staged.path("summary.md")) as tmp:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(md)
+        files.append(staged.path("summary.md"))
+    report.files = [os.path.join(output, os.path.basename(f)) for f in files]
     return report
 
 

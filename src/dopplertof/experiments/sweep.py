@@ -13,7 +13,6 @@ Results folder::
 
 from __future__ import annotations
 
-import errno
 import json
 import os
 import time
@@ -115,10 +114,22 @@ def pending_count(config: SweepConfig, output) -> tuple[list, list]:
     return tasks, pending_tasks(tasks, clean=False)
 
 
-def write_sweep_json(config: SweepConfig, tasks, output: str) -> None:
+def write_sweep_files(config: SweepConfig, tasks, output: str, summary=None) -> None:
+    """sweep.json (the plan) and, at the end of a run, its summary.json: one output set
+    (:func:`dopplertof.io.output_folder`), so that a summary.json never stays beside the
+    plan of another run (at the start, the previous run's goes)."""
     from .. import io
 
-    io.write_json(os.path.join(output, SWEEP_JSON), {
+    with io.output_folder(output, "sweep") as staged:
+        write_sweep_json(config, tasks, output, staged.path(SWEEP_JSON))
+        if summary is not None:
+            io.write_json(staged.path(SUMMARY_JSON), summary.to_json())
+
+
+def write_sweep_json(config: SweepConfig, tasks, output: str, path: str) -> None:
+    from .. import io
+
+    io.write_json(path, {
         "config": config.to_json(),
         "tasks": [{"kind": t.kind, "name": t.name,
                    "folder": os.path.relpath(t.folder, output), "grid_point": t.grid_point,
@@ -135,13 +146,10 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     Nothing starts before the whole configuration is checked (against the scene
     too). No cluster is started when everything is complete.
     """
-    from .. import io
-
     started = time.perf_counter()
     output = check_output_folder(os.fspath(output))
     tasks = plan_sweep(config, output)
-    io.make_output_folder(output)
-    write_sweep_json(config, tasks, output)
+    write_sweep_files(config, tasks, output)
     pending = pending_tasks(tasks)
     summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
                            output=output)
@@ -159,7 +167,7 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
         summary.done = len(outcome.done)
         summary.failed = outcome.failed
     summary.seconds = time.perf_counter() - started
-    write_summary(summary_path, summary)
+    write_summary(config, tasks, output, summary)
     return summary
 
 
@@ -179,16 +187,17 @@ def reserve_summary(path: str, summary: SweepSummary, pending: int) -> None:
             f.write(text + "\n" + " " * (SUMMARY_BYTES_PER_TASK * pending) + "\n")
 
 
-def write_summary(path: str, summary: SweepSummary) -> None:
-    """summary.json, atomically; on a full disk, over the space :func:`reserve_summary`
-    kept (in place: the one write that is not atomic, and only when nothing else can be
-    written)."""
+def write_summary(config: SweepConfig, tasks, output: str, summary: SweepSummary) -> None:
+    """sweep.json and summary.json, all or nothing (:func:`write_sweep_files`); on a full
+    disk, summary.json over the space :func:`reserve_summary` kept (in place: the one
+    write that is not atomic, and only when nothing else can be written)."""
     from .. import io
 
+    path = os.path.join(output, SUMMARY_JSON)
     try:
-        io.write_json(path, summary.to_json())
-    except OSError as e:
-        if e.errno not in (errno.ENOSPC, errno.EDQUOT) or not os.path.isfile(path):
+        write_sweep_files(config, tasks, output, summary)
+    except (OSError, io.WriteError) as e:
+        if not io.is_disk_full(e) or not os.path.isfile(path):
             raise
         text = json.dumps(summary.to_json(), indent=2, sort_keys=True,
                           default=str) + "\n"

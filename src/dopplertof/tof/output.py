@@ -1,6 +1,7 @@
 """Files of a capture: arrays (.npy), previews (.png), the comparison figure, summary.json.
 
-All writes are atomic (:mod:`dopplertof.io`).
+All writes are atomic (:mod:`dopplertof.io`), and the folder's files are replaced all or
+nothing (the output set "capture" of :func:`dopplertof.io.output_folder`).
 """
 
 from __future__ import annotations
@@ -26,28 +27,24 @@ def prepare_folder(folder, create: bool = False) -> str:
 
 def write_result(result, folder) -> list:
     """Every file of a capture (see the module docstring) into ``folder`` (created if
-    missing); returns the paths in the order written."""
-    folder = prepare_folder(folder, create=True)
+    missing), all or nothing (:func:`dopplertof.io.output_folder`: the files of an
+    earlier capture there are replaced together, those it wrote and this one does not
+    are removed); returns the paths in the order written."""
     summary = result.summary
-    written = []
-
-    def path(name):
-        p = os.path.join(folder, name)
-        written.append(p)
-        return p
-
     noisy = " (with sensor noise)" if summary.get("noise") else ""
     recon, truth = result.reconstruction, result.truth
-    _write_captures(result, path, noisy)
-    _write_velocity_maps(recon, truth, path, noisy)
-    _write_depth_maps(recon, truth, summary["depth"], path, noisy)
-    figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
-                             truth.velocity, f"{os.path.basename(summary['scene'])}: "
-                             f"{summary['spp_per_capture']} spp per capture{noisy}")
-    if getattr(result, "uncertainty", None) is not None:
-        write_uncertainty(result.uncertainty, path)
-    io.write_json(path("summary.json"), summary)
-    return written
+    with io.output_folder(prepare_folder(folder), "capture") as staged:
+        path = staged.path
+        _write_captures(result, path, noisy)
+        _write_velocity_maps(recon, truth, path, noisy)
+        _write_depth_maps(recon, truth, summary["depth"], path, noisy)
+        figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
+                                 truth.velocity, f"{os.path.basename(summary['scene'])}: "
+                                 f"{summary['spp_per_capture']} spp per capture{noisy}")
+        if getattr(result, "uncertainty", None) is not None:
+            write_uncertainty(result.uncertainty, path)
+        io.write_json(path("summary.json"), summary)
+    return staged.written
 
 
 def _write_captures(result, path, noisy: str) -> None:
