@@ -9,8 +9,11 @@ usable libLLVM and point ``DRJIT_LIBLLVM_PATH`` at it, or stop with a clear mess
 from __future__ import annotations
 
 import glob
+import importlib.abc
+import importlib.util
 import os
 import re
+import sys
 
 #: oldest libLLVM major version that Dr.Jit 1.5 runs on (14 and 15 abort; 19 is tested)
 MIN_LLVM_MAJOR = 16
@@ -165,6 +168,72 @@ def _log_to_stderr(mi) -> None:
     logger.clear_appenders()
     logger.add_appender(appender)
     _STDERR_APPENDER[:] = [appender]
+
+
+# ---- Mitsuba's own calls: a hook after every mitsuba.set_variant ----
+
+def when_imported(name: str, callback) -> None:
+    """Run ``callback(module)`` once module ``name`` is imported: now if it is, else
+    right after its first import (a one-shot import hook; nothing is imported here)."""
+    if name in sys.modules:
+        callback(sys.modules[name])
+        return
+    sys.meta_path.insert(0, _ImportHook(name, callback))
+
+
+class _ImportHook(importlib.abc.MetaPathFinder):
+    """Finds ``name`` with the other finders and runs ``callback`` after it loads."""
+
+    def __init__(self, name: str, callback):
+        self.name, self.callback = name, callback
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != self.name:
+            return None
+        sys.meta_path.remove(self)  # once: the real finders find it from here on
+        spec = importlib.util.find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _ThenCall(spec.loader, self.callback)
+        return spec
+
+
+class _ThenCall(importlib.abc.Loader):
+    """A module's own loader, then ``callback`` on what sys.modules holds (Mitsuba puts
+    its variant-dispatching alias module there)."""
+
+    def __init__(self, loader, callback):
+        self.loader, self.callback = loader, callback
+
+    def create_module(self, spec):
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module):
+        self.loader.exec_module(module)
+        self.callback(sys.modules.get(module.__name__, module))
+
+    def __getattr__(self, name):  # resources and the rest: the module's own loader
+        return getattr(self.loader, name)
+
+
+def after_set_variant(mi, callback) -> None:
+    """Run ``callback(mi)`` for the variant set now (if one is) and after every later
+    ``mitsuba.set_variant`` (``mitsuba.variant_context`` calls it too). Mitsuba has no
+    such hook, so its set_variant is replaced, once, by one that calls the original and
+    then the callbacks."""
+    original = mi.set_variant
+    callbacks = getattr(original, "dopplertof_callbacks", None)
+    if callbacks is None:
+        def set_variant(*args, **kwargs):
+            original(*args, **kwargs)
+            for after in callbacks:
+                after(mi)
+
+        callbacks = set_variant.dopplertof_callbacks = []
+        set_variant.__doc__ = getattr(original, "__doc__", None)
+        mi.set_variant = set_variant
+    callbacks.append(callback)
+    if mi.variant() is not None:
+        callback(mi)
 
 
 def require_variant():
