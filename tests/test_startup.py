@@ -1,0 +1,58 @@
+"""A fast start (issue 24, section 7): the command line's help and its usage errors
+import nothing heavy, the kernel of a capture serves every capture after it, and a
+second ``make demo`` renders nothing when its outputs are up to date. No test is
+timed: each checks the cause of the time (what is imported, what is compiled, what
+make would run); benchmarks/startup.py measures the times."""
+
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SRC = os.path.join(ROOT, "src")
+SPHERE = os.path.join(ROOT, "examples", "translating_sphere.xml")
+#: what a usage error or --help has no use for
+HEAVY = ("mitsuba", "drjit", "matplotlib", "dask", "scipy")
+
+
+def cli_in_fresh_python(*argv) -> tuple:
+    """(exit code, stderr, the heavy modules imported) of ``dopplertof ARGV`` run in a
+    fresh interpreter, this tree's sources first on the path."""
+    code = (f"import sys\nfrom dopplertof.cli import main\n"
+            f"try:\n    rc = main({list(argv)!r})\nexcept SystemExit as e:\n    rc = e.code\n"
+            f"print('imported', *[m for m in {HEAVY!r} if m in sys.modules])\n"
+            f"sys.exit(rc)")
+    env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env=env, cwd=ROOT, timeout=120)
+    imported = [line.split()[1:] for line in result.stdout.splitlines()
+                if line.startswith("imported")]
+    return result.returncode, result.stderr, imported[-1] if imported else None
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["capture", "--help"], ["fit", "--help"],
+                                  ["render"], ["sweep", "--help"]],
+                         ids=lambda a: " ".join(a))
+def test_help_and_argparse_errors_import_nothing_heavy(argv):
+    code, err, imported = cli_in_fresh_python(*argv)
+    assert code in (0, 2), err
+    assert imported == [], imported
+
+
+@pytest.mark.parametrize("argv,expected", [
+    (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_dept=3"], "did you mean 'max_depth'"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_depth=abc"], "must be an integer"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "--spp", "0"], "spp must be >= 1"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "--seed", "-1"], "seed must be a non-negative"),
+    (["capture", SPHERE, "-o", "{tmp}/out", "-P", "hetro_frequency=1"], "did you mean"),
+    (["capture", SPHERE, "-o", "{tmp}/out", "--spp", "0"], "spp must be >= 1"),
+    (["precision", SPHERE, "-P", "w_gg=20"], "did you mean 'w_g'"),
+], ids=lambda v: " ".join(v[3:]) if isinstance(v, list) else None)
+def test_usage_errors_come_before_mitsuba_loads(tmp_path, argv, expected):
+    code, err, imported = cli_in_fresh_python(*[a.format(tmp=tmp_path) for a in argv])
+    assert code == 2 and expected in err and err.count("\n") == 1, err
+    assert imported == [], imported
+    assert os.listdir(tmp_path) == []  # nothing written
