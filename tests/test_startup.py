@@ -56,3 +56,34 @@ def test_usage_errors_come_before_mitsuba_loads(tmp_path, argv, expected):
     assert code == 2 and expected in err and err.count("\n") == 1, err
     assert imported == [], imported
     assert os.listdir(tmp_path) == []  # nothing written
+
+
+def _kernels_of(run) -> set:
+    """The hashes of the Dr.Jit kernels that ``run()`` launches (its kernel history)."""
+    import drjit as dr
+
+    dr.kernel_history()  # (clears what came before)
+    flag = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        run()
+        return {k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT}
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, flag)
+
+
+def test_a_second_capture_with_other_offsets_and_frequencies_reuses_the_kernels():
+    """Offsets and frequencies are opaque Dr.Jit values, not literals: the second
+    capture compiles nothing new (a kernel costs 0.5-1.5 s to compile here)."""
+    import dopplertof
+
+    scene = dopplertof.load_file(SPHERE, res=8)
+
+    def capture(**settings):
+        return lambda: dopplertof.capture(scene, spp=4, progress=False, **settings)
+
+    first = _kernels_of(capture())
+    second = _kernels_of(capture(seed=3, hetero_frequency=2, unwrap_frequency=12,
+                                 params={"w_g": 20, "hetero_offset": 0.3,
+                                         "sensor_phase_offset": 0.2, "g_0": 0.5}))
+    assert first and second <= first, (len(second - first), "new kernels")
