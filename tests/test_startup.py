@@ -87,3 +87,38 @@ def test_a_second_capture_with_other_offsets_and_frequencies_reuses_the_kernels(
                                  params={"w_g": 20, "hetero_offset": 0.3,
                                          "sensor_phase_offset": 0.2, "g_0": 0.5}))
     assert first and second <= first, (len(second - first), "new kernels")
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_second_make_demo_renders_nothing_when_its_outputs_are_up_to_date(tmp_path):
+    """``make -n demo`` (what make would run) in a copy of the Makefile's world: the
+    demo renders when demo_out is missing or older than a source, not otherwise."""
+    for name, text in [("Makefile", open(os.path.join(ROOT, "Makefile")).read()),
+                       ("pyproject.toml", ""), ("tools/ensure_llvm.sh", "exit 0\n"),
+                       ("src/dopplertof/demo.py", ""),
+                       ("src/dopplertof/data/cornell_demo.xml", ""),
+                       (".venv/bin/python", ""), (".venv/.installed", "")]:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    os.chmod(tmp_path / ".venv/bin/python", 0o755)
+
+    def renders() -> bool:
+        out = subprocess.run(["make", "-n", "demo"], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+        return "dopplertof demo" in out.stdout
+
+    def age(name, seconds):  # set a file's time to ``seconds`` ago
+        t = os.path.getmtime(tmp_path / ".venv/.installed") - seconds
+        os.utime(tmp_path / name, (t, t))
+
+    for name in ("pyproject.toml", "tools/ensure_llvm.sh", "src/dopplertof/demo.py",
+                 "src/dopplertof/data/cornell_demo.xml"):
+        age(name, 100)
+    assert renders()  # no outputs yet
+    (tmp_path / "demo_out").mkdir()
+    (tmp_path / "demo_out/summary.json").write_text("{}")
+    assert not renders()  # the second time: up to date
+    age("demo_out/summary.json", 50)
+    os.utime(tmp_path / "src/dopplertof/demo.py")  # a source changed since
+    assert renders()
