@@ -33,14 +33,16 @@ def run_python(code: str) -> subprocess.CompletedProcess:
 
 # ---- mi.set_variant registers the plugin, whichever is imported first ----
 
-@pytest.mark.parametrize("imports", ["import dopplertof\nimport mitsuba as mi",
-                                     "import mitsuba as mi\nimport dopplertof"],
-                         ids=["dopplertof first", "mitsuba first"])
+@pytest.mark.parametrize("imports", [
+    "import dopplertof\nimport mitsuba as mi",
+    "import mitsuba as mi\nimport dopplertof",
+    "import mitsuba as mi\nmi.set_variant('llvm_ad_mono')\nimport dopplertof",
+], ids=["dopplertof first", "mitsuba first", "mitsuba's variant set first"])
 def test_mitsuba_set_variant_then_load_file_finds_the_plugin(tmp_path, imports):
     scene = static_copy(tmp_path)
     result = run_python(f"""{imports}
-import sys
-mi.set_variant("llvm_ad_mono")
+if mi.variant() is None:
+    mi.set_variant("llvm_ad_mono")
 scene = mi.load_file({scene!r}, res=4)
 print("found", type(scene.integrator()).__name__, scene.integrator().params.w_g)
 with mi.variant_context("llvm_ad_rgb"):
@@ -50,6 +52,15 @@ with mi.variant_context("llvm_ad_rgb"):
     found = [line.split("found ")[1].split() for line in result.stdout.splitlines()
              if "found " in line]  # (Mitsuba logs to stdout too)
     assert found == [["DopplerToFPath", "30.0"], ["DopplerToFPath"]]
+
+
+def test_a_variant_dopplertof_cannot_run_in_says_why(tmp_path):
+    import mitsuba as mi
+
+    scene = static_copy(tmp_path)
+    mi.set_variant("scalar_rgb")  # (the fixture sets llvm_ad_rgb again)
+    with pytest.raises(Exception, match="scalar_rgb' runs Python per sample"):
+        mi.load_file(scene, res=4)
 
 
 def test_import_dopplertof_does_not_import_mitsuba():

@@ -88,6 +88,19 @@ def ensure_libllvm() -> str:
     return path
 
 
+def variant_problem(variant: str) -> str | None:
+    """Why dopplertof cannot run in Mitsuba variant ``variant`` (None: it can)."""
+    if variant.startswith("scalar_"):
+        return (f"variant {variant!r} runs Python per sample and is not supported; "
+                "use an llvm_* (CPU) or cuda_* (GPU) variant")
+    if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
+        return f"unknown variant {variant!r}: expected llvm_* or cuda_*"
+    if "polarized" in variant:
+        return (f"variant {variant!r}: polarized light transport is not supported; use an "
+                "rgb, spectral or mono variant")
+    return None
+
+
 def set_variant(variant: str | None = None) -> str:
     """Select a Mitsuba JIT variant (LLVM RGB by default) after the libLLVM check.
 
@@ -95,18 +108,9 @@ def set_variant(variant: str | None = None) -> str:
     (this module knows nothing of the integrators).
     """
     variant = variant or DEFAULT_VARIANT
-    if variant.startswith("scalar_"):
-        raise BackendError(
-            f"variant {variant!r} runs Python per sample and is not supported; "
-            "use an llvm_* (CPU) or cuda_* (GPU) variant"
-        )
-    if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
-        raise BackendError(f"unknown variant {variant!r}: expected llvm_* or cuda_*")
-    if "polarized" in variant:
-        raise BackendError(
-            f"variant {variant!r}: polarized light transport is not supported; use an "
-            "rgb, spectral or mono variant"
-        )
+    problem = variant_problem(variant)
+    if problem:
+        raise BackendError(problem)
     if variant.startswith("llvm_"):
         ensure_libllvm()
     import mitsuba as mi

@@ -17,13 +17,17 @@ def adopt(mi) -> None:
 
 
 def register_plugins(mi) -> None:
-    """The D-ToF plugins for the variant Mitsuba has now, when dopplertof can run in it
-    (a JIT variant without polarization: the others cannot trace its kernel)."""
-    variant = mi.variant() or ""
-    if variant.startswith(("llvm_", "cuda_")) and "polarized" not in variant:
-        from . import integrators
+    """The D-ToF plugins for the variant Mitsuba has now: the integrator where dopplertof
+    can run (a JIT variant without polarization), else one that says why not when a
+    scene asks for it (not Mitsuba's "Plugin not found")."""
+    from . import integrators
+    from .backend import variant_problem
 
+    problem = variant_problem(mi.variant() or "")
+    if problem is None:
         integrators.register()
+    else:
+        integrators.register_refusal(problem)
 
 
 def _render_accepting_doppler_scenes(mi, original):
