@@ -18,7 +18,14 @@ $(STAMP): pyproject.toml
 llvm: $(STAMP)
 	@bash tools/ensure_llvm.sh $(PY)
 
-demo: setup
+# rendered again only when the package (its code, the demo scene, the install) is newer
+# than demo_out/summary.json (written last): a second `make demo` renders nothing
+DEMO_INPUTS := $(STAMP) $(shell find src/dopplertof -name '*.py' -o -name '*.xml')
+
+demo: setup demo_out/summary.json
+	@echo "demo_out/ is up to date with the package (rm demo_out/summary.json to render it again)"
+
+demo_out/summary.json: $(DEMO_INPUTS)
 	$(VENV)/bin/dopplertof demo -o demo_out
 
 # the whole suite (what CI runs); `make quick`: the fast tier, for the edit-test loop

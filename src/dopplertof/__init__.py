@@ -27,6 +27,17 @@ from . import scene  # noqa: E402
 from .scene import Animation, DopplerScene, SceneError  # noqa: E402
 
 
+def _adopt_mitsuba(mi):
+    """mitsuba.set_variant registers the plugins, mi.render takes a DopplerScene."""
+    from . import interop
+
+    interop.adopt(mi)
+
+
+# from the moment mitsuba is imported, before or after dopplertof (interop.py)
+_backend.when_imported("mitsuba", _adopt_mitsuba)
+
+
 def set_variant(variant: str | None = None) -> str:
     """Choose the Mitsuba variant (LLVM RGB by default; checks libLLVM and the GPU) and
     register the D-ToF integrator plugins for it (``<integrator type="dopplertof">``)."""
@@ -77,11 +88,12 @@ def load_dict(scene_dict: dict):
 
 def capture(scene, spp=None, seed=0, **kwargs):
     """One D-ToF camera frame: every capture, velocity and depth reconstruction and the
-    exact truth (see :func:`dopplertof.tof.capture`). ``scene`` is a DopplerScene or
-    the path of an XML scene. Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
+    exact truth (see :func:`dopplertof.tof.capture`). ``scene`` is a DopplerScene, a
+    plain ``mi.Scene`` (static) or the path of an XML scene. Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
     ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
     import os
 
+    from .scene.scene import as_doppler_scene
     from .tof import capture as _capture
 
     if isinstance(scene, (str, os.PathLike)):
@@ -89,7 +101,7 @@ def capture(scene, spp=None, seed=0, **kwargs):
     else:
         _arguments.check_scene(scene, "scene")
         _ensure_variant()
-    return _capture(scene, spp, seed, **kwargs)
+    return _capture(as_doppler_scene(scene), spp, seed, **kwargs)
 
 
 __all__ = ["load_file", "load_string", "load_dict", "capture", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import importlib.abc
+import importlib.util
 import os
 import re
 import signal
@@ -89,6 +91,19 @@ def ensure_libllvm() -> str:
     return path
 
 
+def variant_problem(variant: str) -> str | None:
+    """Why dopplertof cannot run in Mitsuba variant ``variant`` (None: it can)."""
+    if variant.startswith("scalar_"):
+        return (f"variant {variant!r} runs Python per sample and is not supported; "
+                "use an llvm_* (CPU) or cuda_* (GPU) variant")
+    if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
+        return f"unknown variant {variant!r}: expected llvm_* or cuda_*"
+    if "polarized" in variant:
+        return (f"variant {variant!r}: polarized light transport is not supported; use an "
+                "rgb, spectral or mono variant")
+    return None
+
+
 def set_variant(variant: str | None = None) -> str:
     """Select a Mitsuba JIT variant (LLVM RGB by default) after the libLLVM check.
 
@@ -96,18 +111,9 @@ def set_variant(variant: str | None = None) -> str:
     (this module knows nothing of the integrators).
     """
     variant = variant or DEFAULT_VARIANT
-    if variant.startswith("scalar_"):
-        raise BackendError(
-            f"variant {variant!r} runs Python per sample and is not supported; "
-            "use an llvm_* (CPU) or cuda_* (GPU) variant"
-        )
-    if not (variant.startswith("llvm_") or variant.startswith("cuda_")):
-        raise BackendError(f"unknown variant {variant!r}: expected llvm_* or cuda_*")
-    if "polarized" in variant:
-        raise BackendError(
-            f"variant {variant!r}: polarized light transport is not supported; use an "
-            "rgb, spectral or mono variant"
-        )
+    problem = variant_problem(variant)
+    if problem:
+        raise BackendError(problem)
     if variant.startswith("llvm_"):
         ensure_libllvm()
         if "drjit" not in sys.modules:  # ---- before Dr.Jit starts: can it, in this limit?
@@ -200,6 +206,72 @@ def _log_to_stderr(mi) -> None:
     logger.clear_appenders()
     logger.add_appender(appender)
     _STDERR_APPENDER[:] = [appender]
+
+
+# ---- Mitsuba's own calls: a hook after every mitsuba.set_variant ----
+
+def when_imported(name: str, callback) -> None:
+    """Run ``callback(module)`` once module ``name`` is imported: now if it is, else
+    right after its first import (a one-shot import hook; nothing is imported here)."""
+    if name in sys.modules:
+        callback(sys.modules[name])
+        return
+    sys.meta_path.insert(0, _ImportHook(name, callback))
+
+
+class _ImportHook(importlib.abc.MetaPathFinder):
+    """Finds ``name`` with the other finders and runs ``callback`` after it loads."""
+
+    def __init__(self, name: str, callback):
+        self.name, self.callback = name, callback
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != self.name:
+            return None
+        sys.meta_path.remove(self)  # once: the real finders find it from here on
+        spec = importlib.util.find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _ThenCall(spec.loader, self.callback)
+        return spec
+
+
+class _ThenCall(importlib.abc.Loader):
+    """A module's own loader, then ``callback`` on what sys.modules holds (Mitsuba puts
+    its variant-dispatching alias module there)."""
+
+    def __init__(self, loader, callback):
+        self.loader, self.callback = loader, callback
+
+    def create_module(self, spec):
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module):
+        self.loader.exec_module(module)
+        self.callback(sys.modules.get(module.__name__, module))
+
+    def __getattr__(self, name):  # resources and the rest: the module's own loader
+        return getattr(self.loader, name)
+
+
+def after_set_variant(mi, callback) -> None:
+    """Run ``callback(mi)`` for the variant set now (if one is) and after every later
+    ``mitsuba.set_variant`` (``mitsuba.variant_context`` calls it too). Mitsuba has no
+    such hook, so its set_variant is replaced, once, by one that calls the original and
+    then the callbacks."""
+    original = mi.set_variant
+    callbacks = getattr(original, "dopplertof_callbacks", None)
+    if callbacks is None:
+        def set_variant(*args, **kwargs):
+            original(*args, **kwargs)
+            for after in callbacks:
+                after(mi)
+
+        callbacks = set_variant.dopplertof_callbacks = []
+        set_variant.__doc__ = getattr(original, "__doc__", None)
+        mi.set_variant = set_variant
+    callbacks.append(callback)
+    if mi.variant() is not None:
+        callback(mi)
 
 
 def require_variant():

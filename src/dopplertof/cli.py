@@ -202,10 +202,25 @@ def _load_scene(args):
     return scene
 
 
+def _check_before_loading(args, where: str) -> None:
+    """What is wrong with the -P values, --spp and --seed, said before Mitsuba and the
+    scene load (a usage error in well under a second, not after seconds of start-up);
+    the library checks them again against the scene."""
+    from .params import RenderParams
+    from .sampling import check_sample_count
+
+    RenderParams.coerced(parse_pairs(args.params, "-P"), where)
+    if args.spp is not None:
+        check_sample_count(1, args.spp)
+    if args.seed < 0:
+        raise UsageError(f"seed must be a non-negative integer, got {args.seed}")
+
+
 def _cmd_render(args) -> int:
     import dopplertof
     from . import io
 
+    _check_before_loading(args, "render parameters")
     io.check_output_path(args.output)
     if args.sample_counts:
         io.check_output_path(args.sample_counts)
@@ -259,6 +274,7 @@ def _cmd_capture(args) -> int:
     import dopplertof
     from .tof import format_summary, prepare_folder
 
+    _check_before_loading(args, "capture parameters")
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     noise = _noise_model(args, args.noise)
@@ -301,6 +317,7 @@ def _cmd_precision(args) -> int:
     from .params import FREQUENCY_RANGE_MHZ
     from .tof import study
 
+    _check_before_loading(args, "precision parameters")
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     w_g = (None if args.w_g is None else

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
-from .hints import did_you_mean
+from .hints import unknown_name
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
                        METHOD_NAMES, auto_sampling)
@@ -112,17 +112,19 @@ class RenderParams:
     @classmethod
     def from_mapping(cls, values: dict, where: str = "parameters", base=None):
         """Parse ``{name: value}`` (values typed or strings) on top of ``base``."""
-        base = base or cls()
-        known = {f.name: f for f in fields(cls)}
-        changes = {}
-        for name, value in values.items():
+        return replace(base or cls(), **cls.coerced(values, where)).validated(where)
+
+    @classmethod
+    def coerced(cls, values: dict, where: str = "parameters") -> dict:
+        """``{name: value}`` with every name known and every value of its type (strings
+        parsed), else a ParameterError; no scene needed (the command line checks its -P
+        values with it before Mitsuba loads)."""
+        known = cls.names()
+        for name in values:
             if name not in known:
-                raise ParameterError(
-                    f"{where}: unknown parameter {name!r}{did_you_mean(name, known)} "
-                    f"(known: {', '.join(sorted(known))})"
-                )
-            changes[name] = _coerce(name, value, _TYPES[name], where)
-        return replace(base, **changes).validated(where)
+                raise ParameterError(f"{where}: {unknown_name('parameter', name, known)}")
+        return {name: _coerce(name, value, _TYPES[name], where)
+                for name, value in values.items()}
 
     def validated(self, where: str = "parameters"):
         """These parameters when every value is in range and they agree with each other,

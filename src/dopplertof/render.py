@@ -15,7 +15,8 @@ from .integrators.pipeline import (  # noqa: F401  (the pipeline's public names)
 
 def render_result(scene, spp: int | None = None, seed: int = 0, params=None,
                   **options) -> RenderResult:
-    """Render ``scene`` (a DopplerScene): the image and what produced it.
+    """Render ``scene`` (a DopplerScene, or a plain ``mi.Scene`` as a static one: see
+    :func:`dopplertof.scene.scene.as_doppler_scene`): the image and what produced it.
 
     ``options``: ``progress`` (a bar on stderr; default: when it is a terminal),
     ``checkpoint`` (a path: saved after every pass, resumed from, bitwise the same
@@ -23,9 +24,10 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None,
     """
     from .backend import require_variant
     from .integrators.dtof_path import integrator_class
+    from .scene.scene import as_doppler_scene
 
     integrator = integrator_class(require_variant())()
-    return integrator.render_result(scene, spp, seed, params, **options)
+    return integrator.render_result(as_doppler_scene(scene), spp, seed, params, **options)
 
 
 def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> np.ndarray:

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..hints import unknown_name
 from ..modulation import SPEED_OF_LIGHT
 from .motion import VelocityMotion
 
@@ -212,9 +213,18 @@ def check_names(dscene: DifferentiableScene, names) -> None:
             key = m.group(1) if m else name
             if key not in dscene.scene_parameters():
                 raise DerivativeError(
-                    f"unknown parameter {name!r}: expected body<k>.v<x|y|z>, "
-                    "body<k>.w<x|y|z>, camera.v<x|y|z>, w_g, hetero_offset, g_1 or a "
-                    "mi.traverse key")
+                    f"{unknown_name('parameter', name, parameter_names(dscene))}: expected "
+                    "body<k>.v<x|y|z>, body<k>.w<x|y|z>, camera.v<x|y|z>, w_g, "
+                    "hetero_offset, g_1 or a mi.traverse key of the scene")
+
+
+def parameter_names(dscene: DifferentiableScene) -> list:
+    """Every name :func:`render_derivatives` differentiates in ``dscene``: the bodies'
+    and the camera's velocities, the modulation's and the scene's mi.traverse keys."""
+    motions = [f"body{k}.{kind}{axis}" for k in range(len(dscene.motions))
+               for kind in "vw" for axis in AXES]
+    return (motions + [f"camera.v{axis}" for axis in AXES] + list(MODULATION_PARAMETERS)
+            + list(dscene.scene_parameters()))
 
 
 class _ModulationVariables:

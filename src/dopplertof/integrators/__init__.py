@@ -19,3 +19,22 @@ def register() -> None:
 
     register_plugin(mi)
     _registered.add(mi.variant())
+
+
+def register_refusal(problem: str) -> None:
+    """In a variant dopplertof cannot run in: plugins that raise ``problem`` (why) when a
+    scene names them (idempotent)."""
+    import mitsuba as mi
+
+    from ..backend import BackendError
+    from ..scene.scene import DTOF_INTEGRATORS
+
+    if mi.variant() in _registered:
+        return
+
+    def refuse(props):
+        raise BackendError(f"<integrator type=\"dopplertof\">: {problem}")
+
+    for name in DTOF_INTEGRATORS:
+        mi.register_integrator(name, refuse)
+    _registered.add(mi.variant())

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..hints import with_plugin_hint
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, MOVABLE_EMITTERS,
                     SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
                     correlated_sampler_params)
 
@@ -239,4 +240,5 @@ def _load(mi, d: dict, what: str):
         return mi.load_dict(d)
     except Exception as e:
         lines = [x for x in str(e).strip().splitlines() if x.strip()]
-        raise SceneError(f"<dict> {what}: {lines[-1] if lines else 'load failed'}") from None
+        detail = with_plugin_hint(lines[-1], DTOF_PLUGINS) if lines else "load failed"
+        raise SceneError(f"<dict> {what}: {detail}") from None

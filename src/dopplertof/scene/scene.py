@@ -9,6 +9,8 @@ from ..params import ParameterError, RenderParams
 
 #: the integrator types of a D-ToF scene (the second is the published name)
 DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
+#: the plugin names dopplertof adds to Mitsuba's (for the did-you-mean of a misspelt one)
+DTOF_PLUGINS = DTOF_INTEGRATORS + ("correlated",)
 #: the lights that can move (keyframed, or riding on the camera)
 MOVABLE_EMITTERS = ("point", "spot")
 #: the published <sampler type="correlated">'s D-ToF parameters (render parameters)
@@ -77,6 +79,21 @@ class SceneError(ValueError):
 
 @dataclass(frozen=True)
 class DopplerScene:
+    """A loaded D-ToF scene (``dopplertof.load_file``/``load_string``/``load_dict``): a
+    Mitsuba scene of what stays still plus the moving bodies, which Mitsuba alone cannot
+    render. Render it with ``dopplertof.render``/``capture`` (or ``mi.render(scene)``,
+    which calls ``dopplertof.render``). Its parts, for Mitsuba's own calls:
+
+    - ``static``: the ``mi.Scene`` with the static shapes, the sensor and the emitters
+      (``mi.traverse(scene.static)`` edits their parameters; ``mi.render(scene.static)``
+      renders without the moving bodies);
+    - ``bodies``: one MovingBody per animation: ``.scene`` (an ``mi.Scene`` of its
+      shapes at the first keyframe's pose), ``.motion`` and ``.names`` (the shape ids);
+    - ``params`` (RenderParams), ``spp``, ``variant``, ``source``, ``sensor_motion``,
+      ``light_motions``, ``notes``, ``fingerprint``; ``sensor``, ``shutter_open`` and
+      ``shutter_interval`` are the sensor's.
+    """
+
     static: object  #: mi.Scene with the static shapes, the sensor and the emitters
     bodies: tuple  #: MovingBody, one per animation
     params: RenderParams  #: from the scene's <integrator> and <sampler>
@@ -110,6 +127,16 @@ class DopplerScene:
             return None
         return (min(float(m.times[0]) for m in motions),
                 max(float(m.times[-1]) for m in motions))
+
+    def __hash__(self):  # its Mitsuba objects compare by identity: so does the scene
+        return hash((id(self.static), tuple(id(body.scene) for body in self.bodies)))
+
+    def traverse(self, callback):
+        """``mi.traverse(scene)``: a DopplerScene is no Mitsuba node, say what is."""
+        raise TypeError(
+            "mi.traverse takes a Mitsuba object, not a DopplerScene: traverse scene.static "
+            "(static shapes, sensor, emitters) or a moving body's scene.bodies[i].scene; "
+            "for derivatives of a moving scene use dopplertof.diff.render_derivatives")
 
     def with_params(self, **changes) -> "DopplerScene":
         """A copy with integrator parameters changed (validated)."""
@@ -269,7 +296,26 @@ def _load_checked(mi, load_part, part, what: str, source: str):
     return scene, text
 
 
-def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>") -> DopplerScene:
+def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>",
+           has_integrator: bool = True) -> DopplerScene:
     """A DopplerScene of a static scene Mitsuba has loaded already (the plugin's)."""
-    return build(mi, SceneDescription(source, scene, params=params),
+    return build(mi, SceneDescription(source, scene, params=params,
+                                      has_integrator=has_integrator),
                  lambda part, what: (part, ""))
+
+
+def as_doppler_scene(scene):
+    """``scene`` if it is a DopplerScene; a plain ``mi.Scene`` (what ``mi.load_file``
+    gives) as a static DopplerScene, with the parameters of its dopplertof integrator
+    (the defaults, and a note saying so, under another integrator or none); anything
+    else as it is, for the caller's own check."""
+    if isinstance(scene, DopplerScene):
+        return scene
+    import sys
+
+    mi = sys.modules.get("mitsuba")
+    if mi is None or mi.variant() is None or not isinstance(scene, mi.Scene):
+        return scene
+    params = getattr(scene.integrator(), "params", None)
+    own = isinstance(params, RenderParams)
+    return loaded(mi, scene, params if own else RenderParams(), has_integrator=own)

@@ -25,11 +25,12 @@ import xml.parsers.expat
 
 import numpy as np
 
-from ..hints import did_you_mean
+from ..hints import did_you_mean, with_plugin_hint
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, SHUTTER_NAMES, MotionClaim,
-                    SceneDescription, SceneError, build, correlated_sampler_params)
+from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
+                    MotionClaim, SceneDescription, SceneError, build,
+                    correlated_sampler_params)
 from .transforms import TransformError, compose
 
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
@@ -360,7 +361,8 @@ def _mitsuba_error(doc: _Doc, root: ET.Element, text: str, error: Exception) -> 
     detail = re.sub(r"\[[\w.]+:\d+\]\s*", "", detail)  # [parser.cpp:451]
     location = r"(?:(?:Error while loading|While loading|At) string\s*)?\(line 1, col (\d+)\):?\s*"
     at = re.search(location, detail)
-    detail = re.sub(location, "", detail).strip() or "load failed"
+    detail = with_plugin_hint(re.sub(location, "", detail).strip() or "load failed",
+                              DTOF_PLUGINS)
     if not at:
         return f"{doc.source}: {detail}"
     el = _element_at(doc, root, text, int(at.group(1)))

@@ -1,0 +1,124 @@
+"""A fast start (issue 24, section 7): the command line's help and its usage errors
+import nothing heavy, the kernel of a capture serves every capture after it, and a
+second ``make demo`` renders nothing when its outputs are up to date. No test is
+timed: each checks the cause of the time (what is imported, what is compiled, what
+make would run); benchmarks/startup.py measures the times."""
+
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SRC = os.path.join(ROOT, "src")
+SPHERE = os.path.join(ROOT, "examples", "translating_sphere.xml")
+#: what a usage error or --help has no use for
+HEAVY = ("mitsuba", "drjit", "matplotlib", "dask", "scipy")
+
+
+def cli_in_fresh_python(*argv) -> tuple:
+    """(exit code, stderr, the heavy modules imported) of ``dopplertof ARGV`` run in a
+    fresh interpreter, this tree's sources first on the path."""
+    code = (f"import sys\nfrom dopplertof.cli import main\n"
+            f"try:\n    rc = main({list(argv)!r})\nexcept SystemExit as e:\n    rc = e.code\n"
+            f"print('imported', *[m for m in {HEAVY!r} if m in sys.modules])\n"
+            f"sys.exit(rc)")
+    env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env=env, cwd=ROOT, timeout=120)
+    imported = [line.split()[1:] for line in result.stdout.splitlines()
+                if line.startswith("imported")]
+    return result.returncode, result.stderr, imported[-1] if imported else None
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["capture", "--help"], ["fit", "--help"],
+                                  ["render"], ["sweep", "--help"]],
+                         ids=lambda a: " ".join(a))
+def test_help_and_argparse_errors_import_nothing_heavy(argv):
+    code, err, imported = cli_in_fresh_python(*argv)
+    assert code in (0, 2), err
+    assert imported == [], imported
+
+
+@pytest.mark.parametrize("argv,expected", [
+    (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_dept=3"], "did you mean 'max_depth'"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_depth=abc"], "must be an integer"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "--spp", "0"], "spp must be >= 1"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "--seed", "-1"], "seed must be a non-negative"),
+    (["capture", SPHERE, "-o", "{tmp}/out", "-P", "hetro_frequency=1"], "did you mean"),
+    (["capture", SPHERE, "-o", "{tmp}/out", "--spp", "0"], "spp must be >= 1"),
+    (["precision", SPHERE, "-P", "w_gg=20"], "did you mean 'w_g'"),
+], ids=lambda v: " ".join(v[3:]) if isinstance(v, list) else None)
+def test_usage_errors_come_before_mitsuba_loads(tmp_path, argv, expected):
+    code, err, imported = cli_in_fresh_python(*[a.format(tmp=tmp_path) for a in argv])
+    assert code == 2 and expected in err and err.count("\n") == 1, err
+    assert imported == [], imported
+    assert os.listdir(tmp_path) == []  # nothing written
+
+
+def _kernels_of(run) -> set:
+    """The hashes of the Dr.Jit kernels that ``run()`` launches (its kernel history)."""
+    import drjit as dr
+
+    dr.kernel_history()  # (clears what came before)
+    flag = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        run()
+        return {k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT}
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, flag)
+
+
+def test_a_second_capture_with_other_offsets_and_frequencies_reuses_the_kernels():
+    """Offsets and frequencies are opaque Dr.Jit values, not literals: the second
+    capture compiles nothing new (a kernel costs 0.5-1.5 s to compile here)."""
+    import dopplertof
+
+    scene = dopplertof.load_file(SPHERE, res=8)
+
+    def capture(**settings):
+        return lambda: dopplertof.capture(scene, spp=4, progress=False, **settings)
+
+    first = _kernels_of(capture())
+    second = _kernels_of(capture(seed=3, hetero_frequency=2, unwrap_frequency=12,
+                                 params={"w_g": 20, "hetero_offset": 0.3,
+                                         "sensor_phase_offset": 0.2, "g_0": 0.5}))
+    assert first and second <= first, (len(second - first), "new kernels")
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_second_make_demo_renders_nothing_when_its_outputs_are_up_to_date(tmp_path):
+    """``make -n demo`` (what make would run) in a copy of the Makefile's world: the
+    demo renders when demo_out is missing or older than a source, not otherwise."""
+    for name, text in [("Makefile", open(os.path.join(ROOT, "Makefile")).read()),
+                       ("pyproject.toml", ""), ("tools/ensure_llvm.sh", "exit 0\n"),
+                       ("src/dopplertof/demo.py", ""),
+                       ("src/dopplertof/data/cornell_demo.xml", ""),
+                       (".venv/bin/python", ""), (".venv/.installed", "")]:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    os.chmod(tmp_path / ".venv/bin/python", 0o755)
+
+    def renders() -> bool:
+        out = subprocess.run(["make", "-n", "demo"], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+        return "dopplertof demo" in out.stdout
+
+    def age(name, seconds):  # set a file's time to ``seconds`` ago
+        t = os.path.getmtime(tmp_path / ".venv/.installed") - seconds
+        os.utime(tmp_path / name, (t, t))
+
+    for name in ("pyproject.toml", "tools/ensure_llvm.sh", "src/dopplertof/demo.py",
+                 "src/dopplertof/data/cornell_demo.xml"):
+        age(name, 100)
+    assert renders()  # no outputs yet
+    (tmp_path / "demo_out").mkdir()
+    (tmp_path / "demo_out/summary.json").write_text("{}")
+    assert not renders()  # the second time: up to date
+    age("demo_out/summary.json", 50)
+    os.utime(tmp_path / "src/dopplertof/demo.py")  # a source changed since
+    assert renders()
