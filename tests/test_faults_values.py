@@ -193,7 +193,7 @@ def _plane():
 
 @pytest.mark.parametrize("call, error, message", [
     (lambda s: dopplertof.render(SPHERE), TypeError,
-     "scene must be a DopplerScene (from dopplertof.load_file): load it first with "
+     "scene must be a DopplerScene (from dopplertof.load_file) or an mi.Scene: load it first with "
      "dopplertof.load_file(path), got str"),
     (lambda s: dopplertof.render_result(None), TypeError, "scene must be a DopplerScene"),
     (lambda s: dopplertof.render(s, params="w_g=30"), TypeError,

@@ -93,15 +93,14 @@ def capture(scene, spp=None, seed=0, **kwargs):
     ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
     import os
 
-    from .scene.scene import as_doppler_scene
     from .tof import capture as _capture
 
     if isinstance(scene, (str, os.PathLike)):
         scene = load_file(scene)
     else:
-        _arguments.check_scene(scene, "scene")
+        scene = _arguments.check_scene(scene, "scene")
         _ensure_variant()
-    return _capture(as_doppler_scene(scene), spp, seed, **kwargs)
+    return _capture(scene, spp, seed, **kwargs)
 
 
 __all__ = ["load_file", "load_string", "load_dict", "capture", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",

@@ -57,14 +57,16 @@ def check_params(value, name: str = "params"):
 
 
 def check_scene(value, name: str = "scene"):
-    """A loaded scene (a DopplerScene)."""
-    from .scene.scene import DopplerScene
+    """A loaded scene: a DopplerScene, or a plain ``mi.Scene`` made one (static,
+    :func:`dopplertof.scene.scene.as_doppler_scene`)."""
+    from .scene.scene import DopplerScene, as_doppler_scene
 
+    value = as_doppler_scene(value)
     if isinstance(value, DopplerScene):
         return value
     hint = (": load it first with dopplertof.load_file(path)"
             if isinstance(value, (str, os.PathLike)) else "")
-    raise _wrong_type(name, f"a DopplerScene (from dopplertof.load_file){hint}", value)
+    raise _wrong_type(name, f"a DopplerScene (from dopplertof.load_file) or an mi.Scene{hint}", value)
 
 
 def check_path(value, name: str = "path") -> str:
