@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .inputs import Resolver, dict_inputs
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, MOVABLE_EMITTERS,
                     MotionClaim, SceneDescription, SceneError, build,
@@ -110,7 +111,8 @@ def describe(mi, scene: dict) -> SceneDescription:
         if values]
     return SceneDescription("<dict>", parts.static, bodies, parameters,
                             sensor_keyframes=parts.sensor_kf, light_keyframes=parts.light_kfs,
-                            motions=parts.motions, has_integrator=parts.has_integrator)
+                            motions=parts.motions, has_integrator=parts.has_integrator,
+                            inputs=dict_inputs(scene, Resolver.of(mi)))
 
 
 class _DictParts:
