@@ -350,6 +350,37 @@ def test_a_changed_mesh_makes_the_sweep_render_again(tmp_path, client):
     assert not np.array_equal(np.load(out / "runs" / "seed=0" / "image.npy"), old)
 
 
+def test_report_calls_runs_of_another_spec_stale(tmp_path, capsys):
+    """A complete sweep at 8 spp, then the same folder at 16 spp stopped after one run
+    (sweep.json already rewritten, as a killed run leaves it): the report measures
+    that run only and lists the other 8-spp run as stale, with its reason (it was
+    reported as a 16-spp run with the 8-spp run's error). The tasks run in this
+    process, as run_sweep's workers run them."""
+    from dopplertof.experiments.sweep import pending_tasks, write_sweep_json
+    from dopplertof.experiments.tasks import run_render_task
+
+    out, grid = tmp_path / "results", {"time_sampling_method": ["uniform", "antithetic"]}
+    rerun = tiny_config(grid=grid, fixed={"spp": 16, "seed": 0, "hetero_frequency": 1.0})
+    for config, killed_after in ((tiny_config(grid=grid), None), (rerun, 1)):
+        tasks = plan_sweep(config, out)
+        write_sweep_json(config, tasks, str(out))
+        for task in pending_tasks(tasks)[:killed_after]:
+            run_render_task(task)
+    redone, stale = (t.name for t in tasks if t.kind == "run")
+
+    parser = argparse.ArgumentParser()
+    add_subcommands(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["report", str(out), "-o", str(tmp_path / "report")])
+    assert args.func(args) == 0
+    printed = capsys.readouterr().out
+    assert "(1 runs, 1 with errors" in printed and "1 stale tasks excluded" in printed
+    rows = (tmp_path / "report" / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].startswith(redone + ",")
+    md = (tmp_path / "report" / "summary.md").read_text()
+    assert "stale tasks (excluded): 1" in md
+    assert f"- `runs/{stale}`: params.json says spp 8, the sweep's spec 16" in md
+
+
 # ---- Animation -----------------------------------------------------------------------------
 
 def test_animation_frames_shift_the_exposure(tmp_path):
