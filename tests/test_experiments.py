@@ -331,6 +331,56 @@ def test_killed_worker_loses_nothing(tmp_path):
     assert again.done == 0 and again.skipped == 4
 
 
+def test_a_changed_mesh_makes_the_sweep_render_again(tmp_path, client):
+    """Run markers hold the content of every file the scene references: after wall.obj
+    changed, both runs are redone with the new wall (they were skipped: "0 done now, 2
+    already complete", the old mesh's images)."""
+    from test_faults_inputs import NARROW_WALL, write_scene
+
+    (tmp_path / "scene").mkdir()
+    scene = write_scene(tmp_path / "scene")
+    config = config_from_mapping({"scene": str(scene), "fixed": {"spp": 8},
+                                  "grid": {"seed": [0, 1]}}, source="mesh.toml")
+    out = tmp_path / "out"
+    assert run_sweep(config, out, client=client, progress=False).done == 2
+    old = np.load(out / "runs" / "seed=0" / "image.npy")
+    (tmp_path / "scene" / "wall.obj").write_text(NARROW_WALL)
+    again = run_sweep(config, out, client=client, progress=False)
+    assert again.ok and again.done == 2 and again.skipped == 0
+    assert not np.array_equal(np.load(out / "runs" / "seed=0" / "image.npy"), old)
+
+
+def test_report_calls_runs_of_another_spec_stale(tmp_path, capsys):
+    """A complete sweep at 8 spp, then the same folder at 16 spp stopped after one run
+    (sweep.json already rewritten, as a killed run leaves it): the report measures
+    that run only and lists the other 8-spp run as stale, with its reason (it was
+    reported as a 16-spp run with the 8-spp run's error). The tasks run in this
+    process, as run_sweep's workers run them."""
+    from dopplertof.experiments.sweep import pending_tasks, write_sweep_json
+    from dopplertof.experiments.tasks import run_render_task
+
+    out, grid = tmp_path / "results", {"time_sampling_method": ["uniform", "antithetic"]}
+    rerun = tiny_config(grid=grid, fixed={"spp": 16, "seed": 0, "hetero_frequency": 1.0})
+    for config, killed_after in ((tiny_config(grid=grid), None), (rerun, 1)):
+        tasks = plan_sweep(config, out)
+        write_sweep_json(config, tasks, str(out))
+        for task in pending_tasks(tasks)[:killed_after]:
+            run_render_task(task)
+    redone, stale = (t.name for t in tasks if t.kind == "run")
+
+    parser = argparse.ArgumentParser()
+    add_subcommands(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["report", str(out), "-o", str(tmp_path / "report")])
+    assert args.func(args) == 0
+    printed = capsys.readouterr().out
+    assert "(1 runs, 1 with errors" in printed and "1 stale tasks excluded" in printed
+    rows = (tmp_path / "report" / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].startswith(redone + ",")
+    md = (tmp_path / "report" / "summary.md").read_text()
+    assert "stale tasks (excluded): 1" in md
+    assert f"- `runs/{stale}`: params.json says spp 8, the sweep's spec 16" in md
+
+
 # ---- Animation -----------------------------------------------------------------------------
 
 def test_animation_frames_shift_the_exposure(tmp_path):
@@ -361,3 +411,21 @@ def test_animation_frames_shift_the_exposure(tmp_path):
     again = run_animation(SCENE, out, 3, defines={"res": 8, "max_depth": 3}, spp=8,
                           client=UnusableClient(), progress=False)
     assert again.done == 0 and again.skipped == 3 and again.video
+
+
+def test_a_changed_mesh_changes_the_frames_markers_and_stops_a_planned_frame(tmp_path):
+    """Frame markers hash the files the scene references like sweep markers; a frame
+    planned before its mesh changed refuses to render (the check passes for the
+    frame's own scene, whose shutter is rewritten)."""
+    from dopplertof.experiments.animate import plan_animation, run_frame_task
+    from test_faults_inputs import NARROW_WALL, write_scene
+
+    scene = write_scene(tmp_path)
+    planned = plan_animation(scene, tmp_path / "frames", 2, spp=8)
+    run_frame_task(planned[0])
+    assert (tmp_path / "frames" / "frame_0000" / COMPLETE_MARKER).is_file()
+    (tmp_path / "wall.obj").write_text(NARROW_WALL)
+    replanned = plan_animation(scene, tmp_path / "frames", 2, spp=8)
+    assert [t.hash for t in replanned] != [t.hash for t in planned]
+    with pytest.raises(RuntimeError, match="or a file it references changed"):
+        run_frame_task(planned[1])

@@ -23,8 +23,11 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import glob
 import json
 import os
+import re
+import secrets
 import shutil
 import tempfile
 import threading
@@ -122,13 +125,14 @@ def atomic_path(path):
     base, ext = os.path.splitext(os.path.basename(path))
     try:
         folder = make_output_folder(os.path.dirname(os.path.abspath(path)))
-        fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
-        os.close(fd)
     except OSError as exc:
         raise write_error(path, exc) from exc
+    # named before it exists: an interrupt right after its creation still removes it
+    tmp = os.path.join(folder, f".{base}.{secrets.token_hex(8)}.tmp{ext}")
     try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
         yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600: follow the umask instead
+        os.chmod(tmp, 0o666 & ~_umask())  # made 0600: follow the umask instead
         os.replace(tmp, path)
     except BaseException as exc:
         with contextlib.suppress(OSError):
@@ -136,6 +140,26 @@ def atomic_path(path):
         if isinstance(exc, OSError):  # full disk, file size limit: name the file
             raise write_error(path, exc) from exc
         raise
+
+
+def remove_temporaries(path) -> list:
+    """Delete the temporary files that interrupted writes of ``path`` (atomic_path's,
+    ``.NAME.XXXX.tmpEXT`` beside it) left, e.g. by a killed process; returns them.
+    Another file's temporaries (``.NAME.more.XXXX.tmpEXT``) are left alone."""
+    path = os.path.abspath(os.fspath(path))
+    base, ext = os.path.splitext(os.path.basename(path))
+    pattern = os.path.join(glob.escape(os.path.dirname(path)),
+                           f".{glob.escape(base)}.*.tmp{glob.escape(ext)}")
+    # the random part: 16 hex digits (8 letters and digits in older versions)
+    ours = re.compile(rf"\.{re.escape(base)}\.\w{{8,16}}\.tmp{re.escape(ext)}")
+    removed = []
+    for leftover in glob.glob(pattern):
+        if not ours.fullmatch(os.path.basename(leftover)):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(leftover)
+            removed.append(leftover)
+    return removed
 
 
 def _umask() -> int:

@@ -27,7 +27,7 @@ import numpy as np
 
 from .cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
 from .config import ConfigError, check_render_settings, load_scene_facts
-from .tasks import (PARAMS_JSON, begin_task, file_sha256, finish_task, is_complete,
+from .tasks import (PARAMS_JSON, begin_task, check_unchanged, finish_task, is_complete,
                     package_versions, prepare_worker, remove_partial_files, spec_hash,
                     worker_identity, RENDER_LOCK)
 
@@ -47,7 +47,7 @@ class FrameTask:
     name: str  #: frame_0000
     folder: str  #: absolute
     scene: str
-    scene_sha256: str
+    scene_sha256: str  #: of the scene file and every file it references (SceneFacts.sha256)
     defines: dict
     variant: str
     params: dict  #: render parameters (with ``time`` = T)
@@ -131,10 +131,9 @@ def run_frame_task(task: FrameTask) -> dict:
     begin_task(task.folder)
     with RENDER_LOCK:
         prepare_worker(task.variant, task.threads)
-        if file_sha256(task.scene) != task.scene_sha256:
-            raise RuntimeError(f"{task.scene} changed since the animation was planned; rerun")
         scene = load_frame_scene(task.scene, task.defines, task.shutter_open,
                                  task.shutter_close)
+        check_unchanged(task.scene, scene, task.scene_sha256, "animation")
         result = capture(scene, spp=task.spp, seed=task.seed, params=dict(task.params),
                          progress=False)
     if task.previews:

@@ -168,7 +168,8 @@ def cmd_report(args) -> int:
     report = write_report(args.results, args.output)
     print(f"report: {len(report.files)} files -> {report.output} ({report.runs} runs, "
           f"{report.with_errors} with errors against a reference, {len(report.missing)} "
-          f"incomplete tasks)")
+          f"incomplete tasks, {len(report.stale)} stale tasks excluded"
+          + (", listed in summary.md)" if report.stale else ")"))
     return 0
 
 

@@ -303,6 +303,8 @@ class SceneFacts:
 
     params: RenderParams
     spp: int
+    #: the content hash of the scene file and every file it references (meshes,
+    #: textures, included files...: inputs.scene_file_digest); run markers hold it
     sha256: str
     exposure: float  #: T (s) from the scene's parameters and shutter
     shutter_open: float  #: exposure start (s)
@@ -313,12 +315,12 @@ class SceneFacts:
 def load_scene_facts(scene_path: str, defines: dict, variant: str | None) -> SceneFacts:
     """Load the scene in this process (checking it and its defines) and read its settings."""
     import dopplertof
-
-    from .tasks import file_sha256
+    from ..scene.inputs import scene_file_digest
 
     dopplertof.set_variant(variant)
     scene = dopplertof.load_file(scene_path, dict(defines))
-    return SceneFacts(params=scene.params, spp=scene.spp, sha256=file_sha256(scene_path),
+    return SceneFacts(params=scene.params, spp=scene.spp,
+                      sha256=scene_file_digest(scene_path, scene),
                       exposure=scene.params.exposure(scene.shutter_interval),
                       shutter_open=scene.shutter_open,
                       shutter_interval=scene.shutter_interval,

@@ -99,6 +99,9 @@ class Report:
     runs: int = 0
     missing: list = field(default_factory=list)
     with_errors: int = 0
+    #: (task folder, reason) of every complete task of another spec than the sweep's
+    #: current one (excluded from every metric and figure)
+    stale: list = field(default_factory=list)
 
 
 # ---- Reading ------------------------------------------------------------------------------
@@ -109,7 +112,10 @@ def _complete(folder: str) -> bool:
 
 
 def read_results(results: str):
-    """(sweep.json contents, run records, reference images, missing task names)."""
+    """(sweep.json contents, run records, reference images, missing task names, stale
+    tasks as (folder, reason)). A stale task (complete, but for another spec than
+    sweep.json's: another spp, seed, grid point or scene) is left out of the records
+    and the references."""
     results = os.path.abspath(results)
     path = os.path.join(results, SWEEP_JSON)
     if not os.path.isfile(path):
@@ -120,21 +126,60 @@ def read_results(results: str):
         tasks = sweep["tasks"]
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ReportError(f"{path}: unreadable sweep description: {e}") from None
-    references, runs, missing = {}, [], []
+    references, runs, missing, stale = {}, [], [], []
     for task in tasks:
         folder = os.path.join(results, task["folder"])
         if not _complete(folder):
             missing.append(task["folder"])
             continue
+        record, reason = _checked_record(task, folder)
+        if reason:
+            stale.append((task["folder"], reason))
+            continue
         if task["kind"] == "reference":
             references[task["folder"]] = np.load(os.path.join(folder, IMAGE_NPY))
             continue
-        with open(os.path.join(folder, PARAMS_JSON), encoding="utf-8") as f:
-            record = json.load(f)
         runs.append(RunRecord(
             name=task["name"], point=dict(task["grid_point"]), spp=int(task["spp"]),
             seed=int(task["seed"]), seconds=float(record.get("render_seconds") or math.nan),
             folder=folder, reference=task.get("reference")))
+    _measure_errors(runs, references)
+    return sweep, runs, references, missing, stale
+
+
+def _checked_record(task: dict, folder: str):
+    """(params.json of a complete task, None), or (None, why the task is stale): its
+    marker's or params.json's spec hash is not the sweep's, or params.json records
+    another spp, seed or grid point than sweep.json's task (sweep.json written before
+    spec hashes were listed holds only these)."""
+    try:
+        with open(os.path.join(folder, PARAMS_JSON), encoding="utf-8") as f:
+            record = json.load(f)
+        with open(os.path.join(folder, COMPLETE_MARKER), encoding="utf-8") as f:
+            marker = json.load(f)
+    except (OSError, ValueError) as e:
+        return None, f"unreadable {PARAMS_JSON} or {COMPLETE_MARKER}: {e}"
+    if not isinstance(record, dict) or not isinstance(marker, dict):
+        return None, f"{PARAMS_JSON} or {COMPLETE_MARKER} is not a JSON object"
+    for key in ("spp", "seed", "grid_point"):
+        if key in task and record.get(key) != task[key]:
+            return None, (f"{PARAMS_JSON} says {key} {_shown(record.get(key))}, the sweep's "
+                          f"spec {_shown(task[key])}")
+    expected = task.get("spec_hash")
+    if expected and expected not in (marker.get("spec_hash"), record.get("spec_hash")):
+        return None, ("rendered for another spec (scene, a file it references, defines, "
+                      "variant or parameters)")
+    if expected and marker.get("spec_hash") != record.get("spec_hash"):
+        return None, f"{PARAMS_JSON} and {COMPLETE_MARKER} describe different tasks"
+    return record, None
+
+
+def _shown(value) -> str:
+    return json.dumps(value, sort_keys=True) if isinstance(value, dict) else str(value)
+
+
+def _measure_errors(runs, references) -> None:
+    """Each run's MSE and relative MSE against its reference (when there is one)."""
     for run in runs:
         ref = references.get(run.reference) if run.reference else None
         if ref is None:
@@ -145,7 +190,6 @@ def read_results(results: str):
             run.mse = float(np.mean(diff * diff))
             scale = float(np.mean(ref.astype(np.float64) ** 2))
             run.relative_mse = run.mse / scale if scale > 0 else math.nan
-    return sweep, runs, references, missing
 
 
 # ---- Grouping -----------------------------------------------------------------------------
@@ -559,15 +603,16 @@ def write_report(results, output) -> Report:
 
     results = os.path.abspath(os.fspath(results))
     output = os.path.abspath(os.fspath(output))
-    sweep, runs, references, missing = read_results(results)
+    sweep, runs, references, missing, stale = read_results(results)
     config = sweep.get("config", {})
     raw_grid = config.get("grid", {})
     grid = {k: list(raw_grid[k]) for k in config.get("grid_axes", sorted(raw_grid))}
     if not runs:
-        raise ReportError(f"{results}: no completed grid point yet "
-                          f"({len(missing)} task(s) incomplete); run the sweep first")
+        raise ReportError(f"{results}: no completed grid point of the sweep's spec yet "
+                          f"({len(missing)} task(s) incomplete, {len(stale)} stale); run the "
+                          "sweep first")
     report = Report(output=output, runs=len(runs), missing=missing,
-                    with_errors=sum(r.relative_mse is not None for r in runs))
+                    with_errors=sum(r.relative_mse is not None for r in runs), stale=stale)
     summary_path = os.path.join(results, SUMMARY_JSON)
     last_run = None
     if os.path.isfile(summary_path):
@@ -602,7 +647,8 @@ def _markdown(config, runs, grid, report, last_run, results) -> str:
              "- grid: " + ", ".join(f"{k} ({len(v)} values)" for k, v in grid.items()),
              "- fixed: " + (", ".join(f"{k}={v}" for k, v in config.get("fixed", {}).items())
                              or "none"),
-             f"- runs complete: {report.runs}; incomplete tasks: {len(report.missing)}"]
+             f"- runs complete: {report.runs}; incomplete tasks: {len(report.missing)}; "
+             f"stale tasks (excluded): {len(report.stale)}"]
     if last_run and last_run.get("failed"):
         lines.append(f"- failed in the last run: {len(last_run['failed'])} "
                      f"(see summary.json)")
@@ -632,4 +678,8 @@ def _markdown(config, runs, grid, report, last_run, results) -> str:
         if len(report.missing) > 50:
             lines.append(f"- ... and {len(report.missing) - 50} more")
         lines.append("")
+    if report.stale:  # every one: each is a result that the metrics leave out
+        lines += ["## Stale tasks (excluded: complete for another spec; the next sweep "
+                  "run redoes them)", ""]
+        lines += [f"- `{folder}`: {reason}" for folder, reason in report.stale] + [""]
     return "\n".join(lines)

@@ -133,7 +133,8 @@ def write_sweep_json(config: SweepConfig, tasks, output: str, path: str) -> None
         "config": config.to_json(),
         "tasks": [{"kind": t.kind, "name": t.name,
                    "folder": os.path.relpath(t.folder, output), "grid_point": t.grid_point,
-                   "reference": t.reference, "spp": t.spp, "seed": t.seed}
+                   "reference": t.reference, "spp": t.spp, "seed": t.seed,
+                   "spec_hash": t.hash}  # (the report calls a run of another spec stale)
                   for t in tasks],
     })
 

@@ -23,6 +23,8 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from ..scene.inputs import scene_file_digest
+
 #: written last into a task folder; its presence (with the right spec hash) means "done"
 COMPLETE_MARKER = "complete.json"
 
@@ -40,14 +42,6 @@ _SCENE_CACHE: dict = {}
 _SCENE_CACHE_SIZE = 4
 
 
-def file_sha256(path: str) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def spec_hash(description: dict) -> str:
     """A stable hash of what defines a task's result (not where or how fast it runs)."""
     text = json.dumps(description, sort_keys=True, separators=(",", ":"), default=str)
@@ -62,7 +56,7 @@ class RenderTask:
     name: str  #: folder name, reads as the parameters
     folder: str  #: absolute path of the task folder
     scene: str  #: absolute path of the scene file
-    scene_sha256: str
+    scene_sha256: str  #: of the scene file and every file it references (SceneFacts.sha256)
     defines: dict  #: scene <default> values
     variant: str
     params: dict  #: render parameters given by the configuration (typed)
@@ -177,13 +171,20 @@ def cached_scene(path: str, sha256: str, defines: dict, variant: str):
     key = (path, sha256, tuple(sorted((k, str(v)) for k, v in defines.items())), variant)
     scene = _SCENE_CACHE.get(key)
     if scene is None:
-        if file_sha256(path) != sha256:
-            raise RuntimeError(f"{path} changed since the sweep was planned; rerun the sweep")
         scene = dopplertof.load_file(path, dict(defines))
+        check_unchanged(path, scene, sha256, "sweep")
         while len(_SCENE_CACHE) >= _SCENE_CACHE_SIZE:
             _SCENE_CACHE.pop(next(iter(_SCENE_CACHE)))
         _SCENE_CACHE[key] = scene
     return scene
+
+
+def check_unchanged(path: str, scene, sha256: str, what: str) -> None:
+    """Refuse to render ``scene`` (loaded from ``path``) when the scene file or a file
+    it references changed since the ``what`` was planned with digest ``sha256``."""
+    if scene_file_digest(path, scene) != sha256:
+        raise RuntimeError(f"{path} or a file it references changed since the {what} was "
+                           "planned; rerun it")
 
 
 # ---- The sweep task -----------------------------------------------------------------

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..hints import with_plugin_hint
 from .meshes import mesh_file_message
+from .inputs import Resolver, dict_inputs
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, MOVABLE_EMITTERS,
                     SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
@@ -114,7 +115,8 @@ def describe(mi, scene: dict) -> SceneDescription:
     return SceneDescription("<dict>", parts.static, bodies, parameters,
                             sensor_keyframes=parts.sensor_kf, light_keyframes=parts.light_kfs,
                             motions=parts.motions, has_integrator=parts.has_integrator,
-                            shutter_given=parts.shutter_given)
+                            shutter_given=parts.shutter_given,
+                            inputs=dict_inputs(scene, Resolver.of(mi)))
 
 
 class _DictParts:

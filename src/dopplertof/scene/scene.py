@@ -100,10 +100,13 @@ class DopplerScene:
     spp: int  #: the sensor sampler's sample count
     variant: str  #: the Mitsuba variant it was loaded with
     source: str = "<dict>"
-    fingerprint: str = ""  #: hash of the resolved scene description (checkpoints compare it)
+    #: content hash of the resolved description and every file it references
+    #: (inputs.content_digest; checkpoints compare it)
+    fingerprint: str = ""
     sensor_motion: object = None  #: Motion of the camera (None: static)
     light_motions: tuple = ()  #: (index in static.emitters(), Motion) of moving lights
     notes: tuple = ()  #: what the loader assumed (e.g. default integrator), for the user
+    inputs: tuple = ()  #: InputFile of every file the scene references (meshes, textures...)
 
     @property
     def sensor(self):
@@ -202,6 +205,8 @@ class SceneDescription:
     #: where the sensor gives its shutter (shutter_open or shutter_close), for messages;
     #: None: not given, the exposure is ``time`` or the default 1.5 ms
     shutter_given: str | None = None
+    #: InputFile of every file the description references (inputs.xml_inputs, dict_inputs)
+    inputs: list = field(default_factory=list)
 
 
 def build(mi, description: SceneDescription, load_part) -> DopplerScene:
@@ -256,13 +261,14 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
         motion = sensor_motion if kf == "sensor" else Motion(kf)
         light_motions.append((ids.index(ident), motion))
 
-    import hashlib
+    from .inputs import content_digest
 
+    # ---- The fingerprint: the description and the files it references ----
     description_text = "\n".join(t for t in texts if t)
-    fingerprint = hashlib.sha256(description_text.encode()).hexdigest() if texts[0] else ""
+    fingerprint = content_digest(description_text, d.inputs) if texts[0] else ""
     notes = () if d.has_integrator else (default_integrator_note(source),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
-                        sensor_motion, tuple(light_motions), notes)
+                        sensor_motion, tuple(light_motions), notes, tuple(d.inputs))
 
 
 def _check_sensor(sensor, source: str, shutter_given: str | None,

@@ -26,6 +26,7 @@ import xml.parsers.expat
 import numpy as np
 
 from ..hints import did_you_mean, with_plugin_hint
+from .inputs import Resolver, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
@@ -405,17 +406,17 @@ def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
             raise SceneError(f"{doc.where(shape)}: {problem}")
     text = ET.tostring(root, encoding="unicode")
     resolver = mi.file_resolver()
+    folders = [resolver[i] for i in range(len(resolver))]
     resolver.prepend(base_dir)
     try:
         return mi.load_string(text), text
     except Exception as e:  # Mitsuba reports XML problems as RuntimeError
         raise SceneError(_mitsuba_error(doc, root, text, e)) from None
     finally:
-        # drop the directory we added (first entry)
-        try:
-            resolver.erase(resolver[0])
-        except Exception:
-            pass
+        # the resolver as it was: no scene's folder serves the next scene's files
+        resolver.clear()
+        for folder in folders:
+            resolver.append(folder)
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
@@ -425,20 +426,23 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
 
     mi = require_variant()
     doc = _Doc(text, source)
-    return build(mi, describe(doc, overrides),
+    return build(mi, describe(doc, overrides, Resolver.of(mi, base_dir)),
                  lambda part, what: _load_string(mi, doc, part, base_dir))
 
 
-def describe(doc: _Doc, overrides: dict | None = None) -> SceneDescription:
+def describe(doc: _Doc, overrides: dict | None = None,
+             resolver: Resolver | None = None) -> SceneDescription:
     """The SceneDescription of an XML document: ``<default>`` values substituted, the
-    integrator's and the correlated sampler's parameters taken out, the moving bodies
-    split off into documents of their own, the camera's and lights' keyframes
-    replaced by their rest poses (parts: XML elements)."""
+    files it references found (with ``resolver``, as Mitsuba will), the integrator's
+    and the correlated sampler's parameters taken out, the moving bodies split off
+    into documents of their own, the camera's and lights' keyframes replaced by their
+    rest poses (parts: XML elements)."""
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
     _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
+    inputs = xml_inputs(doc.root, resolver or Resolver(()))
     has_integrator = bool(doc.root.findall("integrator"))
     integrator = _integrator_params(doc)
     sampler, sensor = _sensor(doc)
@@ -455,7 +459,7 @@ def describe(doc: _Doc, overrides: dict | None = None) -> SceneDescription:
     return SceneDescription(doc.source, doc.root, bodies, parameters,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
                             motions=motions, has_integrator=has_integrator,
-                            shutter_given=shutter_given)
+                            shutter_given=shutter_given, inputs=inputs)
 
 
 def load_file(path, overrides: dict | None = None):
