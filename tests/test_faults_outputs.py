@@ -218,7 +218,7 @@ def test_a_report_replaces_the_previous_one_all_or_nothing(tmp_path, monkeypatch
     out = tmp_path / "report"
     for errors in (True, False):
         runs = _report_runs(tmp_path / "results", errors)
-        monkeypatch.setattr(report, "read_results", lambda results: (sweep, runs, {}, []))
+        monkeypatch.setattr(report, "read_results", lambda results: (sweep, runs, {}, [], []))
         written = report.write_report(tmp_path / "results", out)
         assert written.files and all(os.path.isfile(f) for f in written.files)
         assert any("mse" in os.path.basename(f) for f in written.files) == errors
