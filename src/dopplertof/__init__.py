@@ -89,8 +89,9 @@ def load_dict(scene_dict: dict):
 def capture(scene, spp=None, seed=0, **kwargs):
     """One D-ToF camera frame: every capture, velocity and depth reconstruction and the
     exact truth (see :func:`dopplertof.tof.capture`). ``scene`` is a DopplerScene, a
-    plain ``mi.Scene`` (static) or the path of an XML scene. Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
-    ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
+    plain ``mi.Scene`` (static) or the path of an XML scene. Returns a CaptureResult
+    (``.velocity``, ``.velocity_gt``, ``.depth``, ``.depth_gt``, ``.captures``,
+    ``.summary``, ``.write(folder)``)."""
     import os
 
     from .tof import capture as _capture
