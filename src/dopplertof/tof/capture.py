@@ -205,7 +205,7 @@ def _check_unwrap(unwrap_frequency, w_g):
     return f
 
 
-def _check_spp_seed(base, spp, seed):
+def check_spp_seed(base, spp, seed):
     if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
         raise CaptureError(f"spp must be a positive integer, got {spp!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -306,7 +306,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
         base = (params if isinstance(params, RenderParams) else
                 RenderParams.from_mapping(dict(params), where="capture parameters", base=base))
     spp = scene.spp if spp is None else spp
-    _check_spp_seed(base, spp, seed)
+    check_spp_seed(base, spp, seed)
     exposure = base.exposure(scene.shutter_interval)
     h = _resolve_hetero_frequency(base, exposure, hetero_frequency)
     model = rec.CaptureModel.of(base.modulation(scene.shutter_interval), h)
