@@ -340,6 +340,23 @@ def test_wiggling_error_is_the_render_and_the_calibration_removes_it(tmp_path):
                                         np.linspace(0, 3.7, 500), calibrated=True))) < 1e-6
 
 
+def test_wiggling_figure_and_calibration_tables_from_the_command_line(tmp_path):
+    import json
+
+    figure = tmp_path / "wiggle.png"
+    done = run_cli("cameras", "opt8241", "--wiggling", str(figure))
+    assert done.returncode == 0, done.stderr
+    numbers = json.loads((tmp_path / "wiggle.json").read_text())
+    # rectangular 4-phase at 60 and 48 MHz: centimetres of wiggling, removed by the table
+    assert numbers["max_abs_error_uncalibrated_m"] > 0.01
+    assert numbers["calibration_applied"] and numbers["max_abs_error_reported_m"] < 1e-6
+    table = numbers["calibration_tables"]["60"]
+    assert len(table["measured_phase_rad"]) == len(table["true_phase_rad"]) == 257
+    assert figure.stat().st_size > 0
+    bad = run_cli("cameras", "--wiggling", str(figure))
+    assert bad.returncode == 2 and "--wiggling needs a camera NAME" in bad.stderr
+
+
 # ---- Heterodyne presets -------------------------------------------------------------------------
 
 def test_paper_dtof_renders_todays_captures_and_gives_velocity():
@@ -409,6 +426,18 @@ def test_capture_with_a_camera_writes_its_files(tmp_path):
     error = np.load(out / "depth_z.npy") - 3.0
     assert np.all(np.abs(error) < 5 * np.load(out / "depth_std.npy") + 1e-3)
     assert np.all(np.load(out / "depth_gt.npy") > np.load(out / "depth_gt_z.npy"))
+
+
+@pytest.mark.slow
+def test_one_scene_through_several_cameras_side_by_side(tmp_path):
+    scene = tmp_path / "plane.xml"
+    scene.write_text(SCENE_XML)
+    figure = tmp_path / "compare.png"
+    done = run_cli("cameras", "--compare", str(scene), "--with", "pmd-argos3d-p320,paper-dtof",
+                   "--res", "5x4", "--spp", "4", "-o", str(figure))
+    assert done.returncode == 0, done.stderr
+    assert "through pmd-argos3d-p320: 5x4" in done.stdout and "velocity error" in done.stdout
+    assert figure.stat().st_size > 0
 
 
 @pytest.mark.parametrize("args, message", [

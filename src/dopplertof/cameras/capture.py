@@ -233,3 +233,14 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
     return load_string(text, dict(defines or {}), source=os.fspath(path),
                        base_dir=os.path.dirname(os.path.abspath(path)))
+
+
+def capture_through(path, cameras, resolution=None, defines=None, **options) -> list:
+    """The scene file ``path`` through each of ``cameras`` (names, paths or presets):
+    one :class:`CameraResult` each, with ``options`` of :func:`capture_camera`."""
+    results = []
+    for camera in cameras:
+        preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
+        scene = load_scene_for_camera(path, preset, resolution, defines)
+        results.append(capture_camera(scene, preset, **options))
+    return results

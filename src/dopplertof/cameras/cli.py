@@ -14,8 +14,22 @@ PRESET_OWNS = ("hetero_frequency", "unwrap_frequency", "min_signal", "mc_batches
 
 def add_subcommand(sub) -> None:
     """``cameras``: list the presets, or print one."""
-    c = sub.add_parser("cameras", help="list the camera presets, or print one")
+    c = sub.add_parser("cameras", help="list the camera presets, or print one; its wiggling "
+                       "figure; a scene through several cameras side by side")
     c.add_argument("name", nargs="?", help="a preset name or a preset file (.toml)")
+    c.add_argument("--wiggling", metavar="FIG.png", help="with NAME: the noise-free depth "
+                   "error against distance and (FIG.json) the calibration tables")
+    c.add_argument("--compare", metavar="SCENE", help="capture SCENE through --with cameras "
+                   "and write their range errors and velocities side by side (-o FIG.png)")
+    c.add_argument("--with", dest="with_cameras", metavar="A,B,...",
+                   help="with --compare: the cameras (default: every preset)")
+    c.add_argument("--res", metavar="WIDTHxHEIGHT", help="with --compare: one resolution")
+    c.add_argument("--spp", type=int, default=16, help="with --compare: samples per pixel "
+                   "per raw frame (default 16)")
+    c.add_argument("-o", "--output", metavar="FIG.png", help="with --compare: the figure")
+    c.add_argument("--noiseless", action="store_true",
+                   help="with --compare: no shot or read noise (rounding stays)")
+    c.add_argument("--variant", default=None)
     c.set_defaults(func=run_cameras)
 
 
@@ -34,11 +48,69 @@ def add_capture_options(c) -> None:
 def run_cameras(args) -> int:
     from .preset import format_preset, load_preset, preset_names
 
+    if args.compare is not None:
+        return _compare(args)
+    if args.wiggling is not None:
+        return _wiggling(args)
     if args.name is None:
         for name in preset_names():
             print(f"{name:<26} {load_preset(name).description}")
         return 0
     print(format_preset(load_preset(args.name)))
+    return 0
+
+
+def _png_path(path, option: str) -> str:
+    from .. import io
+    from ..tof.capture import CaptureError
+
+    if path is None or not path.lower().endswith(".png"):
+        raise CaptureError(f"{option} needs a .png figure path, got {path!r}")
+    io.check_output_path(path)
+    return path
+
+
+def _wiggling(args) -> int:
+    from .figures import write_wiggling
+    from .preset import load_preset
+
+    from ..tof.capture import CaptureError
+
+    if args.name is None:
+        raise CaptureError("--wiggling needs a camera NAME")
+    path = _png_path(args.wiggling, "--wiggling")
+    numbers = write_wiggling(path, load_preset(args.name))
+    print(f"{numbers['camera']}: noise-free depth error up to "
+          f"{numbers['max_abs_error_uncalibrated_m'] * 1e3:.3g} mm without calibration, "
+          f"{numbers['max_abs_error_reported_m'] * 1e3:.3g} mm as reported "
+          f"({'table applied' if numbers['calibration_applied'] else 'no table'}); wrote {path}")
+    return 0
+
+
+def _compare(args) -> int:
+    import dopplertof
+
+    from .capture import capture_through, format_camera_summary, parse_resolution
+    from .figures import write_camera_comparison
+    from .preset import load_preset, preset_names
+
+    from ..tof.capture import CaptureError
+
+    if not os.path.isfile(args.compare):
+        raise CaptureError(f"scene file not found: {args.compare}")
+    path = _png_path(args.output, "--compare -o")
+    names = args.with_cameras.split(",") if args.with_cameras else preset_names()
+    presets = [load_preset(n.strip()) for n in names]
+    resolution = parse_resolution(args.res) if args.res else None
+    dopplertof.set_variant(args.variant)
+    results = capture_through(args.compare, presets, resolution, spp=args.spp,
+                              noise=not args.noiseless, progress=False)
+    for result in results:
+        print(format_camera_summary(result.summary))
+    write_camera_comparison(path, results, f"{os.path.basename(args.compare)} through "
+                            f"{len(results)} cameras, {args.spp} spp per raw frame"
+                            + (", no shot or read noise" if args.noiseless else ""))
+    print(f"wrote {path}")
     return 0
 
 

@@ -107,3 +107,36 @@ def wiggling_error(waveform: str, phase_steps_deg, frequency_hz: float, distance
     wrap = SPEED_OF_LIGHT / (2 * frequency_hz)
     error = depth_from_phase(phase, frequency_hz) - np.mod(d, wrap)
     return np.mod(error + 0.5 * wrap, wrap) - 0.5 * wrap
+
+
+def wiggling_curves(preset, points: int = 1000):
+    """Noise-free depth error against distance over the preset's range, analytic:
+    (distances, {MHz: error of that frequency's wrapped depth without calibration},
+    error of the depth the camera reports without calibration, and with its own
+    (calibrated when the preset applies the table)). The reported depth is the
+    f^2-weighted mean of the frequencies' depths, unwrapped right."""
+    distances = np.linspace(0.0, preset.reconstruction["max_range_m"], points, endpoint=False)
+    per_frequency, calibrated = {}, {}
+    for f in preset.frequencies_mhz:
+        steps = tuple(fr.phase_deg for fr in preset.frames if fr.homodyne and fr.frequency_mhz == f)
+        per_frequency[f] = wiggling_error(preset.waveform, steps, f * 1e6, distances)
+        calibrated[f] = (wiggling_error(preset.waveform, steps, f * 1e6, distances, True)
+                         if preset.reconstruction["wiggling_calibration"] else per_frequency[f])
+    weights = {f: f**2 / sum(g**2 for g in per_frequency) for f in per_frequency}
+    raw = sum(weights[f] * per_frequency[f] for f in per_frequency)
+    reported = sum(weights[f] * calibrated[f] for f in per_frequency)
+    return distances, per_frequency, raw, reported
+
+
+def calibration_tables(preset, points: int = 256) -> dict:
+    """The calibration table a camera ships, per frequency: the N-phase fit's phase
+    (rad) and the true phase it maps to, over one period (what :func:`calibrate` applies)."""
+    tables = {}
+    for f in preset.frequencies_mhz:
+        steps = tuple(fr.phase_deg for fr in preset.frames if fr.homodyne and fr.frequency_mhz == f)
+        true, measured, start = phase_table(preset.waveform, steps)
+        pick = np.linspace(0, len(true) - 1, points + 1).astype(int)
+        tables[f"{f:g}"] = {"phase_steps_deg": list(steps),
+                            "measured_phase_rad": (np.mod(measured[pick] + start, 2 * math.pi)).tolist(),
+                            "true_phase_rad": true[pick].tolist()}
+    return tables
