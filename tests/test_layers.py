@@ -110,3 +110,31 @@ def test_no_function_is_long_without_a_reason():
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
     stale = [name for name in LONG_FUNCTIONS if lengths.get(name, 0) <= MAX_FUNCTION_LINES]
     assert not stale, f"LONG_FUNCTIONS names functions that are short now or gone: {stale}"
+
+
+#: rooms on top of the camera layer (tof/): each imports down, and nothing but the command
+#: line imports it (the module prefix -> the modules outside it allowed to import it)
+TOP_ROOMS = {"dopplertof.cameras": {"dopplertof.cli"}}
+#: what a room may not import: its sibling rooms
+ROOM_SIBLINGS = {"dopplertof.cameras": ("dopplertof.experiments", "dopplertof.diff",
+                                        "dopplertof.cli")}
+
+
+def _inside(module: str, prefix: str) -> bool:
+    return module == prefix or module.startswith(prefix + ".")
+
+
+def test_top_rooms_import_down_and_only_the_command_line_imports_them():
+    known = modules()
+    graph = {m: imports(m, p, known) for m, p in known.items()}
+    assert any(_inside(m, "dopplertof.cameras") for m in known), "the cameras room is gone"
+    wrong = []
+    for room, allowed in TOP_ROOMS.items():
+        for module, targets in graph.items():
+            if _inside(module, room):
+                wrong += [f"{module} -> {t}" for t in targets
+                          if any(_inside(t, s) for s in ROOM_SIBLINGS[room])
+                          and not _inside(t, room)]
+            elif module not in allowed:
+                wrong += [f"{module} -> {t}" for t in targets if _inside(t, room)]
+    assert not wrong, "imports against the layers: " + "; ".join(sorted(wrong))

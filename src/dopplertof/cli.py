@@ -29,11 +29,13 @@ def _parser() -> argparse.ArgumentParser:
     _add_demo_command(sub)
     _add_figures_command(sub)
     # ---- the commands of the subpackages (each sets its own func)
+    from .cameras import cli as cameras_cli
     from .diff.cli import add_subcommand
     from .experiments.cli import add_subcommands
 
     add_subcommands(sub)  # sweep, report, animate
     add_subcommand(sub)  # fit
+    cameras_cli.add_subcommand(sub)  # cameras
     return p
 
 
@@ -124,6 +126,9 @@ def _add_capture_command(sub) -> None:
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
     n.add_argument("--noise", action="store_true", help="add shot, read and ADC noise")
     _add_noise_options(n)
+    from .cameras.cli import add_capture_options
+
+    add_capture_options(c)
 
 
 def _add_capture_precision_options(c) -> None:
@@ -275,8 +280,13 @@ def _cmd_capture(args) -> int:
     from .tof import format_summary, prepare_folder
 
     _check_before_loading(args, "capture parameters")
+    from .cameras import cli as cameras_cli
+
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
+    cameras_cli.check_capture_options(args)
+    if args.camera is not None:
+        return cameras_cli.run_camera_capture(args, parse_pairs(args.defines, "-D"))
     noise = _noise_model(args, args.noise)
     prepare_folder(args.output)
     scene = _load_scene(args)

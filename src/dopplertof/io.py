@@ -569,3 +569,21 @@ def write_image(path, image: np.ndarray, metadata: dict | None = None, **png_kwa
         write_exr(path, image, metadata)
     else:
         write_png(path, image, metadata=metadata, **png_kwargs)
+
+
+def read_toml(path, error=ValueError) -> dict:
+    """A TOML file's tables; an unreadable or malformed file raises ``error`` with one
+    line naming it."""
+    try:  # Python 3.11+
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
+        import tomli as tomllib
+
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise error(f"{path}: malformed TOML: {e}") from None
+    except OSError as e:
+        raise error(f"{path}: cannot read: {e}") from None

@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 import os
 import time
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -92,22 +91,12 @@ class AnimationSummary:
 def scene_text_with_shutter(text: str, shutter_open: float, shutter_close: float,
                             source: str) -> str:
     """The scene XML with its sensor's shutter set to [shutter_open, shutter_close]."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as e:
-        raise ConfigError(f"{source}: malformed XML: {e}") from None
-    sensors = [el for el in root if el.tag == "sensor"]
-    if len(sensors) != 1:
-        raise ConfigError(f"{source}: an animation needs exactly one <sensor> at the top "
-                          f"level of the scene, found {len(sensors)}")
-    sensor = sensors[0]
-    for name, value in (("shutter_open", shutter_open), ("shutter_close", shutter_close)):
-        element = next((c for c in sensor if c.get("name") == name), None)
-        if element is None:
-            element = ET.SubElement(sensor, "float", name=name)
-        element.tag = "float"
-        element.set("value", repr(float(value)))
-    return ET.tostring(root, encoding="unicode")
+    from ..scene.xml import set_sensor_properties
+
+    return set_sensor_properties(
+        text, [("sensor", "float", "shutter_open", repr(float(shutter_open))),
+               ("sensor", "float", "shutter_close", repr(float(shutter_close)))],
+        source, "an animation", ConfigError)
 
 
 def load_frame_scene(path: str, defines: dict, shutter_open: float, shutter_close: float):

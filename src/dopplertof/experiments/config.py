@@ -30,13 +30,9 @@ import os
 import re
 from dataclasses import dataclass, field
 
-try:  # Python 3.11+
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
-    import tomli as tomllib
-
 from ..arguments import check_seed
 from ..hints import did_you_mean
+from ..io import read_toml
 from ..params import FULL_CORRELATION, ParameterError, RenderParams
 from ..sampling import seed_words
 
@@ -174,13 +170,7 @@ def load_config(path) -> SweepConfig:
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ConfigError(f"sweep configuration not found: {path}")
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: malformed TOML: {e}") from None
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot read: {e}") from None
+    data = read_toml(path, ConfigError)
     return config_from_mapping(data, base_dir=os.path.dirname(os.path.abspath(path)),
                                source=path)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 from ..params import ParameterError, RenderParams
@@ -107,6 +108,8 @@ class DopplerScene:
     light_motions: tuple = ()  #: (index in static.emitters(), Motion) of moving lights
     notes: tuple = ()  #: what the loader assumed (e.g. default integrator), for the user
     inputs: tuple = ()  #: InputFile of every file the scene references (meshes, textures...)
+    #: (open, interval) in s replacing the sensor's shutter (None: the sensor's own)
+    shutter_window: tuple | None = None
 
     @property
     def sensor(self):
@@ -114,10 +117,14 @@ class DopplerScene:
 
     @property
     def shutter_open(self) -> float:
+        if self.shutter_window is not None:
+            return float(self.shutter_window[0])
         return float(self.sensor.shutter_open())
 
     @property
     def shutter_interval(self) -> float:
+        if self.shutter_window is not None:
+            return float(self.shutter_window[1])
         return float(self.sensor.shutter_open_time())
 
     @property
@@ -140,6 +147,15 @@ class DopplerScene:
             "mi.traverse takes a Mitsuba object, not a DopplerScene: traverse scene.static "
             "(static shapes, sensor, emitters) or a moving body's scene.bodies[i].scene; "
             "for derivatives of a moving scene use dopplertof.diff.render_derivatives")
+
+    def with_shutter(self, open_s: float, interval_s: float) -> "DopplerScene":
+        """A copy whose exposure window is [open_s, open_s + interval_s] (scene clock, s)
+        whatever its sensor says: a camera that reads its raw frames one after the other
+        renders each in its own window from one loaded scene."""
+        if not (math.isfinite(open_s) and math.isfinite(interval_s) and interval_s > 0):
+            raise SceneError(f"a shutter window needs a finite start and a positive length, "
+                             f"got {open_s!r}, {interval_s!r}")
+        return replace(self, shutter_window=(float(open_s), float(interval_s)))
 
     def with_params(self, **changes) -> "DopplerScene":
         """A copy with integrator parameters changed (validated)."""

@@ -477,3 +477,33 @@ def load_file(path, overrides: dict | None = None):
         raise SceneError(f"{path}: cannot read the scene file: {e}") from None
     return load_string(text, overrides, source=path,
                        base_dir=os.path.dirname(os.path.abspath(path)))
+
+
+def set_sensor_properties(text: str, values, source: str, needed_by: str,
+                          error=SceneError) -> str:
+    """The scene XML ``text`` with properties of its one top-level ``<sensor>`` set.
+
+    ``values``: (element, tag, name, value) with element ``"sensor"`` or ``"film"`` (the
+    sensor's ``<film>``, an hdrfilm added if it has none): the property ``name`` becomes
+    ``<tag name=... value=...>``. A text that is no XML, or without exactly one top-level
+    sensor, raises ``error`` saying that ``needed_by`` needs one."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise error(f"{source}: malformed XML: {e}") from None
+    sensors = [el for el in root if el.tag == "sensor"]
+    if len(sensors) != 1:
+        raise error(f"{source}: {needed_by} needs exactly one <sensor> at the top level of "
+                    f"the scene, found {len(sensors)}")
+    sensor = sensors[0]
+    film = next((c for c in sensor if c.tag == "film"), None)
+    for where, tag, name, value in values:
+        if where == "film" and film is None:
+            film = ET.SubElement(sensor, "film", type="hdrfilm")
+        parent = film if where == "film" else sensor
+        element = next((c for c in parent if c.get("name") == name), None)
+        if element is None:
+            element = ET.SubElement(parent, tag, name=name)
+        element.tag = tag
+        element.set("value", str(value))
+    return ET.tostring(root, encoding="unicode")

@@ -209,7 +209,7 @@ def _check_unwrap(unwrap_frequency, w_g):
     return f
 
 
-def _check_spp_seed(base, spp, seed):
+def check_spp_seed(base, spp, seed):
     check_spp(spp, "spp", CaptureError)
     check_seed(seed, "seed", CaptureError)
     if spp % base.time_correlate_number:
@@ -309,7 +309,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
         base = (params if isinstance(params, RenderParams) else
                 RenderParams.from_mapping(dict(params), where="capture parameters", base=base))
     spp = scene.spp if spp is None else spp
-    _check_spp_seed(base, spp, seed)
+    check_spp_seed(base, spp, seed)
     exposure = base.exposure(scene.shutter_interval)
     h = _resolve_hetero_frequency(base, exposure, hetero_frequency)
     model = rec.CaptureModel.of(base.modulation(scene.shutter_interval), h)

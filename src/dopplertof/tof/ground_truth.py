@@ -46,7 +46,7 @@ def camera_origin(scene) -> np.ndarray:
     return rest_frame(scene.sensor)[:3, 3].copy()
 
 
-def _forward(scene, camera, time: float) -> np.ndarray:
+def camera_forward(scene, camera, time: float) -> np.ndarray:
     """The sensor's viewing direction at ``time`` (unit, world space)."""
     from ..integrators.camera import rest_forward
 
@@ -89,7 +89,7 @@ def ground_truth(scene, params=None) -> GroundTruth:
     if ray_o is not None:
         # rays from different points (orthographic): each pixel's distance is measured
         # from where its ray crosses the camera's plane, as the renderer's path lengths
-        forward = _forward(scene, camera, mid)
+        forward = camera_forward(scene, camera, mid)
         origin = ray_o - (((ray_o - centre) @ forward) / (d @ forward))[:, None] * d
     depth = np.where(hit, np.linalg.norm(p - origin, axis=-1), np.nan)
     # ---- Velocities relative to the camera ----

@@ -1,0 +1,246 @@
+"""One depth frame of a real camera: its raw frames in time, its sensor, its depth.
+
+:func:`capture_camera` renders each raw frame of a preset in its own time window (frame
+k over [t0 + start_k, t0 + start_k + T_k], t0 the scene's shutter_open: the scene's
+keyframed motion puts things where they are then), at the frame's modulation frequency
+and sensor phase step; one radiance render over the whole sequence gives the
+unmodulated light. The sensor (:mod:`.sensor`) turns them into integer DN; the camera's
+reconstruction (:mod:`.demodulate`, :mod:`.unwrap`) gives radial range, z depth,
+amplitude and its masks; presets with heterodyne frames also give velocity through
+:func:`dopplertof.tof.reconstruct.reconstruct_velocity`. The truth is taken at the
+middle of the sequence.
+"""
+
+from __future__ import annotations
+
+import os
+import time as _time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..params import RenderParams
+from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
+                           error_stats)
+from ..tof.ground_truth import camera_forward, ground_truth
+from . import sensor as camera_sensor
+from .preset import CameraPreset, load_preset
+from .reconstruct import CameraReconstruction, reconstruct
+
+
+@dataclass
+class CameraResult:
+    """A depth frame of a camera, with its raw frames and the truth."""
+
+    preset: CameraPreset
+    rendered: np.ndarray  #: (K, H, W) the renders of the raw frames (mean of channels)
+    radiance: np.ndarray  #: (H, W, C) time-averaged radiance over the sequence
+    readout: camera_sensor.Readout  #: raw DN, ideal DN, saturation, predicted variance
+    reconstruction: CameraReconstruction
+    depth_gt: np.ndarray  #: (H, W) radial range at mid-sequence (m)
+    depth_gt_z: np.ndarray  #: (H, W) z depth at mid-sequence (m)
+    velocity_gt: np.ndarray  #: (H, W) radial velocity at mid-sequence (m/s)
+    summary: dict = field(default_factory=dict)
+
+    @property
+    def raw(self):
+        return self.readout.raw
+
+    @property
+    def depth(self):
+        return self.reconstruction.depth
+
+    def write(self, folder) -> list:
+        """Every file (docs/cameras.md) into ``folder`` (created if missing)."""
+        from .output import write_camera_result
+
+        return write_camera_result(self, folder)
+
+
+# ---- The frames' render settings -------------------------------------------------------
+
+def frame_specs(preset: CameraPreset) -> list:
+    """One CaptureSpec per raw frame (name raw_<k>), in read-out order."""
+    return [CaptureSpec(f"raw_{k}", "homodyne" if f.homodyne else "heterodyne",
+                        f.frequency_mhz, f.hetero_frequency, f.offset)
+            for k, f in enumerate(preset.frames)]
+
+
+def sequence_window(preset: CameraPreset) -> tuple:
+    """(first start, last end) of the raw frames within the depth frame (s)."""
+    return (min(f.start_s for f in preset.frames),
+            max(f.start_s + f.integration_s for f in preset.frames))
+
+
+def _base_params(scene, preset: CameraPreset, params) -> RenderParams:
+    """The scene's parameters with the overrides and the camera's waveform (low-pass)."""
+    base = scene.params
+    if params:
+        base = RenderParams.from_mapping(dict(params), where="capture parameters", base=base)
+    return replace(base, wave_function_type=preset.waveform,
+                   low_frequency_component_only=True).validated("camera capture")
+
+
+# ---- The pipeline ----------------------------------------------------------------------
+
+def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, params=None,
+                   noise: bool = True, noise_seed: int = 0, progress: bool | None = None,
+                   on_frame=None) -> CameraResult:
+    """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
+    .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
+    resolution; :func:`load_scene_for_camera` gives a scene file the preset's).
+
+    params: integrator parameter overrides for every frame. noise: shot and read noise
+    (numpy PCG64 seeded ``noise_seed``); without it the sensor runs on mean electrons.
+    on_frame(spec, seconds) is called after each render."""
+    started = _time.perf_counter()
+    preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
+    base = _base_params(scene, preset, params)
+    spp = scene.spp if spp is None else spp
+    check_spp_seed(base, spp, seed)
+    rendered, radiance, records, truth_scene, truth_params = _render_frames(
+        scene, preset, base, int(spp), int(seed), progress, on_frame)
+    # ---- The sensor, then the camera's own reconstruction ----
+    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
+    rng = np.random.Generator(np.random.PCG64(int(noise_seed))) if noise else None
+    readout = camera_sensor.read_frames(rendered, unmodulated,
+                                        [f.integration_s for f in preset.frames],
+                                        preset.sensor, preset.contrast, rng)
+    recon = reconstruct(readout, preset)
+    # ---- Truth at mid-sequence, and z from the radial range ----
+    truth = ground_truth(truth_scene, truth_params)
+    forward = camera_forward(truth_scene, truth_scene.sensor_motion, truth.time)
+    cosine = truth.direction @ forward
+    result = CameraResult(preset, rendered, radiance, readout, recon, truth.depth,
+                          truth.depth * cosine, truth.velocity)
+    recon.depth_z = recon.depth * cosine
+    result.summary = _summary(scene, preset, result, records, spp, seed, noise, noise_seed,
+                              _time.perf_counter() - started)
+    return result
+
+
+def _render_frames(scene, preset: CameraPreset, base: RenderParams, spp: int, seed: int,
+                   progress, on_frame):
+    """Every raw frame in its own window and the radiance over the sequence: (frames
+    (K, H, W), radiance (H, W, C), records, the sequence's scene and parameters)."""
+    from ..render import render_result
+
+    t0 = scene.shutter_open
+    frames, records = [], []
+    for spec, frame in zip(frame_specs(preset), preset.frames):
+        window = scene.with_shutter(t0 + frame.start_s, frame.integration_s)
+        p = replace(spec.params(base), time=frame.integration_s).validated(spec.name)
+        result = render_result(window, spp=spp, seed=seed, params=p, progress=progress)
+        frames.append(result.image.mean(axis=-1, dtype=np.float64))
+        records.append({"name": spec.name, "kind": spec.kind, "w_g_MHz": spec.frequency_mhz,
+                        "phase_deg": frame.phase_deg, "hetero_frequency": spec.hetero_frequency,
+                        "window_s": [t0 + frame.start_s, t0 + frame.start_s + frame.integration_s],
+                        "render_seconds": round(result.metadata["render_seconds"], 3)})
+        if on_frame is not None:
+            on_frame(spec, result.metadata["render_seconds"])
+    first, last = sequence_window(preset)
+    sequence = scene.with_shutter(t0 + first, last - first)
+    spec = CaptureSpec("radiance", "radiance", RADIANCE_FREQUENCY_MHZ, 0.0, 0.0)
+    p = replace(spec.params(base), time=last - first).validated("radiance")
+    radiance = render_result(sequence, spp=spp, seed=seed, params=p, progress=progress).image
+    return np.stack(frames), radiance, records, sequence, p
+
+
+def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, seed, noise,
+             noise_seed, seconds) -> dict:
+    """summary.json of one camera frame."""
+    from ..backend import require_variant
+
+    recon, readout = result.reconstruction, result.readout
+    height, width = result.depth_gt.shape
+    first, last = sequence_window(preset)
+    summary = {
+        "scene": scene.source, "camera": preset.describe(),
+        "variant": require_variant().variant(), "resolution": [width, height],
+        "spp_per_frame": int(spp), "seed": int(seed),
+        "noise": {"shot_and_read_noise": bool(noise), "seed": int(noise_seed),
+                  "photons_per_unit": readout.photons_per_unit,
+                  "saturated_pixels": int(recon.saturated.sum())},
+        "frames": records,
+        "sequence_s": [scene.shutter_open + first, scene.shutter_open + last],
+        "ground_truth_time_s": scene.shutter_open + 0.5 * (first + last),
+        "depth": recon.describe(),
+        "errors": {"depth_m": error_stats(recon.depth, result.depth_gt),
+                   "depth_z_m": error_stats(recon.depth_z, result.depth_gt_z)},
+        "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),
+                    "total": round(seconds, 3)},
+    }
+    if recon.velocity is not None:
+        summary["errors"]["velocity_m_s"] = error_stats(recon.velocity, result.velocity_gt)
+    return summary
+
+
+def format_camera_summary(summary: dict, folder: str | None = None) -> str:
+    """A few readable lines of a camera frame's summary."""
+    w, h = summary["resolution"]
+    depth, errors = summary["depth"], summary["errors"]
+    lines = [f"{os.path.basename(summary['scene'])} through {summary['camera']['name']}: "
+             f"{w}x{h}, {summary['spp_per_frame']} spp x {len(summary['frames'])} raw frames, "
+             f"{summary['seconds']['total']:.1f} s" + (f" -> {folder}" if folder else ""),
+             f"  depth: {depth['method']}; range {depth['range_m']:.3g} m; masked: "
+             + ", ".join(f"{n} px {why}" for why, n in depth["masked_pixels"].items())]
+    d = errors["depth_m"]
+    lines.append(f"  depth error: median {d['median_abs']:.3g} m, 95th percentile "
+                 f"{d['p95_abs']:.3g} m over {d['pixels']} pixels" if d["pixels"]
+                 else "  depth error: no valid pixels")
+    v = errors.get("velocity_m_s")
+    if v is not None:
+        lines.append(f"  velocity error: median {v['median_abs']:.3g} m/s, 95th percentile "
+                     f"{v['p95_abs']:.3g} m/s over {v['pixels']} pixels" if v["pixels"]
+                     else "  velocity error: no valid pixels")
+    return "\n".join(lines)
+
+
+# ---- A scene file seen through a camera -------------------------------------------------
+
+def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
+                          source: str) -> str:
+    """The scene XML with its (single, top-level) sensor's film size and horizontal
+    field of view set to the camera's."""
+    from ..scene.xml import set_sensor_properties
+
+    return set_sensor_properties(
+        text, [("sensor", "float", "fov", repr(float(fov_deg))),
+               ("sensor", "string", "fov_axis", "x"), ("film", "integer", "width", int(width)),
+               ("film", "integer", "height", int(height))],
+        source, "a camera preset", CaptureError)
+
+
+def parse_resolution(text: str) -> tuple:
+    """``WIDTHxHEIGHT`` as (width, height), or a CaptureError naming --res."""
+    try:
+        width, height = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise CaptureError(f"--res must be WIDTHxHEIGHT (e.g. 64x53), got {text!r}") from None
+    if width < 1 or height < 1:
+        raise CaptureError(f"--res must be positive, got {text!r}")
+    return width, height
+
+
+def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=None):
+    """The scene file ``path`` with the camera's field of view and resolution (or
+    ``resolution`` = (width, height): the same field of view, other pixels)."""
+    from ..scene import load_string
+
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    width, height = resolution or preset.resolution
+    text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
+    return load_string(text, dict(defines or {}), source=os.fspath(path),
+                       base_dir=os.path.dirname(os.path.abspath(path)))
+
+
+def capture_through(path, cameras, resolution=None, defines=None, **options) -> list:
+    """The scene file ``path`` through each of ``cameras`` (names, paths or presets):
+    one :class:`CameraResult` each, with ``options`` of :func:`capture_camera`."""
+    results = []
+    for camera in cameras:
+        preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
+        scene = load_scene_for_camera(path, preset, resolution, defines)
+        results.append(capture_camera(scene, preset, **options))
+    return results

@@ -1,0 +1,163 @@
+"""Command line of the cameras: ``dopplertof cameras [NAME]`` and ``capture --camera``.
+Thin: parse, call the library, print."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+#: capture options that the camera's preset replaces (its sensor, its reconstruction)
+PRESET_OWNS = ("hetero_frequency", "unwrap_frequency", "min_signal", "mc_batches",
+               "max_velocity_std", "max_depth_std", "photons_per_unit",
+               "quantum_efficiency", "read_noise", "full_well", "gain", "bits", "ambient")
+
+
+def add_subcommand(sub) -> None:
+    """``cameras``: list the presets, or print one."""
+    c = sub.add_parser("cameras", help="list the camera presets, or print one; its wiggling "
+                       "figure; a scene through several cameras side by side")
+    c.add_argument("name", nargs="?", help="a preset name or a preset file (.toml)")
+    c.add_argument("--wiggling", metavar="FIG.png", help="with NAME: the noise-free depth "
+                   "error against distance and (FIG.json) the calibration tables")
+    c.add_argument("--compare", metavar="SCENE", help="capture SCENE through --with cameras "
+                   "and write their range errors and velocities side by side (-o FIG.png)")
+    c.add_argument("--with", dest="with_cameras", metavar="A,B,...",
+                   help="with --compare: the cameras (default: every preset)")
+    c.add_argument("--res", metavar="WIDTHxHEIGHT", help="with --compare: one resolution")
+    c.add_argument("--spp", type=int, default=16, help="with --compare: samples per pixel "
+                   "per raw frame (default 16)")
+    c.add_argument("-o", "--output", metavar="FIG.png", help="with --compare: the figure")
+    c.add_argument("--noiseless", action="store_true",
+                   help="with --compare: no shot or read noise (rounding stays)")
+    c.add_argument("--variant", default=None)
+    c.set_defaults(func=run_cameras)
+
+
+def add_capture_options(c) -> None:
+    """``capture``'s camera group."""
+    g = c.add_argument_group("real camera (a preset: its raw frames, sensor and depth)")
+    g.add_argument("--camera", metavar="NAME|FILE.toml",
+                   help="capture the preset's raw frame sequence, each frame in its own time "
+                   "window (dopplertof cameras lists them)")
+    g.add_argument("--res", metavar="WIDTHxHEIGHT",
+                   help="with --camera: other resolution, same field of view")
+    g.add_argument("--noiseless", action="store_true",
+                   help="with --camera: no shot or read noise (rounding stays)")
+
+
+def run_cameras(args) -> int:
+    from .preset import format_preset, load_preset, preset_names
+
+    if args.compare is not None:
+        return _compare(args)
+    if args.wiggling is not None:
+        return _wiggling(args)
+    if args.name is None:
+        for name in preset_names():
+            print(f"{name:<26} {load_preset(name).description}")
+        return 0
+    print(format_preset(load_preset(args.name)))
+    return 0
+
+
+def _png_path(path, option: str) -> str:
+    from .. import io
+    from ..tof.capture import CaptureError
+
+    if path is None or not path.lower().endswith(".png"):
+        raise CaptureError(f"{option} needs a .png figure path, got {path!r}")
+    io.check_output_path(path)
+    return path
+
+
+def _wiggling(args) -> int:
+    from .figures import write_wiggling
+    from .preset import load_preset
+
+    from ..tof.capture import CaptureError
+
+    if args.name is None:
+        raise CaptureError("--wiggling needs a camera NAME")
+    path = _png_path(args.wiggling, "--wiggling")
+    numbers = write_wiggling(path, load_preset(args.name))
+    print(f"{numbers['camera']}: noise-free depth error up to "
+          f"{numbers['max_abs_error_uncalibrated_m'] * 1e3:.3g} mm without calibration, "
+          f"{numbers['max_abs_error_reported_m'] * 1e3:.3g} mm as reported "
+          f"({'table applied' if numbers['calibration_applied'] else 'no table'}); wrote {path}")
+    return 0
+
+
+def _compare(args) -> int:
+    import dopplertof
+
+    from .capture import capture_through, format_camera_summary, parse_resolution
+    from .figures import write_camera_comparison
+    from .preset import load_preset, preset_names
+
+    from ..tof.capture import CaptureError
+
+    if not os.path.isfile(args.compare):
+        raise CaptureError(f"scene file not found: {args.compare}")
+    path = _png_path(args.output, "--compare -o")
+    names = args.with_cameras.split(",") if args.with_cameras else preset_names()
+    presets = [load_preset(n.strip()) for n in names]
+    resolution = parse_resolution(args.res) if args.res else None
+    dopplertof.set_variant(args.variant)
+    results = capture_through(args.compare, presets, resolution, spp=args.spp,
+                              noise=not args.noiseless, progress=False)
+    for result in results:
+        print(format_camera_summary(result.summary))
+    write_camera_comparison(path, results, f"{os.path.basename(args.compare)} through "
+                            f"{len(results)} cameras, {args.spp} spp per raw frame"
+                            + (", no shot or read noise" if args.noiseless else ""))
+    print(f"wrote {path}")
+    return 0
+
+
+def check_capture_options(args) -> None:
+    """--res and --noiseless need --camera; with it, the options its preset replaces
+    are refused (one line naming them)."""
+    from ..tof.capture import CaptureError
+
+    if args.camera is None:
+        for option in ("res", "noiseless"):
+            if getattr(args, option):
+                raise CaptureError(f"--{option} needs --camera")
+        return
+    given = [o for o in PRESET_OWNS if getattr(args, o, None) is not None]
+    given += ["noise"] if args.noise else []
+    if given:
+        raise CaptureError("--camera takes the sensor and reconstruction from its preset: "
+                           "drop " + ", ".join("--" + o.replace("_", "-") for o in given))
+
+
+def run_camera_capture(args, load_defines) -> int:
+    """``capture SCENE --camera NAME -o DIR``; ``load_defines``: the -D values."""
+    import dopplertof
+
+    from ..cli_options import parse_pairs
+    from ..tof import prepare_folder
+    from .capture import (capture_camera, format_camera_summary, load_scene_for_camera,
+                          parse_resolution)
+    from .preset import load_preset
+
+    preset = load_preset(args.camera)
+    resolution = parse_resolution(args.res) if args.res else None
+    prepare_folder(args.output)
+    dopplertof.set_variant(args.variant)
+    scene = load_scene_for_camera(args.scene, preset, resolution, load_defines)
+    for note in scene.notes:
+        print(f"dopplertof: note: {note}", file=sys.stderr)
+
+    def report(spec, seconds):
+        if not args.quiet:
+            print(f"  {spec.name:<8} {seconds:6.1f} s", flush=True)
+
+    result = capture_camera(scene, preset, spp=args.spp, seed=args.seed,
+                            params=parse_pairs(args.params, "-P") or None,
+                            noise=not args.noiseless,
+                            noise_seed=args.noise_seed if args.noise_seed is not None else 0,
+                            progress=False if args.quiet else None, on_frame=report)
+    result.write(args.output)
+    print(format_camera_summary(result.summary, os.fspath(args.output)))
+    return 0

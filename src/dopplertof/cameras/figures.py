@@ -1,0 +1,84 @@
+"""Figures of the cameras: wiggling against distance, and one scene through several
+cameras side by side."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import io
+from .demodulate import calibration_tables, wiggling_curves
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def write_wiggling(path, preset) -> dict:
+    """The noise-free depth error of ``preset`` against distance (analytic, from the
+    modulation's correlation) as a PNG, and beside it (.json) the curves and the
+    calibration tables; returns the numbers."""
+    distances, per_frequency, raw, reported = wiggling_curves(preset)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 3.8), dpi=120)
+    for f, error in per_frequency.items():
+        ax.plot(distances, error * 1e3, lw=0.8, alpha=0.6, label=f"{f:g} MHz alone, uncalibrated")
+    ax.plot(distances, raw * 1e3, "k", lw=1.5, label="reported depth, uncalibrated")
+    calibrated = preset.reconstruction["wiggling_calibration"]
+    ax.plot(distances, reported * 1e3, "C3--", lw=1.5,
+            label="reported depth, " + ("with the camera's table" if calibrated
+                                        else "as the camera reports it (no table)"))
+    ax.set_xlabel("distance (m)")
+    ax.set_ylabel("depth error (mm)")
+    ax.set_title(f"{preset.name}: wiggling ({preset.waveform} modulation), noise-free", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    io.save_figure(fig, path)
+    numbers = {"camera": preset.name, "waveform": preset.waveform,
+               "calibration_applied": calibrated,
+               "max_abs_error_uncalibrated_m": float(np.max(np.abs(raw))),
+               "max_abs_error_reported_m": float(np.max(np.abs(reported))),
+               "distances_m": distances.tolist(), "error_uncalibrated_m": raw.tolist(),
+               "error_reported_m": reported.tolist(),
+               "calibration_tables": calibration_tables(preset)}
+    io.write_json(str(path)[:-4] + ".json", numbers)
+    return numbers
+
+
+def write_camera_comparison(path, results, title: str) -> None:
+    """One row per camera: range error, amplitude and (heterodyne) velocity."""
+    plt = _pyplot()
+    rows = len(results)
+    fig, axes = plt.subplots(rows, 3, figsize=(10.5, 2.9 * rows), dpi=100, squeeze=False)
+    errors = [r.depth - r.depth_gt for r in results]
+    limit = max(float(np.nanpercentile(np.abs(e), 95)) if np.isfinite(e).any() else 0.0
+                for e in errors) or 0.01
+    for row, result, error in zip(axes, results, errors):
+        name = result.preset.name
+        shown = row[0].imshow(np.ma.masked_invalid(error), cmap="PuOr_r", vmin=-limit,
+                              vmax=limit, interpolation="nearest")
+        row[0].set_title(f"{name}: range error (m)", fontsize=8)
+        fig.colorbar(shown, ax=row[0], fraction=0.046)
+        shown = row[1].imshow(result.reconstruction.amplitude, cmap="gray", interpolation="nearest")
+        row[1].set_title(f"{name}: amplitude (DN)", fontsize=8)
+        fig.colorbar(shown, ax=row[1], fraction=0.046)
+        velocity = result.reconstruction.velocity
+        if velocity is not None:
+            v = float(np.nanmax(np.abs(result.velocity_gt))) * 1.25 or 1.0
+            shown = row[2].imshow(np.ma.masked_invalid(velocity), cmap="RdBu_r", vmin=-v,
+                                  vmax=v, interpolation="nearest")
+            row[2].set_title(f"{name}: radial velocity (m/s)", fontsize=8)
+            fig.colorbar(shown, ax=row[2], fraction=0.046)
+        else:
+            row[2].text(0.5, 0.5, "no velocity\n(homodyne frames only)", ha="center",
+                        va="center", fontsize=8, transform=row[2].transAxes)
+        for ax in row:
+            ax.set_axis_off()
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    io.save_figure(fig, path)

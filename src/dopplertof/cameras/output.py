@@ -1,0 +1,95 @@
+"""Files of a camera frame: raw DN, depth, amplitude, masks, truth, previews, summary.
+
+All writes are atomic (:mod:`dopplertof.io`).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .. import io
+from ..tof import figures
+from ..tof.output import prepare_folder
+
+#: the masks written, file stem -> (attribute of the reconstruction, what it means)
+MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
+         "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn"),
+         "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree")}
+
+
+def write_camera_result(result, folder) -> list:
+    """Every file of a camera frame into ``folder``; returns the paths in order."""
+    folder = prepare_folder(folder, create=True)
+    written = []
+
+    def path(name):
+        written.append(os.path.join(folder, name))
+        return written[-1]
+
+    recon, readout, summary = result.reconstruction, result.readout, result.summary
+    camera = summary["camera"]["name"]
+    arrays = {"raw": readout.raw, "raw_ideal": readout.raw_ideal.astype(np.float32),
+              "depth": recon.depth, "depth_z": recon.depth_z, "amplitude": recon.amplitude,
+              "depth_std": np.sqrt(recon.depth_variance), "depth_gt": result.depth_gt,
+              "depth_gt_z": result.depth_gt_z}
+    if recon.velocity is not None:
+        arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
+    for name, data in arrays.items():
+        io.write_npy(path(f"{name}.npy"),
+                     data if data.dtype.kind in "iu" else data.astype(np.float32))
+    for name, (attribute, _) in MASKS.items():
+        io.write_npy(path(f"{name}.npy"), getattr(recon, attribute))
+    _write_previews(result, path, camera)
+    io.write_json(path("summary.json"), summary)
+    return written
+
+
+def _write_previews(result, path, camera: str) -> None:
+    """depth, truth, error, amplitude (and velocity) maps and the raw frames' grid."""
+    recon = result.reconstruction
+    finite = np.concatenate([a[np.isfinite(a)] for a in (recon.depth, result.depth_gt)])
+    lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
+              if finite.size else (None, None))
+    for name, data, title in (("depth", recon.depth, f"{camera}: radial range"),
+                              ("depth_gt", result.depth_gt, "ground truth range, mid-sequence")):
+        figures.write_map(path(f"{name}.png"), data, title, "m along the ray", vmin=lo,
+                          vmax=hi, note=io.NO_SIGNAL_NOTE)
+    figures.write_map(path("depth_error.png"), recon.depth - result.depth_gt,
+                      f"{camera}: range error (camera - truth)", "m", cmap="PuOr_r",
+                      symmetric=True, note=io.NO_SIGNAL_NOTE)
+    figures.write_map(path("amplitude.png"), recon.amplitude, f"{camera}: amplitude", "DN",
+                      cmap="gray")
+    if recon.velocity is not None:
+        limit = figures.truth_limit(result.velocity_gt, recon.velocity)
+        for name, data in (("velocity", recon.velocity), ("velocity_gt", result.velocity_gt)):
+            figures.write_map(path(f"{name}.png"), data, f"{camera}: {name}",
+                              "m/s (+ receding)", cmap="RdBu_r", vmax=limit, symmetric=True,
+                              note=io.NO_SIGNAL_NOTE)
+    _write_raw_grid(path("raw.png"), result.readout.raw, result.summary["frames"], camera)
+
+
+def _write_raw_grid(path, raw, records, camera: str) -> None:
+    """The raw frames side by side, one shared DN scale."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    count = len(raw)
+    columns = min(count, 4)
+    rows = -(-count // columns)
+    h, w = raw.shape[1:]
+    fig, axes = plt.subplots(rows, columns, figsize=(2.6 * columns, 2.6 * rows * h / w + 0.6),
+                             dpi=100, squeeze=False)
+    lo, hi = float(np.min(raw)), float(np.max(raw))
+    for ax, frame, record in zip(axes.flat, raw, records):
+        image = ax.imshow(frame, cmap="gray", vmin=lo, vmax=max(hi, lo + 1),
+                          interpolation="nearest")
+        ax.set_title(f"{record['w_g_MHz']:g} MHz, {record['phase_deg']:g} deg", fontsize=8)
+    for ax in axes.flat:
+        ax.set_axis_off()
+    fig.suptitle(f"{camera}: raw frames (DN)", fontsize=10)
+    fig.colorbar(image, ax=axes.ravel().tolist(), fraction=0.03)
+    io.save_figure(fig, path)

@@ -1,0 +1,137 @@
+"""What a camera reports from its raw DN: range, amplitude, masks, velocity.
+
+Per modulation frequency, the N-phase fit of its homodyne frames (:mod:`.demodulate`;
+frames of unequal integration times scaled to the group's longest) gives a phase, an
+amplitude (DN) and a wrapped depth, calibrated for wiggling when the preset says the
+camera does; two frequencies or more are unwrapped (:mod:`.unwrap`). Masks: saturated
+(any frame of the pixel), low confidence (the smallest amplitude below the preset's
+``min_amplitude_dn``), unwrapping failed; the depth is NaN under any of them. Heterodyne
+frames give velocity as dopplertof's capture does (:mod:`dopplertof.tof.reconstruct`).
+
+The predicted depth variance (first order, from the sensor's predicted variance of each
+raw frame, :mod:`.sensor`) sits beside it: ``depth_variance``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..modulation import SPEED_OF_LIGHT
+from ..tof import reconstruct as tof_rec
+from . import demodulate
+from .sensor import to_rendered_units
+from .unwrap import unwrap_depths
+
+
+@dataclass
+class FrequencyPhase:
+    """The N-phase result of one modulation frequency."""
+
+    frequency_mhz: float
+    frames: tuple  #: indices of its raw frames
+    phase: np.ndarray  #: (H, W) rad in [0, 2 pi), calibrated when the camera calibrates
+    amplitude: np.ndarray  #: (H, W) DN (at the group's longest integration)
+    depth: np.ndarray  #: (H, W) wrapped depth (m)
+    depth_variance: np.ndarray  #: (H, W) predicted (m^2)
+
+
+@dataclass
+class CameraReconstruction:
+    depth: np.ndarray  #: (H, W) radial range (m), NaN where masked
+    amplitude: np.ndarray  #: (H, W) the smallest of the frequencies' amplitudes (DN)
+    saturated: np.ndarray  #: (H, W) bool
+    low_confidence: np.ndarray  #: (H, W) bool
+    unwrap_failed: np.ndarray  #: (H, W) bool
+    depth_variance: np.ndarray  #: (H, W) predicted variance of ``depth`` (m^2)
+    frequencies: list  #: FrequencyPhase per frequency
+    range_m: float  #: the range the depth covers (unambiguous range searched, or the wrap)
+    method: str
+    unwrap_tolerance_m: float | None = None
+    velocity: np.ndarray | None = None  #: (H, W) m/s with heterodyne frames
+    depth_z: np.ndarray | None = field(default=None)  #: (H, W), set by the capture
+
+    def describe(self) -> dict:
+        return {"file": "depth.npy", "method": self.method, "range_m": self.range_m,
+                "unwrap_tolerance_m": self.unwrap_tolerance_m,
+                "frequencies_MHz": [g.frequency_mhz for g in self.frequencies],
+                "masked_pixels": {"saturated": int(self.saturated.sum()),
+                                  "low confidence": int(self.low_confidence.sum()),
+                                  "unwrapping failed": int(self.unwrap_failed.sum())},
+                "units": "radial range in m from the camera centre (depth_z.npy: along the "
+                         "optical axis); amplitude in DN"}
+
+
+def frequency_phase(readout, preset, frequency_mhz: float) -> FrequencyPhase:
+    """The N-phase fit of the homodyne frames at ``frequency_mhz``."""
+    ks = tuple(k for k, f in enumerate(preset.frames)
+               if f.homodyne and f.frequency_mhz == frequency_mhz)
+    steps = tuple(preset.frames[k].phase_deg for k in ks)
+    times = np.array([preset.frames[k].integration_s for k in ks])
+    scale = (times.max() / times)[:, None, None]
+    x = (readout.raw[list(ks)].astype(np.float64) - preset.sensor["offset_dn"]) * scale
+    phase, amplitude, _ = demodulate.n_phase(x, np.radians(steps))
+    jacobian = demodulate.phase_jacobian(x, np.radians(steps))
+    phase_variance = np.sum(jacobian**2 * readout.variance[list(ks)] * scale**2, axis=0)
+    if preset.reconstruction["wiggling_calibration"] and preset.waveform != "sinusoidal":
+        slope = demodulate.calibration_slope(phase, preset.waveform, steps)
+        phase = demodulate.calibrate(phase, preset.waveform, steps)
+        phase_variance = phase_variance * slope**2
+    f_hz = frequency_mhz * 1e6
+    per_radian = SPEED_OF_LIGHT / (4 * math.pi * f_hz)
+    return FrequencyPhase(frequency_mhz, ks, phase, amplitude,
+                          demodulate.depth_from_phase(phase, f_hz),
+                          per_radian**2 * phase_variance)
+
+
+def reconstruct(readout, preset) -> CameraReconstruction:
+    """The camera's depth (and velocity with heterodyne frames) from its readout."""
+    groups = [frequency_phase(readout, preset, f) for f in preset.frequencies_mhz]
+    max_range = preset.reconstruction["max_range_m"]
+    saturated = readout.saturated.any(axis=0)
+    amplitude = np.min([g.amplitude for g in groups], axis=0)
+    low_confidence = ~(amplitude >= max(preset.reconstruction["min_amplitude_dn"], 1e-12))
+    tolerance = None
+    if len(groups) >= 2:
+        unwrapped = unwrap_depths([g.depth for g in groups],
+                                  [g.frequency_mhz * 1e6 for g in groups], max_range)
+        depth, failed, tolerance = unwrapped.depth, unwrapped.failed, unwrapped.tolerance
+        range_m = unwrapped.unambiguous_range
+        weights = np.array([g.frequency_mhz**2 for g in groups])
+        weights = weights / weights.sum()
+        variance = sum(w**2 * g.depth_variance for w, g in zip(weights, groups))
+        method = (f"N-phase least-squares fit per frequency, unwrapped by a search over "
+                  f"wrap counts of {len(groups)} frequencies (f^2-weighted mean)")
+    else:
+        depth, failed = groups[0].depth, np.zeros(saturated.shape, bool)
+        range_m = min(max_range, tof_rec.wrap_distance(groups[0].frequency_mhz * 1e6))
+        variance = groups[0].depth_variance
+        method = "N-phase least-squares fit, one frequency (wraps at the range)"
+    if preset.reconstruction["wiggling_calibration"] and preset.waveform != "sinusoidal":
+        method += "; wiggling calibration table applied"
+    masked = saturated | low_confidence | failed
+    result = CameraReconstruction(np.where(masked, np.nan, depth), amplitude, saturated,
+                                  low_confidence, failed, variance, groups, float(range_m),
+                                  method, tolerance)
+    if preset.heterodyne:
+        result.velocity = np.where(masked, np.nan, heterodyne_velocity(readout, preset, result))
+    return result
+
+
+def heterodyne_velocity(readout, preset, recon: CameraReconstruction) -> np.ndarray:
+    """Radial velocity (m/s) from the heterodyne frames and the homodyne frames of
+    their frequency (offsets 0 and 1/4), as :func:`dopplertof.tof.capture` does."""
+    frames = to_rendered_units(readout.raw, readout, preset.sensor)
+    hetero = [k for k, f in enumerate(preset.frames) if not f.homodyne]
+    first = preset.frames[hetero[0]]
+    group = next(g for g in recon.frequencies if g.frequency_mhz == first.frequency_mhz)
+    homodyne = {preset.frames[k].offset: frames[k] for k in group.frames}
+    heterodyne = {preset.frames[k].offset: frames[k] for k in hetero}
+    model = tof_rec.CaptureModel(2 * math.pi * first.frequency_mhz * 1e6, first.integration_s,
+                                 first.hetero_frequency, preset.waveform)
+    velocity, _ = tof_rec.reconstruct_velocity(
+        homodyne, heterodyne, model, None, tof_rec.resolve_calibration("auto", preset.waveform),
+        group.phase, recon.depth)
+    return velocity
