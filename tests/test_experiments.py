@@ -356,14 +356,14 @@ def test_report_calls_runs_of_another_spec_stale(tmp_path, capsys):
     that run only and lists the other 8-spp run as stale, with its reason (it was
     reported as a 16-spp run with the 8-spp run's error). The tasks run in this
     process, as run_sweep's workers run them."""
-    from dopplertof.experiments.sweep import pending_tasks, write_sweep_json
+    from dopplertof.experiments.sweep import pending_tasks, write_sweep_files
     from dopplertof.experiments.tasks import run_render_task
 
     out, grid = tmp_path / "results", {"time_sampling_method": ["uniform", "antithetic"]}
     rerun = tiny_config(grid=grid, fixed={"spp": 16, "seed": 0, "hetero_frequency": 1.0})
     for config, killed_after in ((tiny_config(grid=grid), None), (rerun, 1)):
         tasks = plan_sweep(config, out)
-        write_sweep_json(config, tasks, str(out))
+        write_sweep_files(config, tasks, str(out))
         for task in pending_tasks(tasks)[:killed_after]:
             run_render_task(task)
     redone, stale = (t.name for t in tasks if t.kind == "run")
