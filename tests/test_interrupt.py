@@ -82,7 +82,7 @@ def test_sigint_at_any_moment_of_a_render_is_one_line(tmp_path):
     out = tmp_path / "x.npy"
     code = ("import sys, dopplertof.cli as cli; print('ready', flush=True); "
             "sys.exit(cli.main(sys.argv[1:]))")
-    argv = [sys.executable, "-c", code, "render", SPHERE, "-D", "res=64", "--spp", "1024",
+    argv = [sys.executable, "-c", code, "render", SPHERE, "-D", "res=128", "--spp", "2048",
             "-o", str(out), "--quiet"]
     outcomes = []
     for delay in (0.05, 0.2, 0.4, 0.7, 1.0, 1.5, 2.5):

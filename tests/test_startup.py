@@ -46,7 +46,7 @@ def test_help_and_argparse_errors_import_nothing_heavy(argv):
     (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_dept=3"], "did you mean 'max_depth'"),
     (["render", SPHERE, "-o", "{tmp}/x.png", "-P", "max_depth=abc"], "must be an integer"),
     (["render", SPHERE, "-o", "{tmp}/x.png", "--spp", "0"], "spp must be >= 1"),
-    (["render", SPHERE, "-o", "{tmp}/x.png", "--seed", "-1"], "seed must be a non-negative"),
+    (["render", SPHERE, "-o", "{tmp}/x.png", "--seed", "-1"], "seed must be an integer in [0, 2^64)"),
     (["capture", SPHERE, "-o", "{tmp}/out", "-P", "hetro_frequency=1"], "did you mean"),
     (["capture", SPHERE, "-o", "{tmp}/out", "--spp", "0"], "spp must be >= 1"),
     (["precision", SPHERE, "-P", "w_gg=20"], "did you mean 'w_g'"),

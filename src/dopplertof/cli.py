@@ -211,14 +211,14 @@ def _check_before_loading(args, where: str) -> None:
     """What is wrong with the -P values, --spp and --seed, said before Mitsuba and the
     scene load (a usage error in well under a second, not after seconds of start-up);
     the library checks them again against the scene."""
+    from .arguments import check_seed
     from .params import RenderParams
     from .sampling import check_sample_count
 
     RenderParams.coerced(parse_pairs(args.params, "-P"), where)
     if args.spp is not None:
         check_sample_count(1, args.spp)
-    if args.seed < 0:
-        raise UsageError(f"seed must be a non-negative integer, got {args.seed}")
+    check_seed(args.seed, "seed", UsageError)  # (all 64 bits key the random streams)
 
 
 def _cmd_render(args) -> int:
