@@ -239,10 +239,12 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
     as on_capture(spec, seconds) after each render.
-    mc_batches: render every capture as this many independent batches (seeds
-    precision.batch_seeds) and predict per-pixel standard deviations of velocity and
-    depth (Monte Carlo from the batches, sensor from the noise model; result.uncertainty,
-    summary "precision"). max_velocity_std, max_depth_std: NaN where the predicted total
+    mc_batches: render every capture this many times independently with spp samples
+    each (seeds precision.batch_seeds; the first, with the capture's seed, is the
+    reported capture, bitwise as without) and predict per-pixel standard deviations of
+    velocity and depth (Monte Carlo from the renders' spread, sensor from the noise
+    model; result.uncertainty, summary "precision", whose "cost" gives the render time
+    the error bars took: B x). max_velocity_std, max_depth_std: NaN where the predicted total
     standard deviation is larger (implies mc_batches=8 when not given).
     """
     started = _time.perf_counter()
@@ -275,6 +277,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     if uncertainty is not None:
         summary["precision"] = _precision_summary(scene, settings, uncertainty,
                                                   reconstruction, truth, limit_counts)
+        summary["precision"]["cost"] = prec.error_bar_cost(records, settings.mc_batches)
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
                          summary, uncertainty)
 
@@ -319,7 +322,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
     if mc_batches is None and any(limits):
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
-        mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
+        mc_batches = prec.check_batches(mc_batches)
     return _Settings(base, spp, seed, model, unwrap, calibration, noise,
                      min_signal_fraction, common_random_numbers, limits, mc_batches)
 
@@ -398,8 +401,9 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
     rendered, records, radiance, batches = {}, [], None, {}
     for index, spec in enumerate(specs):
         capture_seed = int(seed) if common_random_numbers else int(seed) + index
+        extra_seconds = None
         if mc_batches:
-            image, stack, seconds, dropped = prec.render_batches(
+            image, stack, seconds, extra_seconds, dropped = prec.render_batches(
                 scene, spp, capture_seed, spec.params(base), mc_batches, progress)
             if spec.kind != "radiance":
                 batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
@@ -422,6 +426,7 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
         })
         if mc_batches:
             records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
+            records[-1]["error_bar_render_seconds"] = round(extra_seconds, 3)
         if on_capture is not None:
             on_capture(spec, seconds)
     return rendered, records, radiance, batches
