@@ -239,13 +239,11 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
     as on_capture(spec, seconds) after each render.
-    mc_batches: render every capture this many times independently with spp samples
-    each (seeds precision.batch_seeds; the first, with the capture's seed, is the
-    reported capture, bitwise as without) and predict per-pixel standard deviations of
-    velocity and depth (Monte Carlo from the renders' spread, sensor from the noise
-    model; result.uncertainty, summary "precision", whose "cost" gives the render time
-    the error bars took: B x). max_velocity_std, max_depth_std: NaN where the predicted total
-    standard deviation is larger (implies mc_batches=8 when not given).
+    mc_batches: render every capture B times with spp samples (the first is the capture,
+    bitwise as without) and predict per-pixel standard deviations of velocity and depth
+    (result.uncertainty, summary "precision"; its "cost": B x the render time).
+    max_velocity_std, max_depth_std: NaN where the predicted total standard deviation
+    is larger (implies mc_batches=8 when not given).
     """
     started = _time.perf_counter()
     settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
@@ -275,9 +273,8 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     summary = _summary(scene, settings, records, reconstruction, noise_free, truth,
                        noise_info, _time.perf_counter() - started)
     if uncertainty is not None:
-        summary["precision"] = _precision_summary(scene, settings, uncertainty,
-                                                  reconstruction, truth, limit_counts)
-        summary["precision"]["cost"] = prec.error_bar_cost(records, settings.mc_batches)
+        summary["precision"] = _precision_summary(scene, settings, uncertainty, reconstruction,
+                                                  truth, limit_counts, records)
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
                          summary, uncertainty)
 
@@ -361,13 +358,16 @@ def _predict_precision(rendered, batches, unmodulated, clean: Reconstruction,
 
 
 def _precision_summary(scene, settings: _Settings, uncertainty, reconstruction, truth,
-                       limit_counts) -> dict:
-    """summary.json's "precision" section (precision.precision_summary) of one frame."""
-    return prec.precision_summary(
+                       limit_counts, records) -> dict:
+    """summary.json's "precision" section (precision.precision_summary) of one frame,
+    with the render time its error bars cost (from the capture ``records``)."""
+    section = prec.precision_summary(
         uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
         None if settings.unwrap is not None else settings.model.wrap_distance,
         {"max_velocity_std_m_s": settings.limits[0],
          "max_depth_std_m": settings.limits[1], "masked_pixels": limit_counts})
+    section["cost"] = prec.error_bar_cost(records, settings.mc_batches)
+    return section
 
 
 def _check_noise(noise):
