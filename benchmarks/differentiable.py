@@ -11,7 +11,14 @@ The demo scene (two moving boxes) at the same resolution, spp and seed:
 Runs are interleaved after a warm-up that compiles every kernel; the median time of
 each is compared. The last line reads `worst derivative / plain (splat): X`.
 
+``--fit``: the demo's capture and its fit side by side, on the same machine, in one
+process (each starting cold: the fit's time includes compiling its kernels, as the
+capture's does): the capture's time, the fit's (`dopplertof fit` from its default
+start, the closed form), their ratio and each body's fitted radial velocity against
+the truth. The demo itself is 128x128 at 512 spp (`--res 128 --spp 512`).
+
     .venv/bin/python benchmarks/differentiable.py [--res 64] [--spp 64] [--repeats 3]
+    .venv/bin/python benchmarks/differentiable.py --fit [--res 48] [--spp 256] [--fit-spp 256]
 """
 
 from __future__ import annotations
@@ -29,7 +36,11 @@ def main(argv=None) -> None:
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--fit", action="store_true", help="the capture and its fit side by side")
+    ap.add_argument("--fit-spp", type=int, default=None, help="the fit's spp (default its own)")
     args = ap.parse_args(argv)
+    if args.fit:
+        return fit_against_capture(args.res, args.spp, args.fit_spp)
 
     import dopplertof
     from dopplertof.demo import demo_scene_path
@@ -57,6 +68,34 @@ def main(argv=None) -> None:
         print(f"  {name:<26} {m:8.3f} s   {m / plain:5.2f} x plain (splat)")
     worst = max(statistics.median(times[n]) for n in PARAMETERS)
     print(f"worst derivative / plain (splat): {worst / plain:.2f}")
+
+
+def fit_against_capture(res: int, spp: int, fit_spp: int | None) -> None:
+    """The demo captured at ``res`` and ``spp`` and fitted from the closed form: times
+    side by side and the fit's errors."""
+    import tempfile
+
+    import dopplertof
+    from dopplertof.demo import demo_scene_path
+    from dopplertof.diff.fit import FIT_SPP, fit, format_fit
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        scene = dopplertof.load_file(demo_scene_path(), {"res": res, "spp": spp})
+        dopplertof.capture(scene, spp=spp, seed=0, progress=False).write(folder)
+        captured = time.perf_counter() - started
+        started = time.perf_counter()
+        result = fit(folder, spp=fit_spp or FIT_SPP, progress=False)
+        fitted = time.perf_counter() - started
+    print(format_fit(result))
+    print(f"demo scene {res}x{res}: capture {spp} spp {captured:.1f} s, fit "
+          f"{fit_spp or FIT_SPP} spp {fitted:.1f} s ({result.iterations} iterations)")
+    for body in result.bodies:
+        truth = body["capture_velocity_gt_median_m_s"]
+        print(f"  {body['name']}: error {100 * (body['radial_velocity_m_s'] / truth - 1):+.2f}% "
+              f"(+- {100 * body['radial_velocity_uncertainty_m_s'] / abs(truth):.2f}%)")
+    print(f"fit / capture: {fitted / captured:.2f}")
 
 
 if __name__ == "__main__":

@@ -135,8 +135,9 @@ def _add_capture_precision_options(c) -> None:
     """The capture's group of predicted standard deviations and the limits set on them."""
     u = c.add_argument_group("precision (predicted per-pixel standard deviations)")
     u.add_argument("--mc-batches", type=int, metavar="B",
-                   help="render every capture as B independent batches and write "
-                   "velocity_std*.npy / depth_std*.npy (Monte Carlo and sensor noise)")
+                   help="render every capture B times independently (the first is the "
+                   "capture, as without) and write velocity_std*.npy / depth_std*.npy "
+                   "(Monte Carlo and sensor noise): B x the render time")
     u.add_argument("--max-velocity-std", type=float, metavar="M_S",
                    help="velocity is NaN where its predicted standard deviation is larger "
                    "(implies --mc-batches 8)")

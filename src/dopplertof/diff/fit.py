@@ -25,14 +25,22 @@ r_i = (u . n_i) / (d_i . n_i), linear in u, solved by least squares over the bod
 pixels (normals and rays from the scene's geometry at mid-exposure); or a start the
 user gives.
 
+The Jacobian is rendered at the start and held while steps lower the loss (the captures
+are nearly linear in the velocities, so a step needs only the residuals' renders), again
+when no step does, and at the end. The iterations stop on a plateau (a step lowering the
+loss by less than :data:`PLATEAU` of itself) or a step below ``tolerance``.
+
 The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
-final loss over its degrees of freedom (the render and capture noise that the residual
-shows); a radial velocity's follows from it through its derivative.
+final renders' mean squared residual over its degrees of freedom (the render and capture
+noise that the residual shows); a radial velocity's follows from it through its
+derivative. A parameter the captures do not see keeps its start; its uncertainty is
+infinite (null in fit.json).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import time as _time
@@ -52,6 +60,12 @@ RCOND = 0.05
 
 #: default samples per pixel of the fit's renders
 FIT_SPP = 256
+
+#: the fit stops on a plateau: a step that lowers the loss by less than this fraction
+PLATEAU = 0.01
+
+#: a truth below this (m/s, rad/s) is near zero: its error is printed in m/s, not in %
+NEAR_ZERO = 0.01
 
 
 class FitError(ValueError):
@@ -171,18 +185,29 @@ def _plain(m: VelocityMotion) -> VelocityMotion:
                           m.interval, m.base)
 
 
-def interior(truth, k: int) -> np.ndarray:
-    """Pixels whose 3x3 neighbourhood sees one face of body k: away from its silhouette
-    and its edges, whose motion (visibility) the derivatives do not model."""
+#: neighbouring normals further apart than this (cosine) mark a crease between faces
+#: (a box's edge: 90 degrees); curvature between neighbouring pixels stays below it
+CREASE_COS = math.cos(math.radians(45.0))
+
+
+def interior(truth, k: int, reach: int = 1) -> np.ndarray:
+    """Pixels of body k whose footprint sees body k only, in one piece: every pixel
+    within ``reach`` (the film filter's radius, at least 1) hits body k (not its
+    silhouette against another body, a static surface or the background, whose motion
+    the derivatives do not model), and no two neighbouring normals there meet at a
+    crease (:data:`CREASE_COS`: a box's edge, whose integrand jumps). Curved faces,
+    and meshes with smooth normals, are kept: their integrand is continuous."""
     on = truth.body == k
     n = np.nan_to_num(truth.normal)
     inner = on.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            shifted = np.roll(np.roll(n, dy, 0), dx, 1)
-            inner &= np.roll(np.roll(on, dy, 0), dx, 1) & (np.sum(n * shifted, -1) > 0.999)
-    inner[[0, -1], :] = False
-    inner[:, [0, -1]] = False
+    for dy in range(-reach, reach + 1):
+        for dx in range(-reach, reach + 1):
+            inner &= np.roll(np.roll(on, dy, 0), dx, 1)
+            if max(abs(dy), abs(dx)) == 1:  # a crease: between the pixel and a neighbour
+                shifted = np.roll(np.roll(n, dy, 0), dx, 1)
+                inner &= np.sum(n * shifted, -1) > CREASE_COS
+    inner[:reach, :] = inner[-reach:, :] = False  # the image's border: footprint unknown
+    inner[:, :reach] = inner[:, -reach:] = False
     return inner
 
 
@@ -209,14 +234,17 @@ def radial_velocity(truth, k: int):
 
 def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         iterations: int = 12, angular: bool = False, defines=None, progress=None,
-        tolerance: float = 1e-3, block: int = 8) -> FitResult:
+        tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU) -> FitResult:
     """Fit every body's velocity to the captures in ``folder`` (see the module
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
     the capture's + 1, independent of its noise); ``block``: the residuals are sums over
     blocks of block x block interior pixels of one body (a per-pixel Jacobian's Monte
     Carlo noise would inflate J^T J and shorten every step; block sums keep the
-    velocity field's variation and average the noise)."""
+    velocity field's variation and average the noise); the iterations stop at a step
+    below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
+    by less than ``plateau`` of itself. ``progress``: a bar (True; None: when stderr is
+    a terminal), else (None) one line per iteration on stderr, or nothing (False)."""
     data = load_capture(folder, defines)
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
@@ -238,13 +266,12 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     # ---- Gauss-Newton with Levenberg-Marquardt damping ----
     problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block)
     started = _time.perf_counter()
-    theta, state, loss_ab, history, done = _gauss_newton(problem, spp, iterations,
-                                                         tolerance, progress, started)
-    (r, _), (r_b, _) = state
-    loss = 0.5 * float(r @ r + r_b @ r_b)
+    theta, state, history, done, stop = _gauss_newton(
+        problem, spp, iterations, tolerance, plateau, _Progress(progress, iterations), started)
+    loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian ----
-    cov, sigma, seen = _covariance(state, loss)
+    cov, sigma = _covariance(state, problem.seen)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
@@ -253,11 +280,11 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         "residuals": "per capture, sums over blocks of interior pixels of one body",
         "parameters": problem.names, "angular": bool(angular),
         "start": "user" if start else "closed form (velocity.npy)",
-        **_method_notes(t_mid),
-        "unconstrained": [n for n, ok in zip(problem.names, seen) if not ok],
+        **_method_notes(t_mid, tolerance, plateau),
+        "stopped": stop,
+        "unconstrained": [n for n, ok in zip(problem.names, problem.seen) if not ok],
         "seconds": round(_time.perf_counter() - started, 3),
     }
-    settings["cross_loss"] = loss_ab
     return FitResult(bodies, done, loss, history, settings)
 
 
@@ -277,12 +304,20 @@ def _motions_at_mid_exposure(data: CaptureData):
 
 
 def _interior_masks(scene, geometry) -> list:
-    """Per body, its :func:`interior` pixels; a FitError for a body with fewer than 4."""
-    masks = [interior(geometry, k) for k in range(len(scene.bodies))]
+    """Per body, its :func:`interior` pixels (the footprint's reach from the film's
+    filter); a FitError for a body with fewer than 4, saying what it lacks."""
+    from ..integrators.film import _filter_of
+
+    reach = max(1, math.ceil(_filter_of(scene.sensor.film())[1]))
+    masks = [interior(geometry, k, reach) for k in range(len(scene.bodies))]
     for k, mask in enumerate(masks):
         if mask.sum() < 4:
-            raise FitError(f"body {k} ({', '.join(scene.bodies[k].names)}) covers fewer than "
-                           "4 interior pixels: too small to fit at this resolution")
+            on = int(np.sum(geometry.body == k))
+            raise FitError(
+                f"body {k} ({', '.join(scene.bodies[k].names)}) covers {on} pixels, of "
+                f"which {int(mask.sum())} see only the body within the filter's reach "
+                f"({reach} px) away from its silhouette and its creases: too few (4) to "
+                "fit; render the capture at a higher resolution")
     return masks
 
 
@@ -333,6 +368,9 @@ class _FitProblem:
                       for kind in ("vw" if angular else "v") for a in "xyz"]
         self.target = np.concatenate([self.pool(data.captures[c].ravel()[self.pixels])
                                       for c in FIT_CAPTURES])
+        #: the parameters the captures see (set from the start's Jacobian); the others
+        #: keep their start
+        self.seen = np.ones(len(self.names), bool)
 
     def pool(self, values):
         """Per-pixel values (of the rendered pixels) -> block sums."""
@@ -354,22 +392,26 @@ class _FitProblem:
             if self.angular:
                 m.angular_velocity = theta[k * per + 3:k * per + 6].tolist()
 
-    def evaluate(self, samples: int):
-        """Residuals and Jacobians at the current motions from two renders of
-        independent random numbers (A, B): [(r_A, J_A), (r_B, J_B)]."""
+    def evaluate(self, samples: int, jacobian: bool = True):
+        """Residuals at the current motions from two renders of independent random
+        numbers (A, B), and (``jacobian``) their Jacobians: ((r_A, r_B), (J_A, J_B)),
+        the Jacobians None without."""
         from .render import render_derivatives
 
-        out = []
+        names = self.names if jacobian else []
+        residuals, jacobians = [], []
         for seed in self.seeds:
-            residual, jacobian = [], []
+            residual, columns = [], []
             for c in FIT_CAPTURES:
-                d = render_derivatives(self.scenes[c], self.names, spp=samples, seed=seed,
+                d = render_derivatives(self.scenes[c], names, spp=samples, seed=seed,
                                        pixels=self.pixels)
                 residual.append(self.pool(d.image.mean(-1).ravel()[self.pixels]))
-                jacobian.append(np.stack([self.pool(d.tangents[n].mean(-1).ravel()
-                                                    [self.pixels]) for n in self.names], -1))
-            out.append((np.concatenate(residual) - self.target, np.concatenate(jacobian)))
-        return out
+                if jacobian:
+                    columns.append(np.stack([self.pool(d.tangents[n].mean(-1).ravel()
+                                                       [self.pixels]) for n in names], -1))
+            residuals.append(np.concatenate(residual) - self.target)
+            jacobians.append(np.concatenate(columns) if jacobian else None)
+        return tuple(residuals), tuple(jacobians)
 
     def radial(self) -> list:
         """Each body's median radial velocity at the current motions (the truth's)."""
@@ -443,98 +485,138 @@ def _add_capture_record(entry: dict, summary: dict) -> None:
 
 
 def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: float,
-                  progress, started):
+                  plateau: float, progress, started):
     """Gauss-Newton iterations with Levenberg-Marquardt damping from the current
-    motions: (theta, the last (r, J) pair of renders, its cross loss, the history, the
-    iterations done). Early iterations render a quarter of the samples (the start may be
-    far off); the last ones all of them. Parameters the captures do not see (a Jacobian
-    column far below the others: a velocity along no visible face's normal) keep their
-    start."""
-    from tqdm import tqdm
-
-    from ..integrators.pipeline import _show_progress
-
-    K = problem.scenes[FIT_CAPTURES[0]].params.time_correlate_number
-    coarse = max(K, (spp // 4) // K * K)
-    samples = coarse if coarse < spp else spp
-    damping = 1e-3
+    motions: (theta, the final (residuals, Jacobians), the history, the iterations
+    done, why they stopped). The Jacobian is rendered at the start, held while steps
+    lower the loss (the captures are nearly linear in the velocities: a step needs
+    only the residuals' renders) and rendered again when none does, and at the end
+    for the uncertainties. Parameters the start's Jacobian does not see (a column far
+    below its noise: a velocity along no visible face's normal) keep their start."""
     theta = problem.values()
-    state = problem.evaluate(samples)
-    loss = _cross_loss(state)
-    history = [problem.record(0, loss, samples, theta, started)]
-    bar = tqdm(total=iterations, desc="fitting", unit="it", leave=False,
-               disable=not _show_progress(progress))
-    done = 0
+    residuals, jacobians = problem.evaluate(spp)
+    problem.seen = _metric(jacobians)[1]
+    loss, fresh = _cross_loss(residuals), True
+    history = [problem.record(0, loss, spp, theta, started)]
+    progress.update(history[-1])
+    damping, done, stop = 1e-3, 0, f"{iterations} iterations"
     try:
-        for it in range(1, iterations + 1):
-            step, state_new, loss_new, damping = _damped_trials(problem, state, loss, theta,
-                                                                damping, samples)
-            theta, state, loss = theta + step, state_new, loss_new
-            damping = max(damping / 10.0, 1e-6)
-            done = it
-            bar.update(1)
-            history.append(problem.record(it, loss, samples, theta, started))
-            small = np.linalg.norm(step) <= 1e-2 * max(np.linalg.norm(theta), 1e-12)
-            stalled = loss_new > 0.9 * history[-2]["loss"]  # the noise's floor
-            if samples < spp and (small or stalled or it >= iterations // 2):
-                samples = spp  # near: the precise renders (the loss is re-evaluated)
-                state = problem.evaluate(samples)
-                loss = _cross_loss(state)
-            elif np.linalg.norm(step) <= tolerance * max(np.linalg.norm(theta), 1e-12):
+        while done < iterations:
+            step, new_residuals, new_loss = _damped_trials(problem, residuals, jacobians,
+                                                           loss, theta, damping, spp)
+            if new_loss >= loss:
+                problem.set_values(theta)
+                if fresh:
+                    stop = "no damped step lowers the loss"
+                    break
+                _, jacobians = problem.evaluate(spp)  # a held Jacobian gone stale
+                fresh = True
+                continue
+            theta, residuals, previous, loss, fresh = (theta + step, new_residuals, loss,
+                                                      new_loss, False)
+            done += 1
+            history.append(problem.record(done, loss, spp, theta, started))
+            progress.update(history[-1])
+            if np.linalg.norm(step) <= tolerance * max(np.linalg.norm(theta), 1e-12):
+                stop = f"a step below {tolerance:g} of the velocities"
+                break
+            if previous - loss < plateau * abs(previous):
+                stop = f"plateau: the loss fell by less than {plateau:g} of itself"
                 break
     finally:
-        bar.close()
-    return theta, state, loss, history, done
+        progress.close()
+    return theta, problem.evaluate(spp), history, done, stop
 
 
-def _damped_trials(problem: _FitProblem, state, loss: float, theta, damping: float,
-                   samples: int):
-    """Levenberg-Marquardt's steps from ``theta`` (renders ``state``), the damping ten
-    times larger after each that makes the loss worse (a shorter, more gradient-like
-    step), until one does not or the damping passes 1e3: (that step, its state, its
-    cross loss, the damping); the motions are left at theta + step."""
+def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, theta,
+                   damping: float, samples: int):
+    """Levenberg-Marquardt's steps from ``theta`` (its residuals and the Jacobians
+    held), the damping ten times larger after each that does not lower the loss (a
+    shorter, more gradient-like step), until one does or the damping passes 1e3: (that
+    step, its residuals, its cross loss); the motions are left at theta + step."""
     while True:
-        step = _trust(_damped_step(state, damping)[0], theta)
+        step = _trust(_damped_step(residuals, jacobians, damping, problem.seen), theta)
         problem.set_values(theta + step)
-        state_new = problem.evaluate(samples)
-        loss_new = _cross_loss(state_new)
-        if loss_new <= loss or damping > 1e3:
-            return step, state_new, loss_new, damping
+        new_residuals, _ = problem.evaluate(samples, jacobian=False)
+        new_loss = _cross_loss(new_residuals)
+        if new_loss < loss or damping > 1e3:
+            return step, new_residuals, new_loss
         damping *= 10.0
 
 
-def _covariance(state, loss: float):
-    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = ``loss`` / its
-    degrees of freedom, over the parameters the captures see; the standard deviations
-    (NaN for a parameter not seen) and that mask."""
-    G, seen = _metric(state)
-    (r, _), _ = state
+def _covariance(state, seen):
+    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the final
+    renders' mean squared residual over its degrees of freedom (the render and capture
+    noise that the residual shows; positive, as the cross loss need not be), over the
+    parameters ``seen`` (that the final Jacobian sees too); and the standard deviations
+    (inf for a parameter not seen: unconstrained)."""
+    (r_a, r_b), jacobians = state
+    G, seen_now = _metric(jacobians)
+    seen = seen & seen_now
     n = G.shape[0]
-    dof = max(len(r) - int(seen.sum()), 1)
+    dof = max(len(r_a) - int(seen.sum()), 1)
+    energy = 0.5 * float(r_a @ r_a + r_b @ r_b)
     cov = np.zeros((n, n))
     if seen.any():
         scale = np.sqrt(np.diag(G)[seen])
         Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
-        # s^2 of one render's residual: the mean of the two
-        cov[np.ix_(seen, seen)] = ((loss / dof) * _truncated_inverse(Gs, RCOND ** 2)
+        cov[np.ix_(seen, seen)] = ((energy / dof) * _truncated_inverse(Gs, RCOND ** 2)
                                    / np.outer(scale, scale))
-    sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.nan)
-    return cov, sigma, seen
+    sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
+    return cov, sigma
 
 
-def _method_notes(t_mid: float) -> dict:
-    """fit.json's settings that describe the method, the motion and the uncertainty."""
+def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
+    """fit.json's settings that describe the method, the motion, the stopping rule and
+    the uncertainty."""
     return {
         "method": "Gauss-Newton with Levenberg-Marquardt damping on the cross loss "
                   "(R_A - C).(R_B - C) of two renders of independent seeds, forward-mode "
-                  "Jacobians, the same seeds every iteration (correlated sampling)",
+                  "Jacobians (rendered at the start, held while steps lower the loss, "
+                  "rendered again when none does and at the end), the same seeds every "
+                  "iteration (correlated sampling)",
         "motion": "constant linear (and angular) velocity about the pose at mid-exposure, "
                   "t_ref = %.9g s" % t_mid,
-        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = loss / (residuals - parameters), "
+        "stopping": "after a step below %g of the velocities' norm, or on a plateau: a "
+                    "step that lowers the loss by less than %g of itself, or when no "
+                    "damped step lowers it" % (tolerance, plateau),
+        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = the final renders' mean squared "
+                       "residual / (residuals - parameters), "
                        "^+: the pseudo-inverse over the directions the captures constrain "
                        "(singular values >= %g of the largest, columns scaled); null: a "
-                       "parameter the captures do not see (kept at its start)" % RCOND,
+                       "parameter the captures do not see (kept at its start, "
+                       "unconstrained: its uncertainty is infinite)" % RCOND,
     }
+
+
+class _Progress:
+    """The fit's progress: a bar on a terminal (``progress`` True, or None with stderr
+    a terminal), one line per iteration on stderr otherwise (None), nothing (False)."""
+
+    def __init__(self, progress, iterations: int):
+        import sys
+
+        self.bar, self.lines = None, progress is None and not sys.stderr.isatty()
+        if progress or (progress is None and sys.stderr.isatty()):
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=iterations, desc="fitting", unit="it", leave=False)
+
+    def update(self, entry: dict) -> None:
+        import sys
+
+        if self.bar is not None and entry["iteration"] > 0:
+            self.bar.update(1)
+        if self.lines:
+            radial = ", ".join("n/a" if r is None else f"{r:+.4f}"
+                               for r in entry["radial_velocity_m_s"])
+            print(f"fit iteration {entry['iteration']}: loss {entry['loss']:.6g}, radial "
+                  f"velocity {radial} m/s, {entry['seconds']:.1f} s", file=sys.stderr,
+                  flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def _blocks(masks, block: int) -> np.ndarray:
@@ -551,21 +633,22 @@ def _blocks(masks, block: int) -> np.ndarray:
     return np.unique(used, return_inverse=True)[1]
 
 
-def _cross_loss(state) -> float:
+def _cross_loss(residuals) -> float:
     """(R_A - C) . (R_B - C): its expectation is the squared distance of the expected
     render to the captures, without the renders' variance (which depends on the
-    velocities and would bias a fit of the plain squared loss, by O(1/spp))."""
-    (r_a, _), (r_b, _) = state
+    velocities and would bias a fit of the plain squared loss, by O(1/spp)). It can be
+    negative (the two renders' noise), most often near the minimum."""
+    r_a, r_b = residuals
     return float(r_a @ r_b)
 
 
-def _metric(state, snr=0.5):
+def _metric(jacobians, snr=0.5):
     """The Gauss-Newton metric from two Jacobians of independent noise: G = (J_A^T J_B +
     J_B^T J_A) / 2, whose expectation is J^T J of the expected Jacobian (J_A^T J_A would
     add the noise's energy, and shorten every step by it). The mask of the parameters
     the captures see: those whose column's signal (G's diagonal) is at least ``snr`` of
-    its energy (the mean of J_A^T J_A and J_B^T J_B); the others keep their start."""
-    (_, J_a), (_, J_b) = state
+    its energy (the mean of J_A^T J_A and J_B^T J_B)."""
+    J_a, J_b = jacobians
     G = 0.5 * (J_a.T @ J_b + J_b.T @ J_a)
     energy = 0.5 * (np.sum(J_a * J_a, 0) + np.sum(J_b * J_b, 0))
     d = np.diag(G)
@@ -573,22 +656,22 @@ def _metric(state, snr=0.5):
     return G, seen
 
 
-def _damped_step(state, damping, rcond=RCOND):
+def _damped_step(residuals, jacobians, damping, seen, rcond=RCOND):
     """The Levenberg-Marquardt step of the cross loss, -(G + damping diag(G))^+ g with
     g = (J_A^T r_B + J_B^T r_A) / 2 and G from :func:`_metric`, over the parameters
-    the captures see, in the directions whose eigenvalue (columns scaled by G's
-    diagonal) reaches ``rcond``^2 of the largest. Returns the step and that mask."""
-    (r_a, J_a), (r_b, J_b) = state
-    G, seen = _metric(state)
+    ``seen``, in the directions whose eigenvalue (columns scaled by G's diagonal)
+    reaches ``rcond``^2 of the largest."""
+    (r_a, r_b), (J_a, J_b) = residuals, jacobians
+    G = _metric(jacobians)[0]
     step = np.zeros(J_a.shape[1])
     if not seen.any():
-        return step, seen
+        return step
     scale = np.sqrt(np.diag(G)[seen])
     A = G[np.ix_(seen, seen)] / np.outer(scale, scale)
     A += damping * np.diag(np.diag(A))
     g = 0.5 * (J_a.T @ r_b + J_b.T @ r_a)[seen] / scale
     step[seen] = -_truncated_inverse(A, rcond ** 2) @ g / scale
-    return step, seen
+    return step
 
 
 def _trust(step, theta, fraction=0.5):
@@ -633,10 +716,19 @@ def write_convergence_plot(result: FitResult, path) -> None:
     from .. import io
 
     its = [h["iteration"] for h in result.history]
+    loss = np.array([h["loss"] for h in result.history])
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    axes[0].semilogy(its, [max(h["loss"], 1e-300) for h in result.history], "o-")
+    # ---- The loss: |loss| on a log axis, negative values (the cross loss's noise) open ----
+    magnitude = np.maximum(np.abs(loss), np.finfo(float).tiny)
+    axes[0].semilogy(its, magnitude, "-", color="C0")
+    axes[0].semilogy(np.compress(loss >= 0, its), magnitude[loss >= 0], "o", color="C0",
+                     label="loss")
+    if np.any(loss < 0):
+        axes[0].semilogy(np.compress(loss < 0, its), magnitude[loss < 0], "o", mfc="none",
+                         color="C0", label="-loss (negative: the two renders' noise)")
+    axes[0].legend(fontsize=7)
     axes[0].set_xlabel("iteration")
-    axes[0].set_ylabel("loss (sum of squared capture differences)")
+    axes[0].set_ylabel("|loss| (cross product of capture differences)")
     axes[0].set_title("loss")
     for k, body in enumerate(result.bodies):
         line, = axes[1].plot(its, [h["radial_velocity_m_s"][k] for h in result.history],
@@ -656,14 +748,39 @@ def write_convergence_plot(result: FitResult, path) -> None:
     plt.close(fig)
 
 
+def _vector(values, uncertainties, unit: str) -> str:
+    """(x, y, z) +- (sx, sy, sz) unit; a component without an uncertainty (not seen by
+    the captures) is marked as kept at its start."""
+    parts = []
+    for value, sigma in zip(values, uncertainties or [None] * 3):
+        parts.append(f"{value:+.3f} (not seen: kept at its start)" if sigma is None
+                     else f"{value:+.3f} +- {sigma:.3f}")
+    return f"({', '.join(parts)}) {unit}"
+
+
+def _error(value: float, truth) -> str:
+    """The error against ``truth``: relative where the truth is not near zero
+    (:data:`NEAR_ZERO`), else in the value's unit."""
+    if truth is None:
+        return ""
+    if abs(truth) < NEAR_ZERO:
+        return f" (capture's truth {truth:+.3f}, error {value - truth:+.3f} m/s)"
+    return f" (capture's truth {truth:+.3f}, error {100 * (value / truth - 1):+.2f}%)"
+
+
 def format_fit(result: FitResult) -> str:
-    lines = [f"fit: {result.iterations} iterations, loss {result.loss:.4g}, "
-             f"{result.settings.get('seconds', 0):.1f} s"]
+    """The fit's readable summary: per body the fitted linear (and angular) velocity
+    with uncertainties and its median radial velocity against the capture's truth."""
+    lines = [f"fit: {result.iterations} iterations ({result.settings.get('stopped', '')}), "
+             f"final loss {result.loss:.4g}, {result.settings.get('seconds', 0):.1f} s"]
     for b in result.bodies:
-        truth = b.get("capture_velocity_gt_median_m_s")
-        lines.append(
-            f"  {b['name']}: radial {b['radial_velocity_m_s']:+.3f} "
-            f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s"
-            + (f" (capture's truth {truth:+.3f}, error "
-               f"{100 * (b['radial_velocity_m_s'] / truth - 1):+.2f}%)" if truth else ""))
+        lines.append(f"  {b['name']}: linear velocity "
+                     + _vector(b["linear_velocity_m_s"], b["linear_velocity_uncertainty_m_s"],
+                               "m/s"))
+        if b.get("angular_velocity_uncertainty_rad_s") is not None:
+            lines.append(f"    angular velocity " + _vector(
+                b["angular_velocity_rad_s"], b["angular_velocity_uncertainty_rad_s"], "rad/s"))
+        lines.append(f"    radial velocity {b['radial_velocity_m_s']:+.3f} "
+                     f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s (median over the body)"
+                     + _error(b["radial_velocity_m_s"], b.get("capture_velocity_gt_median_m_s")))
     return "\n".join(lines)

@@ -98,6 +98,7 @@ class DifferentiableScene:
             self.motions.append(m)
         self.camera_motion = self._camera_motion(scene, t0, t1, camera_velocity)
         self._bsdf_params = None
+        self._boxes = {}  #: body index -> its swept box, held while the sweep fits in it
 
     def _camera_motion(self, scene, t0, t1, camera_velocity):
         if scene.sensor_motion is not None:
@@ -133,7 +134,7 @@ class DifferentiableScene:
         bodies = []
         for k, (body, m) in enumerate(zip(self.scene.bodies, self.motions)):
             vm = _with_variables(mi, m, f"body{k}", variables)
-            bodies.append(replace(body, motion=vm, _swept={}))
+            bodies.append(replace(body, motion=vm, _swept={self.interval: self._box(k)}))
         cam = _with_variables(mi, self.camera_motion, "camera", variables)
         moving_camera = self.scene.sensor_motion is not None or any(
             n.startswith("camera.") for n in variables) or any(
@@ -143,6 +144,20 @@ class DifferentiableScene:
                        for i, m in self.scene.light_motions)
         return replace(self.scene, bodies=tuple(bodies),
                        sensor_motion=cam if moving_camera else None, light_motions=lights)
+
+    def _box(self, k: int):
+        """Body k's swept bounding box over the exposure, kept while the sweep at the
+        current velocities stays inside it: the box is a literal of the render's kernel,
+        and a new box at every new velocity (each step of a fit) would compile a new
+        kernel. A new box is the sweep padded by a tenth of its diagonal."""
+        mi = self.mi
+        bb = self.scene.bodies[k].scene.bbox()
+        lo, hi = self.motions[k].swept_bbox(np.array(bb.min), np.array(bb.max), *self.interval)
+        held = self._boxes.get(k)
+        if held is None or np.any(lo < held[0]) or np.any(hi > held[1]):
+            pad = 0.1 * np.linalg.norm(hi - lo)
+            held = self._boxes[k] = (lo - pad, hi + pad)
+        return mi.ScalarBoundingBox3f(mi.ScalarPoint3f(*held[0]), mi.ScalarPoint3f(*held[1]))
 
     def scene_parameters(self):
         """{key: [mi.SceneParameters holding it]}: the static scene's and the bodies'."""
@@ -350,7 +365,7 @@ def _trace(dscene, name, pixels, samples, s0, spp, seed):
     names = [] if name is None else [name]
     motion_vars = {}
     if name is not None and _MOTION_NAME.match(name):
-        x = mi.Float(_motion_value(dscene, name))
+        x = dr.opaque(mi.Float, _motion_value(dscene, name))  # not a literal: one kernel
         dr.enable_grad(x)
         motion_vars[name] = x
     scene = dscene._traced(motion_vars)

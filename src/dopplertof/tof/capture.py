@@ -241,11 +241,11 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
     as on_capture(spec, seconds) after each render.
-    mc_batches: render every capture as this many independent batches (seeds
-    precision.batch_seeds) and predict per-pixel standard deviations of velocity and
-    depth (Monte Carlo from the batches, sensor from the noise model; result.uncertainty,
-    summary "precision"). max_velocity_std, max_depth_std: NaN where the predicted total
-    standard deviation is larger (implies mc_batches=8 when not given).
+    mc_batches: render every capture B times with spp samples (the first is the capture,
+    bitwise as without) and predict per-pixel standard deviations of velocity and depth
+    (result.uncertainty, summary "precision"; its "cost": B x the render time).
+    max_velocity_std, max_depth_std: NaN where the predicted total standard deviation
+    is larger (implies mc_batches=8 when not given).
     """
     started = _time.perf_counter()
     settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
@@ -275,8 +275,8 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     summary = _summary(scene, settings, records, reconstruction, noise_free, truth,
                        noise_info, _time.perf_counter() - started)
     if uncertainty is not None:
-        summary["precision"] = _precision_summary(scene, settings, uncertainty,
-                                                  reconstruction, truth, limit_counts)
+        summary["precision"] = _precision_summary(scene, settings, uncertainty, reconstruction,
+                                                  truth, limit_counts, records)
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
                          summary, uncertainty)
 
@@ -322,7 +322,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
     if mc_batches is None and any(limits):
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
-        mc_batches = prec.check_batches(mc_batches, spp, base.time_correlate_number)
+        mc_batches = prec.check_batches(mc_batches)
     return _Settings(base, spp, seed, model, unwrap, calibration, noise,
                      min_signal_fraction, common_random_numbers, limits, mc_batches)
 
@@ -361,13 +361,16 @@ def _predict_precision(rendered, batches, unmodulated, clean: Reconstruction,
 
 
 def _precision_summary(scene, settings: _Settings, uncertainty, reconstruction, truth,
-                       limit_counts) -> dict:
-    """summary.json's "precision" section (precision.precision_summary) of one frame."""
-    return prec.precision_summary(
+                       limit_counts, records) -> dict:
+    """summary.json's "precision" section (precision.precision_summary) of one frame,
+    with the render time its error bars cost (from the capture ``records``)."""
+    section = prec.precision_summary(
         uncertainty, reconstruction, truth, [", ".join(b.names) for b in scene.bodies],
         None if settings.unwrap is not None else settings.model.wrap_distance,
         {"max_velocity_std_m_s": settings.limits[0],
          "max_depth_std_m": settings.limits[1], "masked_pixels": limit_counts})
+    section["cost"] = prec.error_bar_cost(records, settings.mc_batches)
+    return section
 
 
 def _check_noise(noise):
@@ -398,17 +401,17 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
     stack's channel mean."""
     from ..render import render_result
 
-    # ---- Every render's seed, checked before the first render (all below 2^64) ----
+    # ---- Every capture's seed, checked before the first render (all below 2^64; the
+    # batch seeds, prec.batch_seeds, are below 2^64 by construction) ----
     capture_seeds = [check_seed(int(seed) + (0 if common_random_numbers else index),
                                 "seed + capture index", CaptureError)
                      for index in range(len(specs))]
-    for capture_seed in capture_seeds if mc_batches else ():
-        prec.batch_seeds(capture_seed, mc_batches)
     rendered, records, radiance, batches = {}, [], None, {}
     for index, spec in enumerate(specs):
         capture_seed = capture_seeds[index]
+        extra_seconds = None
         if mc_batches:
-            image, stack, seconds, dropped = prec.render_batches(
+            image, stack, seconds, extra_seconds, dropped = prec.render_batches(
                 scene, spp, capture_seed, spec.params(base), mc_batches, progress)
             if spec.kind != "radiance":
                 batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
@@ -431,6 +434,7 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
         })
         if mc_batches:
             records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
+            records[-1]["error_bar_render_seconds"] = round(extra_seconds, 3)
         if on_capture is not None:
             on_capture(spec, seconds)
     return rendered, records, radiance, batches

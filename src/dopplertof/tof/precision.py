@@ -3,18 +3,25 @@
 Two sources, both propagated to first order (the delta method) through the
 reconstruction of :mod:`.reconstruct`:
 
-* **Monte Carlo.** With ``mc_batches=B`` every capture is rendered as B independent
-  batches of spp / B samples (seeds :func:`batch_seeds`) whose mean is the capture.
+* **Monte Carlo.** With ``mc_batches=B`` every capture is rendered B times with all
+  its spp samples (seeds :func:`batch_seeds`): the first render, with the capture's
+  own seed, is the reported capture (bitwise the capture without error bars), the
+  others are independent renders of the same estimator, whose spread is the
+  reported capture's Monte Carlo error. (B batches of spp / B samples would cost
+  nothing more but lose the stratification of the whole set: the mean of B
+  independent 32-sample sets is much noisier than one stratified 256-sample set, 5x
+  in velocity on the starter sphere; interleaved strata of one set are not
+  independent. Rendering B times is what error bars cost: B x the render time.)
   The splat film correlates neighbouring pixels and the samples of a group (K time-
   correlated samples, antithetic pairs, a shared path) are not independent, so no
-  per-sample formula is honest; the spread of independent batches is. Captures that
+  per-sample formula is honest; the spread of independent renders is. Captures that
   share seeds (common random numbers) have correlated errors: the propagation takes
-  the batch deviations of *all* captures together, so that
+  the deviations of *all* captures together, so that
 
-      var(v) = sum_b (sum_c J_c (x_cb - x_c))^2 / (B (B - 1)) = J Sigma J^T / B,
+      var(v) = sum_b (sum_c J_c (x_cb - mean_b x_cb))^2 / (B - 1) = J Sigma J^T,
 
-  Sigma the batch covariance of the captures (its cross terms included), J the
-  Jacobian of velocity (or depth) with respect to the captures.
+  Sigma the covariance of one render of the captures (its cross terms included), J
+  the Jacobian of velocity (or depth) with respect to the captures.
 * **Sensor.** The noise model's predicted variance of each reported capture
   (:meth:`.noise.NoiseModel.variance`: shot, read, ADC, ambient; full well by the
   saturation mask), independent between captures and pixels, without drawing noise:
@@ -41,7 +48,7 @@ from . import reconstruct as rec
 #: propagation is not trusted (its second-order bias, ~ (sigma / A)^2, exceeds 4%)
 FIRST_ORDER_LIMIT = 0.2
 
-#: default number of independent batches when an uncertainty is asked for
+#: default number of independent renders per capture when an uncertainty is asked for
 DEFAULT_MC_BATCHES = 8
 
 
@@ -50,25 +57,20 @@ class PrecisionError(ValueError):
 
 
 def batch_seeds(seed: int, batches: int) -> list:
-    """Seeds of the B independent batches of a capture rendered with ``seed``:
-    seed * B + b (distinct for distinct seeds at the same B), each below 2^64."""
-    from ..arguments import check_seed
+    """Seeds of the B independent renders of a capture rendered with ``seed``: ``seed``
+    itself (the reported capture) and 2^63 + (seed (B - 1) + b mod 2^63), b < B - 1
+    (distinct for distinct seeds below 2^63 / (B - 1) at the same B, and apart from every
+    capture seed below 2^63; all 64 bits key the random streams)."""
+    extra = int(batches) - 1
+    return [int(seed)] + [(1 << 63) + (int(seed) * extra + b) % (1 << 63)
+                          for b in range(extra)]
 
-    seeds = [int(seed) * int(batches) + b for b in range(int(batches))]
-    check_seed(seeds[-1], f"the batch seeds (seed x mc_batches + batch, mc_batches={batches})",
-               PrecisionError)
-    return seeds
 
-
-def check_batches(batches, spp: int, group_size: int) -> int:
-    """``batches`` as an int >= 2 whose batches hold whole groups; raises otherwise."""
+def check_batches(batches) -> int:
+    """``batches`` as an int >= 2; raises otherwise."""
     if isinstance(batches, bool) or not isinstance(batches, (int, np.integer)) or batches < 2:
-        raise PrecisionError(f"mc_batches must be an integer >= 2 (independent batches "
+        raise PrecisionError(f"mc_batches must be an integer >= 2 (independent renders "
                              f"whose spread gives the Monte Carlo error), got {batches!r}")
-    if spp % (batches * group_size):
-        raise PrecisionError(f"spp {spp} does not split into {batches} batches of whole "
-                             f"groups of {group_size} samples: use a multiple of "
-                             f"{batches * group_size}")
     return int(batches)
 
 
@@ -189,16 +191,17 @@ def _depth_jacobians(captures, model, unwrap_mhz):
 # ---- Propagation ------------------------------------------------------------------
 
 def mc_variance(jacobian: dict, batches: dict) -> np.ndarray:
-    """J Sigma J^T / B from the batches (name -> (B, H, W)) of the captures in
-    ``jacobian``: the variance of the linearized quantity over the batches, divided
-    by B (the standard error of the batches' mean, cross-capture covariance included)."""
+    """J Sigma J^T from the independent renders (name -> (B, H, W)) of the captures in
+    ``jacobian``: the variance of the linearized quantity over the renders (ddof 1),
+    that of one render such as the reported capture, cross-capture covariance
+    included."""
     linear = None
     for name, jac in jacobian.items():
         b = np.asarray(batches[name], np.float64)
         term = jac[None] * (b - b.mean(axis=0, keepdims=True))
         linear = term if linear is None else linear + term
     n = linear.shape[0]
-    return np.sum(linear * linear, axis=0) / (n * (n - 1))
+    return np.sum(linear * linear, axis=0) / (n - 1)
 
 
 def sensor_variance(jacobian: dict, capture_variance: dict) -> np.ndarray:
@@ -226,7 +229,7 @@ class Uncertainty:
     depth_std: np.ndarray
     first_order_failed: np.ndarray  #: (H, W) bool
     mc_batches: int
-    #: name -> (H, W) Monte Carlo standard error of each capture (spread of the batches)
+    #: name -> (H, W) Monte Carlo standard deviation of each capture (the renders' spread)
     capture_std_mc: dict = None
 
     def maps(self) -> dict:
@@ -274,13 +277,10 @@ def predict(rendered: dict, batches: dict | None, model: rec.CaptureModel, unwra
 
 
 def capture_standard_errors(batches: dict) -> dict:
-    """Per-pixel standard error of each capture's batch mean: std over the B batches
-    (ddof 1) / sqrt(B)."""
-    out = {}
-    for name, b in batches.items():
-        b = np.asarray(b, np.float64)
-        out[name] = (np.std(b, axis=0, ddof=1) / math.sqrt(b.shape[0])).astype(np.float32)
-    return out
+    """Per-pixel Monte Carlo standard deviation of each reported capture: the std over
+    its B independent renders (ddof 1)."""
+    return {name: np.std(np.asarray(b, np.float64), axis=0, ddof=1).astype(np.float32)
+            for name, b in batches.items()}
 
 
 def _mark(std, valid, failed):
@@ -337,7 +337,8 @@ def precision_summary(u: Uncertainty, recon, truth, bodies, depth_modulo, limits
     everywhere = np.ones(np.shape(u.velocity_std), bool)
     out = {
         "method": "first-order (delta method) propagation through the reconstruction; "
-                  f"Monte Carlo: spread of {u.mc_batches} independent batches per capture "
+                  f"Monte Carlo: spread of {u.mc_batches} independent renders of every "
+                  "capture with all its samples, the first the reported capture "
                   "(cross-capture covariance of common random numbers included); sensor: "
                   "the noise model's per-capture variance (shot, read, ADC, ambient), not "
                   "drawn; total = sqrt(mc^2 + sensor^2)",
@@ -397,20 +398,36 @@ def check_limit(name: str, value):
 
 
 def render_batches(scene, spp: int, seed: int, params, batches: int, progress=None):
-    """A capture rendered as ``batches`` independent renders of spp / B samples (seeds
-    :func:`batch_seeds`): (mean image (H, W, C) float32, batch images (B, H, W, C)
-    float32, seconds, non-finite samples dropped)."""
+    """A capture rendered ``batches`` times independently with ``spp`` samples each
+    (seeds :func:`batch_seeds`): (the first render's image (H, W, C) float32: the
+    capture with ``seed``, bitwise as without batches; all renders' images (B, H, W,
+    C) float32; the first's render seconds; the others' render seconds; the first's
+    non-finite samples dropped)."""
     from ..render import render_result
 
-    images, seconds, dropped = [], 0.0, 0
+    images, seconds = [], []
     for batch_seed in batch_seeds(seed, batches):
-        result = render_result(scene, spp=spp // batches, seed=batch_seed, params=params,
+        result = render_result(scene, spp=spp, seed=batch_seed, params=params,
                                progress=progress)
         images.append(result.image)
-        seconds += result.metadata["render_seconds"]
-        dropped += result.metadata["nonfinite_samples_dropped"]
-    stack = np.stack(images)
-    return stack.mean(axis=0, dtype=np.float64).astype(np.float32), stack, seconds, dropped
+        seconds.append(result.metadata["render_seconds"])
+        if len(images) == 1:
+            dropped = result.metadata["nonfinite_samples_dropped"]
+    return images[0], np.stack(images), seconds[0], sum(seconds[1:]), dropped
+
+
+def error_bar_cost(records, batches: int) -> dict:
+    """summary.json's precision "cost": the render time the error bars took, from the
+    capture records (``render_seconds``: the reported renders; ``error_bar_render_
+    seconds``: the B - 1 others)."""
+    reported = sum(r["render_seconds"] for r in records)
+    extra = sum(r.get("error_bar_render_seconds", 0.0) for r in records)
+    return {"renders_per_capture": int(batches),
+            "reported_render_seconds": round(reported, 3),
+            "error_bar_render_seconds": round(extra, 3),
+            "render_time_factor": round((reported + extra) / reported, 3) if reported else None,
+            "accuracy": "none: the reported capture is the render with the capture's seed "
+                        "and all its samples, bitwise as without error bars"}
 
 
 def format_precision(summary: dict) -> str:
@@ -431,6 +448,13 @@ def format_precision(summary: dict) -> str:
                      f"{fmt(v['measured_error_spread'], 'm/s')}; depth std "
                      f"{fmt(d['predicted_std_median'], 'm')} predicted, error spread "
                      f"{fmt(d['measured_error_spread'], 'm')}")
+    cost = p.get("cost")
+    if cost:
+        lines.append(f"  error bars: {cost['renders_per_capture']} independent renders per "
+                     f"capture, {cost['error_bar_render_seconds']:.1f} s of renders beside the "
+                     f"reported {cost['reported_render_seconds']:.1f} s ("
+                     f"{cost['render_time_factor']:.2g}x the render time; the capture itself "
+                     "is as without error bars)")
     masked = p["limits"].get("masked_pixels") or {}
     for key, n in masked.items():
         unit = "m/s" if key == "velocity" else "m"
