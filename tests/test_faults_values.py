@@ -155,6 +155,28 @@ def test_an_exposure_the_keyframes_barely_cover_is_warned(tmp_path, capfd):
     assert "warning" not in capfd.readouterr().err
 
 
+def test_keyframe_times_written_in_ms_are_warned():
+    """Keyframes at time 0 and 1.5 (meant as 1.5 ms) under a 1.5 ms exposure cover it
+    whole, so the coverage rule is silent, yet the body travels 1/1000 of its path (a
+    truth of -0.007 m/s for 7 m/s, issue 22): the span of 1000 exposures is warned; the
+    same keyframes in seconds are not."""
+    import mitsuba as mi
+    from analytic import plane_scene
+
+    T = mi.ScalarTransform4f
+    plane = lambda z: T().translate([0, 0, z]).rotate([0, 1, 0], 180).scale(50)  # noqa: E731
+    warnings = []
+    for last in (1.5, 0.0015):
+        d = plane_scene(3.0, 0.0, spp=2, res=2)
+        d["plane"]["to_world"] = dopplertof.Animation([(0.0, plane(3.0)), (last, plane(2.99))])
+        result = dopplertof.render_result(dopplertof.load_dict(d), seed=0, progress=False)
+        warnings.append(result.metadata.get("warnings", []))
+    assert warnings[1] == []
+    assert len(warnings[0]) == 1 and warnings[0][0].startswith(
+        "the keyframes span 1.5 s, 1000 times the exposure (0.0015 s)")
+    assert "were they written in ms?" in warnings[0][0]
+
+
 def test_animation_frames_past_the_last_keyframe_are_warned(tmp_path):
     from dopplertof.experiments.animate import frames_past_keyframes, plan_animation
 

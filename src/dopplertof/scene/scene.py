@@ -177,12 +177,24 @@ def keyframe_coverage(span, start: float, exposure: float) -> float:
     return max(0.0, inside) / exposure
 
 
+#: a keyframe span at least this many times the exposure reads as keyframe times written
+#: in ms (``time="1.5"`` for 1.5 ms): a render or capture warns
+MAX_SPAN_PER_EXPOSURE = 100
+
+
 def keyframe_coverage_warning(span, start: float, exposure: float) -> str | None:
     """A warning when the keyframes cover less than MIN_KEYFRAME_COVERAGE of the
-    exposure (a unit mistake: ``time=1.5`` meant as ms, keyframe times in ms), else None."""
+    exposure (a unit mistake: ``time=1.5`` meant as ms), or span MAX_SPAN_PER_EXPOSURE
+    exposures or more (keyframe times in ms), else None."""
     share = keyframe_coverage(span, start, exposure)
     if share >= MIN_KEYFRAME_COVERAGE:
-        return None
+        if span is None or span[1] - span[0] < MAX_SPAN_PER_EXPOSURE * exposure:
+            return None
+        length = span[1] - span[0]
+        return (f"the keyframes span {length:g} s, {length / exposure:.0f} times the "
+                f"exposure ({exposure:g} s): the bodies travel that small a part "
+                "of their keyframed path during it; keyframe times are in seconds (were "
+                "they written in ms?)")
     return (f"the keyframes ({span[0]:g} to {span[1]:g} s) cover {share:.1%} of the exposure "
             f"({start:g} to {start + exposure:g} s): outside them everything holds its first "
             "or last pose, and the measured motion stops; time and keyframe times are in "
