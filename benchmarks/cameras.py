@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
+
+from timing import interleaved_medians  # (benchmarks/timing.py, beside this script)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(ROOT, "examples", "cameras_moving.xml")
@@ -47,27 +47,17 @@ def main(argv=None) -> None:
     for p in presets:
         runs[p.name] = (lambda p=p: capture_camera(scenes[p.name], p, spp=args.spp,
                                                    progress=False))
-    times = {name: [] for name in runs}
-    cold = {}
-    for name, run in runs.items():  # warm-up: compile every kernel
-        started = time.perf_counter()
-        run()
-        cold[name] = time.perf_counter() - started
-    for _ in range(args.repeats):
-        for name, run in runs.items():
-            started = time.perf_counter()
-            run()
-            times[name].append(time.perf_counter() - started)
-    today = statistics.median(times["today"])
+    cold, warm = interleaved_medians(runs, args.repeats)
+    today = warm["today"]
     print(f"{args.res}x{args.res}, {args.spp} spp per frame, median of {args.repeats}")
     print(f"{'run':<20} {'frames':>6} {'cold s':>8} {'warm s':>8} {'/ today':>8} "
           f"{'target N/4':>10}")
     print(f"{'today (7 renders)':<20} {7:>6} {cold['today']:8.2f} {today:8.2f} {1.0:8.3f}")
     for p in presets:
-        warm = statistics.median(times[p.name])
         n = len(p.frames)
-        print(f"{p.name:<20} {n:>6} {cold[p.name]:8.2f} {warm:8.2f} {warm / today:8.3f} "
-              f"{n / 4:10.2f}  {'within' if warm / today <= n / 4 else 'OVER'}")
+        ratio = warm[p.name] / today
+        print(f"{p.name:<20} {n:>6} {cold[p.name]:8.2f} {warm[p.name]:8.2f} {ratio:8.3f} "
+              f"{n / 4:10.2f}  {'within' if ratio <= n / 4 else 'OVER'}")
 
 
 if __name__ == "__main__":

@@ -24,8 +24,9 @@ the truth. The demo itself is 128x128 at 512 spp (`--res 128 --spp 512`).
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
+
+from timing import interleaved_medians  # (benchmarks/timing.py, beside this script)
 
 PARAMETERS = ("body0.vz", "body0.wy", "camera.vz", "w_g", "hetero_offset", "g_1",
               "white.reflectance.value")
@@ -53,20 +54,12 @@ def main(argv=None) -> None:
             "plain (importance)": lambda: render_derivatives(ds, [], spp=args.spp)}
     for name in PARAMETERS:
         runs[name] = lambda name=name: render_derivatives(ds, [name], spp=args.spp)
-    times = {name: [] for name in runs}
-    for name, run in runs.items():  # warm-up: compile every kernel
-        run()
-    for _ in range(args.repeats):
-        for name, run in runs.items():
-            t = time.perf_counter()
-            run()
-            times[name].append(time.perf_counter() - t)
-    plain = statistics.median(times["plain (splat)"])
+    _, times = interleaved_medians(runs, args.repeats)
+    plain = times["plain (splat)"]
     print(f"demo scene {args.res}x{args.res}, {args.spp} spp, median of {args.repeats}")
-    for name, ts in times.items():
-        m = statistics.median(ts)
+    for name, m in times.items():
         print(f"  {name:<26} {m:8.3f} s   {m / plain:5.2f} x plain (splat)")
-    worst = max(statistics.median(times[n]) for n in PARAMETERS)
+    worst = max(times[n] for n in PARAMETERS)
     print(f"worst derivative / plain (splat): {worst / plain:.2f}")
 
 
