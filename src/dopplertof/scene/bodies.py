@@ -10,7 +10,10 @@ box in the body's frame at the lane's time, so that rays that cannot hit it skip
 
 This module is the one place that knows how motion is traced, so that upstream
 instance motion can replace it when Mitsuba ships it; the per-lane transforms it, the
-lights and the camera apply are in :mod:`.motion`.
+lights and the camera apply are in :mod:`.motion`. Every query of a Mitsuba scene (the
+static one or a body's) goes through :class:`SceneQueries` (``QUERIES``), so that tracing
+one scene per kernel (the OptiX fallback, docs/design.md section 3) is a swap of that
+one object.
 """
 
 from __future__ import annotations
@@ -73,6 +76,42 @@ class BodyFrames:
             self.to_local.append(inv)
 
 
+class SceneQueries:
+    """The one door through which a ray query meets a Mitsuba scene (static or a body's).
+
+    This one asks each scene in the kernel that traces the rays, so that a pass is one
+    kernel with every scene in it, and lets the bodies be visited by a symbolic call
+    over their scenes (``dispatch``). Several OptiX pipelines in one kernel are what
+    Mitsuba's CUDA variants may refuse (Mitsuba issue 1349); the fallback, one scene
+    per kernel, is a subclass of this one set as ``QUERIES`` (docs/design.md section 3).
+    """
+
+    #: whether the bodies may be visited by one symbolic call over their scenes
+    dispatch = True
+
+    def preliminary(self, scene, ray, coherent, active):
+        """Nearest preliminary intersection of ``ray`` with ``scene``."""
+        return scene.ray_intersect_preliminary(ray, coherent, active)
+
+    def interaction(self, mi, scene, ray, coherent, active):
+        """Nearest surface interaction (all fields) of ``ray`` with ``scene``."""
+        return scene.ray_intersect(ray, mi.RayFlags.All, coherent, active)
+
+    def blocked(self, scene, ray, active):
+        """Whether ``scene`` blocks the segment ``ray`` (a shadow ray)."""
+        return scene.ray_test(ray, active)
+
+
+#: the scene queries every trace below goes through (swap it to change how scenes are
+#: traced: one kernel for all, or one scene per kernel)
+QUERIES = SceneQueries()
+
+
+def _dispatched(n: int) -> bool:
+    """Whether ``n`` bodies are visited by a symbolic call rather than each in turn."""
+    return QUERIES.dispatch and 1 < n <= MAX_DISPATCHED_BODIES
+
+
 #: above this many bodies, a lane's candidate bodies no longer fit one 32-bit mask and
 #: every body is tested in turn
 MAX_DISPATCHED_BODIES = 32
@@ -133,8 +172,9 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):
     for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes, frames.to_local)):
         box_hit, box_near, box_far = box_intersect(mi, box, ray)
         test = active & box_hit & (box_near < best_t) & (box_far >= 0)
-        pib = body.scene.ray_intersect_preliminary(
-            transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), coherent, test)
+        pib = QUERIES.preliminary(
+            body.scene, transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), coherent,
+            test)
         closer = test & pib.is_valid() & (pib.t < best_t)
         pi = dr.select(closer, pib, pi)
         best_t = dr.select(closer, pib.t, best_t)
@@ -151,7 +191,7 @@ def _body_hits_dispatched(mi, dr, frames, ray, active, pi, best_t, coherent):
     n = len(frames.bodies)
     entry = _box_distances(mi, dr, frames, ray, active, dr.inf)
     targets = [lambda r, coherent, active, body=body:
-               body.scene.ray_intersect_preliminary(r, coherent, active)
+               QUERIES.preliminary(body.scene, r, coherent, active)
                for body in frames.bodies]
 
     def nearest_untested(tested):
@@ -186,14 +226,13 @@ def _static_preliminary(mi, dr, static_scene, ray, active, skip_idle: bool, cohe
     iteration, so that SIMD packets without an active lane skip the Embree call (a
     masked query still costs one per packet)."""
     if not skip_idle:
-        return static_scene.ray_intersect_preliminary(ray, coherent, active)
+        return QUERIES.preliminary(static_scene, ray, coherent, active)
 
     def pending(done, pi):
         return active & ~done
 
     def query(done, pi):
-        return mi.Bool(True), static_scene.ray_intersect_preliminary(ray, coherent,
-                                                                      active & ~done)
+        return mi.Bool(True), QUERIES.preliminary(static_scene, ray, coherent, active & ~done)
 
     _, pi = dr.while_loop((mi.Bool(False), dr.zeros(mi.PreliminaryIntersection3f)), pending,
                           query, label="dopplertof_static", max_iterations=1)
@@ -215,7 +254,7 @@ def nearest_hit(mi, static_scene, frames: BodyFrames | None, ray, active,
     if n == 0:
         return pi, mi.UInt32(0)
     best_t = dr.select(pi.is_valid(), pi.t, dr.inf)
-    hits = _body_hits_each if n == 1 or n > MAX_DISPATCHED_BODIES else _body_hits_dispatched
+    hits = _body_hits_dispatched if _dispatched(n) else _body_hits_each
     return hits(mi, dr, frames, ray, active, pi, best_t, mi.Bool(coherent))
 
 
@@ -266,7 +305,7 @@ def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, wi
 def intersect(mi, static_scene, frames: BodyFrames | None, ray, active, coherent=False):
     """Nearest surface interaction (world space) of world rays at their lanes' times."""
     if frames is None or not frames.bodies:
-        return static_scene.ray_intersect(ray, mi.RayFlags.All, coherent, active)
+        return QUERIES.interaction(mi, static_scene, ray, coherent, active)
     pi, winner = nearest_hit(mi, static_scene, frames, ray, active, coherent=coherent)
     return surface_interaction(mi, static_scene, frames, ray, pi, winner, active)
 
@@ -275,15 +314,15 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
     """Shadow-ray test against the static scene and every body at the lanes' times."""
     import drjit as dr
 
-    blocked = static_scene.ray_test(ray, active)
+    blocked = QUERIES.blocked(static_scene, ray, active)
     if frames is None or not frames.bodies:
         return blocked
     n = len(frames.bodies)
-    if n == 1 or n > MAX_DISPATCHED_BODIES:
+    if not _dispatched(n):
         for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
             box_hit, box_near, box_far = box_intersect(mi, box, ray)
             test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
-            blocked |= body.scene.ray_test(transformed_ray(mi, inv, ray, ray.maxt), test)
+            blocked |= QUERIES.blocked(body.scene, transformed_ray(mi, inv, ray, ray.maxt), test)
         return blocked
 
     # ---- Dispatch: visit only the bodies whose own boxes the segment crosses ----
@@ -291,7 +330,7 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
     pending = mi.UInt32(0)
     for k, d in enumerate(entry):
         pending |= dr.select(dr.isfinite(d), mi.UInt32(1 << k), 0)
-    targets = [lambda r, active, body=body: body.scene.ray_test(r, active)
+    targets = [lambda r, active, body=body: QUERIES.blocked(body.scene, r, active)
                for body in frames.bodies]
 
     def more(pending, blocked):
