@@ -6,12 +6,15 @@ move them). Runs are interleaved (stock, ours, stock, ours, ...) after a warm-up
 compiles every kernel, and the median time of each is compared.
 
     .venv/bin/python benchmarks/throughput.py [--res 256] [--spp 64] [--repeats 5]
+        [--variant llvm_ad_rgb] [--quick]
 
 The last lines read `throughput ratio (2 moving bodies): X` (ours / stock time), the
 static ratio with a tent and a gaussian filter (stock Mitsuba's film splats too), and
 `splat film cost (gaussian): Y`: the time of the splat film (every sample weighted into
 each pixel its filter reaches) over the importance film, both dopplertof, interleaved,
 on the static scene with that filter (tent and gaussian; a box is the same kernel).
+``--variant cuda_ad_rgb`` runs both on the GPU; ``--quick`` runs only the two moving
+bodies (the dry run of tools/gpu_check.sh).
 """
 
 from __future__ import annotations
@@ -146,6 +149,7 @@ def main():
     p.add_argument("--depth", type=int, default=4)
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--variant", default="llvm_ad_rgb")
+    p.add_argument("--quick", action="store_true", help="only the 2 moving bodies' ratio")
     args = p.parse_args()
 
     import dopplertof
@@ -153,6 +157,9 @@ def main():
     dopplertof.set_variant(args.variant)
     print(f"variant {args.variant}, {args.res}x{args.res}, {args.spp} spp, max_depth "
           f"{args.depth}, median of {args.repeats} interleaved runs")
+    if args.quick:
+        print(f"throughput ratio (2 moving bodies): {compare(2, True, args):.3f}")
+        return
     static = compare(2, False, args)
     sixteen = compare(16, True, args)
     two = compare(2, True, args)

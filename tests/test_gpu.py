@@ -27,7 +27,7 @@ import pytest
 
 import dopplertof
 from analytic import plane_scene, reference
-from conftest import render_killed_then_resumed
+from conftest import PUBLISHED, render_killed_then_resumed
 
 pytestmark = pytest.mark.gpu
 
@@ -67,10 +67,12 @@ def variant(request):
 
 # ---- Scenes, each loaded in the variant set when it is called ----
 
-def published(res=(16, 12)):
-    if not os.path.exists(SHARED_PUBLISHED):
-        pytest.skip(f"the published scene is absent ({SHARED_PUBLISHED})")
-    return dopplertof.load_file(SHARED_PUBLISHED, {"resx": res[0], "resy": res[1]})
+def published(res=(16, 12), path=PUBLISHED):
+    """The published scene: the shared fixture (skipped where absent) or, by default, the
+    tests' copy of it (tests/fixtures, the same file)."""
+    if not os.path.exists(path):
+        pytest.skip(f"the published scene is absent ({path})")
+    return dopplertof.load_file(path, {"resx": res[0], "resy": res[1]})
 
 
 def moving_plane(res=4, **integrator):
@@ -79,7 +81,8 @@ def moving_plane(res=4, **integrator):
 
 
 #: the agreement tests' scenes (the plane at 8x8: 64 pixels in the RMS of their t values)
-SCENES = {"published": published, "moving_plane": lambda: moving_plane(res=8)}
+SCENES = {"published": lambda: published(path=SHARED_PUBLISHED),
+          "moving_plane": lambda: moving_plane(res=8)}
 
 
 # ---- Agreement in standard errors from independent seeds ----

@@ -1,0 +1,89 @@
+"""tools/gpu_check.sh, dry-run on the CPU so that it cannot rot before a GPU is lent:
+the quick check on llvm_ad_rgb passes and reports, a check whose variant's tests were
+skipped or whose step ran out of time fails, and bad arguments write nothing."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCRIPT = os.path.join(ROOT, "tools", "gpu_check.sh")
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+
+import gpu_report  # noqa: E402
+
+
+def check(tmp_path, *args, env=None):
+    return subprocess.run(["bash", SCRIPT, "--python", sys.executable, *args],
+                          capture_output=True, text=True, timeout=180,
+                          env={**os.environ, **(env or {})})
+
+
+def test_quick_check_on_llvm_passes_and_writes_its_report(tmp_path):
+    report = tmp_path / "report.txt"
+    done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--report", str(report),
+                 "--logs", str(tmp_path / "logs"))
+    assert done.returncode == 0, done.stdout + done.stderr
+    text = report.read_text()
+    assert text in done.stdout and text.rstrip().endswith("result: PASS")
+    assert "gpu tests (llvm_ad_rgb): 2 passed, 0 failed, 0 skipped, 0 without" in text
+    agreement = next(line for line in text.splitlines() if "moving_plane: image mean t" in line)
+    assert "?" not in agreement and "16 seeds a side; passed" in agreement
+    ratio = next(line for line in text.splitlines() if "throughput ratio (2 moving" in line)
+    assert float(ratio.rsplit(":", 1)[1]) > 0
+    assert "GPU: " in text and "mitsuba 3.9" in text
+
+
+def test_a_step_out_of_time_fails_the_check(tmp_path):
+    report = tmp_path / "report.txt"
+    done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--report", str(report),
+                 env={"GPU_CHECK_BUDGET_S": "1"})
+    assert done.returncode == 1, done.stdout + done.stderr
+    text = report.read_text()
+    assert "tests timed-out-after-1s" in text and "throughput no-time-left" in text
+    assert "result: FAIL" in text and "no llvm_ad_rgb test passed" in text
+
+
+def _junit(path, outcomes):
+    cases = "".join(
+        f'<testcase classname="tests.test_gpu" name="{name}">'
+        + ("" if outcome == "passed" else f'<{outcome} message="{outcome} here"/>')
+        + "</testcase>" for name, outcome in outcomes)
+    path.write_text(f'<testsuites><testsuite name="pytest">{cases}</testsuite></testsuites>')
+
+
+@pytest.mark.parametrize("outcome, problem", [("skipped", "1 cuda_ad_rgb test(s) skipped"),
+                                              ("failure", "1 cuda_ad_rgb test(s) failed")])
+def test_a_skipped_or_failed_test_of_the_variant_fails_the_report(tmp_path, outcome, problem):
+    """(a skip for a missing shared fixture is listed, and does not fail it)"""
+    (tmp_path / "steps.txt").write_text("tests ok 3\nthroughput ok 2\n")
+    (tmp_path / "throughput.txt").write_text("throughput ratio (2 moving bodies): 1.3\n")
+    _junit(tmp_path / "junit.xml", [("test_same_seed_same_image_bitwise[llvm_ad_rgb]", "passed"),
+                                    ("test_capture_velocity[cuda_ad_rgb]", "passed"),
+                                    ("test_same_seed_same_image_bitwise[cuda_ad_rgb]", outcome)])
+    text, passed = gpu_report.report("cuda_ad_rgb", str(tmp_path))
+    assert not passed and problem in text and "result: FAIL" in text
+    assert "gpu tests (cuda_ad_rgb): 1 passed" in text
+    _junit(tmp_path / "junit.xml", [("test_capture_velocity[cuda_ad_rgb]", "passed")])
+    assert gpu_report.report("cuda_ad_rgb", str(tmp_path))[1]  # and all passed: PASS
+    (tmp_path / "junit.xml").write_text(
+        '<testsuite><testcase name="test_capture_velocity[cuda_ad_rgb]"/><testcase name="'
+        'test_variant_agrees_with_llvm_within_noise[cuda_ad_rgb-published]"><skipped message='
+        '"Skipped: the published scene is absent (../shared)"/></testcase></testsuite>')
+    text, passed = gpu_report.report("cuda_ad_rgb", str(tmp_path))
+    assert passed and "0 skipped, 1 without their fixture" in text and "is absent" in text
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--variant", "scalar_rgb"), "--variant scalar_rgb: expected a cuda_* or llvm_* variant"),
+    (("--report", "/nonexistent/folder/r.txt"), "folder /nonexistent/folder does not exist"),
+    (("--quick", "--fast"), "unknown argument '--fast'"),
+    (("--variant",), "--variant needs a value"),
+])
+def test_bad_arguments_are_one_line_and_write_nothing(tmp_path, args, message):
+    logs = tmp_path / "logs"
+    done = check(tmp_path, "--logs", str(logs), *args)
+    assert done.returncode == 2 and message in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and not logs.exists()
