@@ -288,3 +288,22 @@ def test_a_swapped_scene_queries_traces_every_scene_and_changes_nothing(monkeypa
     after = dopplertof.render(scene, spp=16, seed=2)
     assert seen == {id(scene.static), *(id(b.scene) for b in scene.bodies)}
     assert np.array_equal(before, after)
+
+
+def test_one_scene_per_kernel_agrees_with_llvm_within_noise(variant, record_property):
+    """The OptiX fallback (bodies.one_scene_per_kernel) against LLVM's fused renders,
+    as the agreement test; on LLVM also bitwise its fused image (measured so)."""
+    from dopplertof.scene import bodies
+
+    ref = seed_renders(LLVM, published, range(SEEDS), spp=16)
+    with bodies.one_scene_per_kernel():
+        got = seed_renders(variant, published, range(1000, 1000 + SEEDS), spp=16)
+        alone = dopplertof.render(published(), spp=16, seed=3)
+    stats = agreement(ref, got)
+    for key, value in stats.items():
+        record_property(f"agreement_published_one_scene_per_kernel_{key}", value)
+    assert stats["finite"] and abs(stats["mean_z"]) < MEAN_Z_BOUND, stats
+    assert stats["rms_z"] < RMS_Z_BOUND, stats
+    assert isinstance(bodies.QUERIES, bodies.SceneQueries) and bodies.QUERIES.dispatch
+    if variant == LLVM:
+        assert np.array_equal(alone, dopplertof.render(published(), spp=16, seed=3))

@@ -82,16 +82,19 @@ def counts(cases, variant: str) -> dict:
 
 
 def agreement_lines(cases, variant: str) -> list:
-    """One line per agreement test of ``variant``: the t values against LLVM."""
+    """One line per agreement test of ``variant`` (its ``agreement_<label>_*``
+    properties; a skipped one has none): the t values against LLVM."""
     lines = []
     for name, outcome, _, props in cases:
-        if not name.startswith("test_variant_agrees_with_llvm") or variant not in name:
+        if "agrees_with_llvm" not in name or variant not in name:
             continue
-        scene = name.rsplit("-", 1)[-1].rstrip("]")
-        get = lambda key: props.get(f"agreement_{scene}_{key}", "?")  # noqa: E731
-        lines.append(f"  {scene}: image mean t = {_short(get('mean_z'))}, per-pixel RMS t = "
-                     f"{_short(get('rms_z'))}, max |t| = {_short(get('max_z'))} "
-                     f"({get('seeds')} seeds a side; {outcome})")
+        labels = [k[len("agreement_"):-len("_mean_z")] for k in props
+                  if k.startswith("agreement_") and k.endswith("_mean_z")]
+        for label in labels or [name]:
+            get = lambda key: props.get(f"agreement_{label}_{key}", "?")  # noqa: E731
+            lines.append(f"  {label}: image mean t = {_short(get('mean_z'))}, per-pixel RMS "
+                         f"t = {_short(get('rms_z'))}, max |t| = {_short(get('max_z'))} "
+                         f"({get('seeds')} seeds a side; {outcome})")
     return lines or ["  (no agreement test ran)"]
 
 

@@ -18,6 +18,7 @@ one object.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -102,9 +103,57 @@ class SceneQueries:
         return scene.ray_test(ray, active)
 
 
+class OneScenePerKernel(SceneQueries):
+    """The OptiX fallback: each scene query is a kernel of its own (its inputs evaluated
+    before it, its output after), the bodies traced each in turn, so that no kernel
+    holds two scenes' pipelines. Needs evaluated loops and calls (Dr.Jit cannot
+    evaluate inside a symbolic loop): set it with :func:`one_scene_per_kernel`."""
+
+    dispatch = False
+
+    def preliminary(self, scene, ray, coherent, active):
+        return _alone(lambda: super(OneScenePerKernel, self).preliminary(
+            scene, ray, coherent, active), ray, active)
+
+    def interaction(self, mi, scene, ray, coherent, active):
+        return _alone(lambda: super(OneScenePerKernel, self).interaction(
+            mi, scene, ray, coherent, active), ray, active)
+
+    def blocked(self, scene, ray, active):
+        return _alone(lambda: super(OneScenePerKernel, self).blocked(scene, ray, active),
+                      ray, active)
+
+
+def _alone(query, *inputs):
+    """``query()`` in a kernel of its own: its inputs evaluated first, its output then."""
+    import drjit as dr
+
+    dr.eval(*inputs)
+    out = query()
+    dr.eval(out)
+    return out
+
+
 #: the scene queries every trace below goes through (swap it to change how scenes are
 #: traced: one kernel for all, or one scene per kernel)
 QUERIES = SceneQueries()
+
+
+@contextlib.contextmanager
+def one_scene_per_kernel():
+    """Inside the block, renders trace one scene per kernel (:class:`OneScenePerKernel`,
+    with Dr.Jit's loops and calls evaluated, not symbolic); as before after it."""
+    global QUERIES
+    import drjit as dr
+
+    saved = QUERIES
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicLoops, False), \
+            dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
+        QUERIES = OneScenePerKernel()
+        try:
+            yield
+        finally:
+            QUERIES = saved
 
 
 def _dispatched(n: int) -> bool:
