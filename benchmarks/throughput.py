@@ -14,12 +14,14 @@ static ratio with a tent and a gaussian filter (stock Mitsuba's film splats too)
 each pixel its filter reaches) over the importance film, both dopplertof, interleaved,
 on the static scene with that filter (tent and gaussian; a box is the same kernel).
 ``--variant cuda_ad_rgb`` runs both on the GPU; ``--quick`` runs only the two moving
-bodies (the dry run of tools/gpu_check.sh).
+bodies (the dry run of tools/gpu_check.sh); ``--one-scene-per-kernel`` renders ours with
+the OptiX fallback (docs/design.md section 3; stock Mitsuba as always).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import time
 
@@ -90,6 +92,15 @@ def timed(fn) -> float:
     return time.perf_counter() - t
 
 
+def tracing(args):
+    """How ours traces its scenes: fused (default) or one scene per kernel."""
+    if not args.one_scene_per_kernel:
+        return contextlib.nullcontext()
+    from dopplertof.scene import bodies
+
+    return bodies.one_scene_per_kernel()
+
+
 def compare(n_bodies: int, moving: bool, args, rfilter: str = "box") -> float:
     import mitsuba as mi
 
@@ -105,7 +116,8 @@ def compare(n_bodies: int, moving: bool, args, rfilter: str = "box") -> float:
         np.asarray(mi.render(stock, spp=args.spp, seed=0))
 
     def run_ours():
-        dopplertof.render(ours, spp=args.spp, seed=0, progress=False)
+        with tracing(args):
+            dopplertof.render(ours, spp=args.spp, seed=0, progress=False)
 
     run_stock(), run_ours()  # warm-up: compile (or load cached) kernels
     t_stock, t_ours = [], []
@@ -128,8 +140,11 @@ def film_cost(rfilter: str, args) -> float:
         scene_xml(2, False, "dopplertof", args.res, args.spp, args.depth, rfilter))
 
     def run(film):
-        return lambda: dopplertof.render(scene, spp=args.spp, seed=0, progress=False,
-                                         params={"film_sampling": film})
+        def render():
+            with tracing(args):
+                dopplertof.render(scene, spp=args.spp, seed=0, progress=False,
+                                  params={"film_sampling": film})
+        return render
 
     run("splat")(), run("importance")()  # warm-up
     t_splat, t_importance = [], []
@@ -150,13 +165,16 @@ def main():
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--variant", default="llvm_ad_rgb")
     p.add_argument("--quick", action="store_true", help="only the 2 moving bodies' ratio")
+    p.add_argument("--one-scene-per-kernel", action="store_true",
+                   help="ours with the OptiX fallback (bodies.one_scene_per_kernel)")
     args = p.parse_args()
 
     import dopplertof
 
     dopplertof.set_variant(args.variant)
     print(f"variant {args.variant}, {args.res}x{args.res}, {args.spp} spp, max_depth "
-          f"{args.depth}, median of {args.repeats} interleaved runs")
+          f"{args.depth}, median of {args.repeats} interleaved runs"
+          + (", ours one scene per kernel" if args.one_scene_per_kernel else ""))
     if args.quick:
         print(f"throughput ratio (2 moving bodies): {compare(2, True, args):.3f}")
         return

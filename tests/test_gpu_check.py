@@ -63,8 +63,10 @@ def test_a_skipped_or_failed_test_of_the_variant_fails_the_report(tmp_path, outc
     _junit(tmp_path / "junit.xml", [("test_same_seed_same_image_bitwise[llvm_ad_rgb]", "passed"),
                                     ("test_capture_velocity[cuda_ad_rgb]", "passed"),
                                     ("test_same_seed_same_image_bitwise[cuda_ad_rgb]", outcome)])
+    (tmp_path / "throughput_fallback.txt").write_text("throughput ratio (static): 2.5\n")
     text, passed = gpu_report.report("cuda_ad_rgb", str(tmp_path))
     assert not passed and problem in text and "result: FAIL" in text
+    assert "one scene per kernel: throughput ratio (static): 2.5" in text
     assert "gpu tests (cuda_ad_rgb): 1 passed" in text
     _junit(tmp_path / "junit.xml", [("test_capture_velocity[cuda_ad_rgb]", "passed")])
     assert gpu_report.report("cuda_ad_rgb", str(tmp_path))[1]  # and all passed: PASS

@@ -6,7 +6,8 @@ step passed and no test of the checked variant failed or was skipped.
     python tools/gpu_report.py --variant cuda_ad_rgb --logs LOGS --report REPORT
 
 LOGS holds ``steps.txt`` (one ``name status seconds`` line per step), ``junit.xml``
-(pytest's, with the agreement tests' properties) and ``throughput.txt``.
+(pytest's, with the agreement tests' properties), ``throughput.txt`` and, where the
+fused renders failed, ``throughput_fallback.txt`` (one scene per kernel).
 """
 
 from __future__ import annotations
@@ -127,6 +128,7 @@ def report(variant: str, logs: str) -> tuple:
     cases = test_cases(junit) if os.path.exists(junit) else []
     tally = counts(cases, variant)
     ratios = throughput_lines(os.path.join(logs, "throughput.txt"))
+    fallback = throughput_lines(os.path.join(logs, "throughput_fallback.txt"))
     problems = [f"step {name}: {status}" for name, status, _ in steps if status != "ok"]
     if tally["failure"] or tally["error"]:
         problems.append(f"{tally['failure'] + tally['error']} {variant} test(s) failed")
@@ -148,6 +150,7 @@ def report(variant: str, logs: str) -> tuple:
     lines += [f"agreement with llvm_ad_rgb (independent seeds):"] + agreement_lines(cases, variant)
     lines += [f"throughput against stock path on {variant} (ours / stock time):"]
     lines += [f"  {r}" for r in ratios] or ["  (none)"]
+    lines += [f"  one scene per kernel: {r}" for r in fallback]
     lines.append("result: " + ("PASS" if not problems else "FAIL: " + "; ".join(problems)))
     return "\n".join(lines) + "\n", not problems
 
