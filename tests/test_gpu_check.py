@@ -16,18 +16,20 @@ import gpu_report  # noqa: E402
 
 
 def check(tmp_path, *args, env=None):
+    """The script run from ``tmp_path`` (relative paths are the caller's)."""
     return subprocess.run(["bash", SCRIPT, "--python", sys.executable, *args],
-                          capture_output=True, text=True, timeout=180,
+                          capture_output=True, text=True, timeout=180, cwd=tmp_path,
                           env={**os.environ, **(env or {})})
 
 
 def test_quick_check_on_llvm_passes_and_writes_its_report(tmp_path):
     report = tmp_path / "report.txt"
-    done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--report", str(report),
-                 "--logs", str(tmp_path / "logs"))
+    done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--report", "report.txt",
+                 "--logs", "logs")
     assert done.returncode == 0, done.stdout + done.stderr
     text = report.read_text()
     assert text in done.stdout and text.rstrip().endswith("result: PASS")
+    assert (tmp_path / "logs" / "junit.xml").exists()
     assert "gpu tests (llvm_ad_rgb): 2 passed, 0 failed, 0 skipped, 0 without" in text
     agreement = next(line for line in text.splitlines() if "moving_plane: image mean t" in line)
     assert "?" not in agreement and "16 seeds a side; passed" in agreement

@@ -45,10 +45,12 @@ REPORT_DIR="$(dirname -- "$REPORT")"
   echo "gpu_check.sh: --report $REPORT: folder $REPORT_DIR does not exist or is not writable" >&2
   exit 2; }
 [ ! -d "$REPORT" ] || { echo "gpu_check.sh: --report $REPORT is a folder" >&2; exit 2; }
+REPORT="$(cd "$REPORT_DIR" && pwd)/$(basename -- "$REPORT")"  # the steps run in $ROOT
 if [ -n "$PY" ] && ! command -v "$PY" >/dev/null 2>&1; then
   echo "gpu_check.sh: --python $PY: no such interpreter" >&2; exit 2
 fi
 if [ -z "$LOGS" ]; then LOGS="$(mktemp -d /tmp/gpu_check.XXXXXX)"; else mkdir -p "$LOGS" || exit 2; fi
+LOGS="$(cd "$LOGS" && pwd)"
 : > "$LOGS/steps.txt"
 START=$SECONDS
 
