@@ -39,9 +39,13 @@ def test_quick_check_on_llvm_passes_and_writes_its_report(tmp_path):
 
 
 def test_a_step_out_of_time_fails_the_check(tmp_path):
-    report = tmp_path / "report.txt"
+    """(also with an earlier run's passing JUnit file left in the logs folder)"""
+    report, logs = tmp_path / "report.txt", tmp_path / "logs"
+    logs.mkdir()
+    (logs / "junit.xml").write_text('<testsuite><testcase name="test_x[llvm_ad_rgb]"/>'
+                                    '</testsuite>')
     done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--report", str(report),
-                 env={"GPU_CHECK_BUDGET_S": "1"})
+                 "--logs", str(logs), env={"GPU_CHECK_BUDGET_S": "1"})
     assert done.returncode == 1, done.stdout + done.stderr
     text = report.read_text()
     assert "tests timed-out-after-1s" in text and "throughput no-time-left" in text

@@ -49,8 +49,12 @@ REPORT="$(cd "$REPORT_DIR" && pwd)/$(basename -- "$REPORT")"  # the steps run in
 if [ -n "$PY" ] && ! command -v "$PY" >/dev/null 2>&1; then
   echo "gpu_check.sh: --python $PY: no such interpreter" >&2; exit 2
 fi
-if [ -z "$LOGS" ]; then LOGS="$(mktemp -d /tmp/gpu_check.XXXXXX)"; else mkdir -p "$LOGS" || exit 2; fi
+case "$PY" in */*) PY="$(cd "$(dirname -- "$PY")" && pwd)/$(basename -- "$PY")";; esac
+if [ -z "$LOGS" ]; then LOGS="$(mktemp -d /tmp/gpu_check.XXXXXX)"
+else mkdir -p "$LOGS" || exit 2; fi
 LOGS="$(cd "$LOGS" && pwd)"
+# an earlier run's files in the folder must not be read as this one's
+rm -f "$LOGS"/{steps.txt,junit.xml,throughput.txt,throughput_fallback.txt,setup.log,tests.log}
 : > "$LOGS/steps.txt"
 START=$SECONDS
 

@@ -147,7 +147,7 @@ def report(variant: str, logs: str) -> tuple:
              f"{tally['fixture_absent']} without their fixture"]
     lines += [f"  {'FAILED' if o in ('failure', 'error') else o} {n}: {m[:160]}"
               for n, o, m, _ in cases if o != "passed" and variant in n]
-    lines += [f"agreement with llvm_ad_rgb (independent seeds):"] + agreement_lines(cases, variant)
+    lines += ["agreement with llvm_ad_rgb (independent seeds):"] + agreement_lines(cases, variant)
     lines += [f"throughput against stock path on {variant} (ours / stock time):"]
     lines += [f"  {r}" for r in ratios] or ["  (none)"]
     lines += [f"  one scene per kernel: {r}" for r in fallback]
