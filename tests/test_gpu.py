@@ -35,9 +35,13 @@ from conftest import PUBLISHED, render_killed_then_resumed
 pytestmark = pytest.mark.gpu
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-#: the published scene, in the shared fixtures beside the repository (when present)
-SHARED_PUBLISHED = os.path.join(os.path.dirname(ROOT), "shared", "fixtures", "published",
-                                "cornell_box_moving.xml")
+#: the published scene in the shared fixtures: beside the repository or, where only the
+#: repository travels (to a GPU machine), inside it; the first where neither is present
+SHARED_CANDIDATES = [os.path.join(base, "shared", "fixtures", "published",
+                                  "cornell_box_moving.xml")
+                     for base in (os.path.dirname(ROOT), ROOT)]
+SHARED_PUBLISHED = next((p for p in SHARED_CANDIDATES if os.path.exists(p)),
+                        SHARED_CANDIDATES[0])
 LLVM, CUDA = "llvm_ad_rgb", "cuda_ad_rgb"
 #: seeds per variant in the agreement tests, and the bounds (module docstring)
 SEEDS, MEAN_Z_BOUND, RMS_Z_BOUND = 16, student_bound(1e-4, 9, 15), 1.5

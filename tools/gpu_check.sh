@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The GPU check (issue 28): one command on a bare GPU machine with this repository (and
-# ../shared beside it when present). It sets the environment up with the Makefile's own
+# ../shared beside it, or shared/ inside it, when present). It sets the environment up with the Makefile's own
 # target (make setup: the venv and libLLVM), runs the gpu tests (tests/test_gpu.py),
 # runs benchmarks/throughput.py against stock `path` on the GPU, and writes a short
 # report (tools/gpu_report.py: GPU, driver, CUDA, pass/fail counts, CUDA-against-LLVM
