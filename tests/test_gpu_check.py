@@ -95,3 +95,19 @@ def test_bad_arguments_are_one_line_and_write_nothing(tmp_path, args, message):
     done = check(tmp_path, "--logs", str(logs), *args)
     assert done.returncode == 2 and message in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not logs.exists()
+
+
+def test_without_python_it_runs_the_makefiles_setup_and_stops_when_it_fails(tmp_path):
+    """(a stand-in `make` on the PATH: the suite must not reinstall the venv)"""
+    bin_dir, called = tmp_path / "bin", tmp_path / "make_called"
+    bin_dir.mkdir()
+    fake_make = bin_dir / "make"
+    fake_make.write_text(f'#!/bin/sh\necho "$PWD $*" > {called}\necho "pip: no network"\nexit 3\n')
+    fake_make.chmod(0o755)
+    done = subprocess.run(["bash", SCRIPT, "--report", str(tmp_path / "r.txt"), "--logs",
+                           str(tmp_path / "logs")], capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}"})
+    assert done.returncode == 1 and "make setup failed: no report" in done.stderr
+    assert called.read_text().split() == [ROOT, "setup"]
+    assert "pip: no network" in done.stdout and not (tmp_path / "r.txt").exists()
+    assert (tmp_path / "logs" / "steps.txt").read_text().startswith("setup exit-3 ")
