@@ -29,8 +29,8 @@ def gpu_description() -> str:
     try:
         query = subprocess.run(["nvidia-smi", "--query-gpu=name,driver_version",
                                 "--format=csv,noheader"], capture_output=True, text=True,
-                               timeout=30)
-        banner = subprocess.run(["nvidia-smi"], capture_output=True, text=True, timeout=30)
+                               timeout=10)
+        banner = subprocess.run(["nvidia-smi"], capture_output=True, text=True, timeout=10)
     except (OSError, subprocess.TimeoutExpired) as exc:
         return f"none (nvidia-smi: {exc.__class__.__name__}: {exc})"
     if query.returncode != 0:
