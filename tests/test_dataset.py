@@ -420,3 +420,22 @@ def test_meshes_of_a_folder_are_drawn_and_seen(tmp_path):
     with pytest.raises(DatasetError, match="holds no"):
         config_from_mapping({**data, "objects": {**data["objects"], "mesh_folder": "."}},
                             "<test>", str(tmp_path))
+
+
+@pytest.mark.parametrize("placement,offset", [("camera", [0.0, 0.0, 0.0]),
+                                              ("offset", [0.4, -0.1, 0.2])])
+def test_the_light_rides_with_the_camera_at_its_offset(placement, offset):
+    """The point light is where the camera's frame puts it (x right, y down, z forward)
+    at the first keyframe, and moves with the camera."""
+    import mitsuba as mi
+
+    from dopplertof.dataset.generate import camera_pose
+
+    config = _config({**MOVING_CAMERA, "light": {"placement": placement, "offset": offset}})
+    description, scene, _ = _truth(config, 0)
+    times = description["times_s"]
+    pose = camera_pose(description["camera"], times["start"] - times["mid"])
+    (emitter,) = scene.static.emitters()
+    position = np.array(mi.traverse(emitter)["position"], np.float64).ravel()
+    np.testing.assert_allclose(position, pose[:3, :3] @ offset + pose[:3, 3], atol=1e-5)
+    assert [m for _, m in scene.light_motions] == [scene.sensor_motion]

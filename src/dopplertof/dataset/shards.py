@@ -5,7 +5,8 @@ A shard is written whole into a temporary file and renamed into place
 attributes name the dataset's configuration hash (a shard of another configuration is
 not this dataset's), the samples it holds and those that failed. Datasets are chunked
 and gzip-compressed (images) with their unit as the ``units`` attribute; nothing in
-the file records when it was written, so that the same samples give the same bytes.
+the file records when it was written (h5py's groups and these datasets track no
+times), so that the same samples give the same bytes.
 """
 
 from __future__ import annotations
@@ -29,16 +30,6 @@ def sample_group(index: int) -> str:
     return f"sample_{index:08d}"
 
 
-def _untimed_group(parent, name: str):
-    """A group whose object header records no times (h5py's create_group does)."""
-    import h5py
-
-    plist = h5py.h5p.create(h5py.h5p.GROUP_CREATE)
-    plist.set_obj_track_times(False)
-    h5py.h5g.create(parent.id, name.encode("utf-8"), gcpl=plist)
-    return parent[name]
-
-
 def write_shard(path: str, samples: list, failed: list, attributes: dict, units: dict) -> None:
     """Write ``samples`` [(arrays, attributes)] and ``failed`` [{"index", "error"}] to
     the shard ``path``, atomically."""
@@ -60,7 +51,7 @@ def write_shard(path: str, samples: list, failed: list, attributes: dict, units:
 
 
 def _write_sample(f, arrays: dict, attributes: dict, units: dict) -> None:
-    group = _untimed_group(f, sample_group(attributes["index"]))
+    group = f.create_group(sample_group(attributes["index"]))
     for key, value in attributes.items():
         group.attrs[key] = value
     for key in sorted(arrays):
