@@ -339,7 +339,9 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
     for data, words in (({**TINY, "sampels": 3}, "unknown key sampels, did you mean 'samples'"),
                         ({**TINY, "objects": {"shapes": ["torus"]}}, "objects.shapes"),
                         ({**TINY, "render": {"resolution": [8, 8]}}, "missing key render.spp"),
-                        ({**TINY, "motion": {"speed": [3.0, 1.0]}}, "motion.speed out of range")):
+                        ({**TINY, "motion": {"speed": [3.0, 1.0]}}, "motion.speed out of range"),
+                        ({**TINY, "motion": {"angular_speed": [0.0, 5000.0]}},
+                         "motion.angular_speed: 5000 rad/s turns more than")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()

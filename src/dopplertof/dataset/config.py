@@ -212,9 +212,25 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     if camera.endswith(".toml"):
         camera = values["render"]["camera"] = os.path.join(base_dir, camera)
     try:
-        load_preset(camera)
+        preset = load_preset(camera)
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
+    _check_spins(values, preset, source)
+
+
+def _check_spins(values: dict, preset, source: str) -> None:
+    """The fastest spins turn less than MAX_HALF_TURN in half the camera's sequence
+    (the keyframes' interpolation takes the short arc)."""
+    from ..cameras.capture import sequence_window
+    from .generate import MAX_HALF_TURN
+
+    first, last = sequence_window(preset)
+    for section in ("motion", "camera"):
+        fastest = values[section]["angular_speed"][1]
+        if fastest * 0.5 * (last - first) > MAX_HALF_TURN:
+            raise DatasetError(f"{source}: {section}.angular_speed: {fastest:g} rad/s turns "
+                               f"more than {MAX_HALF_TURN:.3g} rad in half of "
+                               f"{preset.name}'s {last - first:g} s sequence")
 
 
 def mesh_files(folder: str) -> list:
