@@ -35,7 +35,7 @@ def _config(changes=None, base=TINY):
     return config_from_mapping(data, "<test>")
 
 
-def _truth(config, index, zero_motion=False):
+def _truth(config, index, folder="."):
     """(description, loaded scene, truth arrays) of sample ``index`` (no render)."""
     import dopplertof
     from dopplertof.cameras.preset import load_preset
@@ -45,11 +45,7 @@ def _truth(config, index, zero_motion=False):
 
     dopplertof.set_variant()
     description = draw_scene(config, index, load_preset(config["render"]["camera"]))
-    if zero_motion:
-        for thing in description["objects"] + [description["camera"]]:
-            thing["velocity_m_s"] = thing["angular_velocity_rad_s"] = [0.0, 0.0, 0.0]
-        description["camera"]["moving"] = False
-    scene = dopplertof.load_string(scene_xml(description, 4, 4))
+    scene = dopplertof.scene.load_string(scene_xml(description, 4, 4), {}, base_dir=folder)
     return description, scene, sample_truth(scene, description)
 
 
@@ -88,7 +84,7 @@ def test_depth_unprojected_with_k_and_pose_lies_on_the_surfaces(index):
     z through K."""
     config = _config(MOVING_CAMERA)
     description, _, truth = _truth(config, index)
-    _, still, _ = _truth(config, index, zero_motion=True)  # the mid-exposure poses, still
+    still = _still_scene(description, ".")  # the mid-exposure poses, held still
     rays = _pixel_rays(truth)
     valid = truth["mask"]
     assert valid.sum() > 50 and np.isfinite(truth["depth"][valid]).all()
@@ -250,7 +246,7 @@ def test_direct_split_is_a_max_depth_2_render(tiny):
     ds = Dataset(tiny[1], split="direct")
     attrs, sample = ds.attributes(0), ds[0]
     dopplertof.set_variant()
-    scene = dopplertof.load_string(attrs["scene_xml"])
+    scene = ds.scene(0)
     preset = load_preset(attrs["camera_preset"]["name"])
     direct = capture_camera(scene, preset, 4, attrs["render_seed"], params={"max_depth": 2},
                             noise=False, progress=False)
@@ -272,7 +268,7 @@ def test_reader_round_trip_of_every_key_with_its_units(tiny):
     from dopplertof.dataset.sample import UNITS, render_sample
 
     dopplertof.set_variant()
-    arrays, attributes = render_sample(load_config(tiny[0]), 0)
+    arrays, attributes = render_sample(load_config(tiny[0]), 0, tiny[1])
     ds = Dataset(tiny[1])
     assert len(ds) == 3 and ds.failed == [] and ds.units == UNITS
     sample = ds[0]
@@ -314,11 +310,11 @@ def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_proce
     calls = []
     real = sample.render_sample
 
-    def flaky(config, index):
+    def flaky(config, index, folder):
         calls.append(index)
         if index == 1:
             raise RuntimeError("out of luck")
-        return real(config, index)
+        return real(config, index, folder)
 
     monkeypatch.setattr(sample, "render_sample", flaky)
     data = {**TINY, "samples": 2, "samples_per_shard": 2}
@@ -404,21 +400,43 @@ f 1 4 6
 """
 
 
-def test_meshes_of_a_folder_are_drawn_and_seen(tmp_path):
-    """A mesh folder's files are objects: the pixels on them unproject onto them."""
-    (tmp_path / "meshes").mkdir()
-    (tmp_path / "meshes" / "octahedron.obj").write_text(OCTAHEDRON)
+def _still_scene(description, folder):
+    """The scene of ``description`` with everything held at its mid-exposure pose."""
+    import dopplertof
+    from dopplertof.dataset.scene_text import scene_xml
+
+    description = copy.deepcopy(description)
+    for thing in description["objects"] + [description["camera"]]:
+        thing["velocity_m_s"] = thing["angular_velocity_rad_s"] = [0.0, 0.0, 0.0]
+    description["camera"]["moving"] = False
+    return dopplertof.scene.load_string(scene_xml(description, 4, 4), {}, base_dir=folder)
+
+
+def test_meshes_are_drawn_copied_into_the_dataset_and_seen(tmp_path, in_process_client):
+    """A mesh folder's files are objects; the dataset holds its own copy (the sample's
+    scene loads with the folder gone) and the pixels on them unproject onto them."""
+    import shutil
+
+    from dopplertof.dataset.driver import run_dataset
+
+    (tmp_path / "config" / "shapes").mkdir(parents=True)
+    (tmp_path / "config" / "shapes" / "octahedron.obj").write_text(OCTAHEDRON)
     data = copy.deepcopy(TINY)
-    data["objects"].update(shapes=["mesh"], mesh_folder="meshes", size=[0.6, 0.8])
-    config = config_from_mapping(data, "<test>", str(tmp_path))
-    description, _, truth = _truth(config, 0)
-    _, still, _ = _truth(config, 0, zero_motion=True)
-    assert {o["shape"] for o in description["objects"]} == {"mesh"}
+    data.update(samples=1)
+    data["objects"].update(shapes=["mesh"], mesh_folder="shapes", size=[0.6, 0.8])
+    config = config_from_mapping(data, "<test>", str(tmp_path / "config"))
+    out = str(tmp_path / "out")
+    assert run_dataset(config, out, client=in_process_client, progress=False).ok
+    shutil.rmtree(tmp_path / "config")
+    ds = Dataset(out)
+    description, truth = ds.attributes(0)["description"], ds[0]
+    assert {o["mesh"] for o in description["objects"]} == {"meshes/octahedron.obj"}
+    assert len(ds.scene(0).bodies) == 2
     on = truth["instance"] >= 1
     assert on.sum() > 5
     world = _pixel_rays(truth)[on] @ truth["pose"][:3, :3].T
-    np.testing.assert_allclose(_ray_cast(still, truth["pose"][:3, 3], world),
-                               truth["depth"][on], rtol=1e-4)
+    np.testing.assert_allclose(_ray_cast(_still_scene(description, out), truth["pose"][:3, 3],
+                                         world), truth["depth"][on], rtol=1e-4)
     with pytest.raises(DatasetError, match="holds no"):
         config_from_mapping({**data, "objects": {**data["objects"], "mesh_folder": "."}},
                             "<test>", str(tmp_path))

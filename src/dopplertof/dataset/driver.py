@@ -6,6 +6,7 @@ Output folder::
       dataset.json            the configuration, its hash, the layout and units, the
                               shards, failed samples, the last run's samples per hour
       shard_00000.h5 ...      samples [0, S), [S, 2S), ... (S = samples_per_shard)
+      meshes/                 a copy of the mesh folder (the scenes name meshes/NAME)
       logs/workers.log        the workers' stderr (local cluster)
 
 A rerun with the same configuration skips the complete shards (a killed run resumes at
@@ -77,7 +78,39 @@ def config_hash(config: DatasetConfig) -> str:
     preset = load_preset(config["render"]["camera"]).describe()
     preset.pop("source_file", None)
     return spec_hash({"config": config.to_json(), "camera": preset,
-                      "layout": LAYOUT_VERSION})
+                      "meshes": mesh_digests(config), "layout": LAYOUT_VERSION})
+
+
+def mesh_digests(config: DatasetConfig) -> list:
+    """[file name, sha256] of every mesh the configuration may draw."""
+    import hashlib
+
+    from .config import mesh_files
+    from .generate import mesh_folder
+
+    if "mesh" not in config["objects"]["shapes"]:
+        return []
+    out = []
+    for path in mesh_files(mesh_folder(config)):
+        with open(path, "rb") as f:
+            out.append([os.path.basename(path), hashlib.sha256(f.read()).hexdigest()])
+    return out
+
+
+def copy_meshes(config: DatasetConfig, output: str) -> None:
+    """The mesh folder's files into ``output/meshes`` (each atomically), so that the
+    dataset holds everything its scenes reference."""
+    import shutil
+
+    from .. import io
+    from .config import mesh_files
+    from .generate import MESH_DIR, mesh_folder
+
+    if "mesh" not in config["objects"]["shapes"]:
+        return
+    for path in mesh_files(mesh_folder(config)):
+        with io.atomic_path(os.path.join(output, MESH_DIR, os.path.basename(path))) as tmp:
+            shutil.copyfile(path, tmp)
 
 
 def plan_shards(config: DatasetConfig, output: str, variant: str,
@@ -122,7 +155,8 @@ def run_shard_task(task: ShardTask) -> dict:
             error = None
             for _ in range(1 + task.sample_retries):
                 try:
-                    samples.append(render_sample(task.config, index))
+                    samples.append(render_sample(task.config, index,
+                                                 os.path.dirname(task.path)))
                     error = None
                     break
                 except Exception as exc:  # a failing sample is tried again, then listed
@@ -153,6 +187,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
                              output=output)
     write_dataset_json(output, config, tasks, summary)  # (claims the folder first)
+    copy_meshes(config, output)
     pending = []
     for task in tasks:
         if shard_state(task.path, task.config_hash) is None:

@@ -16,12 +16,15 @@ rigidly: exact for this motion).
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
 from ..sampling import seed_words
 from .config import DatasetConfig, mesh_files
 
+#: the dataset's copy of the mesh folder (its scenes name meshes relative to the dataset)
+MESH_DIR = "meshes"
 #: the keys of a sample's stream: (seed low, seed high, index, DOMAIN)
 DOMAIN = 0x0D5E7
 #: Mitsuba's camera axes (left, up, forward) from OpenCV's (right, down, forward)
@@ -123,8 +126,8 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
     shape = str(rng.choice(objects["shapes"]))
     mesh = None
     if shape == "mesh":
-        files = mesh_files(_mesh_folder(config))
-        mesh = files[int(rng.integers(0, len(files)))]
+        files = mesh_files(mesh_folder(config))
+        mesh = f"{MESH_DIR}/{os.path.basename(files[int(rng.integers(0, len(files)))])}"
     size = _uniform(rng, objects["size"])
     depth = _uniform(rng, objects["distance"])
     lateral = [float(rng.uniform(-1, 1)) * objects["spread"] * t * depth for t in tans]
@@ -147,9 +150,8 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
             "velocity_m_s": velocity, "angular_velocity_rad_s": spin}
 
 
-def _mesh_folder(config: DatasetConfig) -> str:
-    import os
-
+def mesh_folder(config: DatasetConfig) -> str:
+    """The configuration's mesh folder (absolute)."""
     return os.path.join(config.base_dir, config["objects"]["mesh_folder"])
 
 

@@ -21,7 +21,8 @@ class Dataset:
     plus ``index`` and ``seed``, where ``raw`` is the split's raw frames: ``full``
     (noise, global illumination), ``ideal`` (no noise) or ``direct`` (no multipath,
     no noise). ``ds.units[key]`` is each array's unit; ``ds.attributes(i)`` the
-    sample's scene (XML), description, seeds and camera preset. Files are opened per
+    sample's scene (XML), description, seeds and camera preset, ``ds.scene(i)`` the
+    loaded scene. Files are opened per
     item, so that the object can be handed to forked loader processes."""
 
     def __init__(self, folder, split: str = "full"):
@@ -80,3 +81,12 @@ class Dataset:
         for key in ("description", "camera_preset"):
             attrs[key] = json.loads(attrs[key])
         return attrs
+
+    def scene(self, item: int):
+        """The sample's scene, loaded from its stored XML (a DopplerScene; its meshes are
+        the dataset's copies): ``capture_camera(ds.scene(i), preset, spp,
+        ds.attributes(i)["render_seed"], ...)`` renders it again, bitwise."""
+        from ..scene import load_string
+
+        return load_string(self.attributes(item)["scene_xml"], {},
+                           source=f"{self.folder}: sample {item}", base_dir=self.folder)

@@ -38,8 +38,9 @@ def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
     return np.array([[focal, 0.0, 0.5 * width], [0.0, focal, 0.5 * height], [0.0, 0.0, 1.0]])
 
 
-def render_sample(config: DatasetConfig, index: int) -> tuple[dict, dict]:
-    """(arrays, attributes) of sample ``index`` (see :data:`UNITS`)."""
+def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict, dict]:
+    """(arrays, attributes) of sample ``index`` (see :data:`UNITS`) of the dataset in
+    ``folder`` (its scenes' meshes are in ``folder/meshes``)."""
     from ..cameras.preset import load_preset
     from ..scene import load_string
 
@@ -47,7 +48,7 @@ def render_sample(config: DatasetConfig, index: int) -> tuple[dict, dict]:
     preset = load_preset(render["camera"])
     description = draw_scene(config, index, preset)
     text = scene_xml(description, render["spp"], render["max_depth"])
-    scene = load_string(text, {}, source=f"sample {index}")
+    scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)
     arrays = _raw_frames(scene, preset, render["spp"], description)
     arrays.update(sample_truth(scene, description))
     attributes = {"index": int(index), "render_seed": description["render_seed"],
