@@ -27,6 +27,9 @@ BACKDROPS = ("room", "wall", "none")
 LIGHT_PLACEMENTS = ("camera", "offset")
 #: mesh files a mesh folder may hold
 MESH_EXTENSIONS = (".obj", ".ply")
+#: the largest turn of a body within half a sequence (the keyframes' interpolation takes
+#: the short arc: below pi it is the drawn rotation)
+MAX_HALF_TURN = 0.9 * math.pi
 
 
 class DatasetError(ValueError):
@@ -222,7 +225,6 @@ def _check_spins(values: dict, preset, source: str) -> None:
     """The fastest spins turn less than MAX_HALF_TURN in half the camera's sequence
     (the keyframes' interpolation takes the short arc)."""
     from ..cameras.capture import sequence_window
-    from .generate import MAX_HALF_TURN
 
     first, last = sequence_window(preset)
     for section in ("motion", "camera"):

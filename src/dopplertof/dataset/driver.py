@@ -70,15 +70,17 @@ class DatasetSummary:
         return not self.failed and not self.failed_shards
 
 
-def config_hash(config: DatasetConfig) -> str:
-    """What defines the samples: the configuration and the camera preset's contents."""
+def config_hash(config: DatasetConfig, variant: str) -> str:
+    """What defines the samples: the configuration, the camera preset's and the meshes'
+    contents and the Mitsuba variant."""
     from ..cameras.preset import load_preset
     from ..experiments.tasks import spec_hash
 
     preset = load_preset(config["render"]["camera"]).describe()
     preset.pop("source_file", None)
     return spec_hash({"config": config.to_json(), "camera": preset,
-                      "meshes": mesh_digests(config), "layout": LAYOUT_VERSION})
+                      "meshes": mesh_digests(config), "variant": variant,
+                      "layout": LAYOUT_VERSION})
 
 
 def mesh_digests(config: DatasetConfig) -> list:
@@ -116,7 +118,7 @@ def copy_meshes(config: DatasetConfig, output: str) -> None:
 def plan_shards(config: DatasetConfig, output: str, variant: str,
                 retries: int = DEFAULT_RETRIES) -> list:
     """Every shard of the dataset, in order."""
-    digest = config_hash(config)
+    digest = config_hash(config, variant)
     size, total = config.shard_size, config.samples
     return [ShardTask(n, shard_name(n)[:-3], os.path.join(output, shard_name(n)), config,
                       tuple(range(start, min(start + size, total))), digest, variant,

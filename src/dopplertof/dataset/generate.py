@@ -29,9 +29,6 @@ MESH_DIR = "meshes"
 DOMAIN = 0x0D5E7
 #: Mitsuba's camera axes (left, up, forward) from OpenCV's (right, down, forward)
 OPENCV_TO_MITSUBA = np.diag([-1.0, -1.0, 1.0, 1.0])
-#: the largest turn of a body within half a sequence (the keyframes' slerp takes the
-#: short arc: below pi it is the drawn rotation)
-MAX_HALF_TURN = 0.9 * math.pi
 
 
 def sample_rng(config: DatasetConfig, index: int) -> np.random.Generator:
