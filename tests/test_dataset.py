@@ -459,3 +459,15 @@ def test_the_light_rides_with_the_camera_at_its_offset(placement, offset):
     position = np.array(mi.traverse(emitter)["position"], np.float64).ravel()
     np.testing.assert_allclose(position, pose[:3, :3] @ offset + pose[:3, 3], atol=1e-5)
     assert [m for _, m in scene.light_motions] == [scene.sensor_motion]
+
+
+def test_a_complete_dataset_run_again_renders_nothing(tiny, capsys):
+    """The same command on a complete folder: every shard skipped, no cluster started,
+    exit 0, the shards untouched."""
+    from dopplertof.cli import main
+
+    before = _shard_bytes(tiny[1])
+    assert main(["dataset", tiny[0], "-o", tiny[1]]) == 0
+    out = capsys.readouterr().out
+    assert "0 rendered now, 3 shards already complete, 0 samples failed" in out
+    assert _shard_bytes(tiny[1]) == before
