@@ -77,12 +77,12 @@ MOVING_CAMERA = {"camera": {"position": [-0.3, 0.3], "yaw_deg": [-15, 15],
                             "angular_speed": [0.5, 2.0]}}
 
 
-@pytest.mark.parametrize("index", [0, 1, 2])
-def test_depth_unprojected_with_k_and_pose_lies_on_the_surfaces(index):
+@pytest.mark.parametrize("index,backdrop", [(0, "room"), (1, "room"), (2, "wall")])
+def test_depth_unprojected_with_k_and_pose_lies_on_the_surfaces(index, backdrop):
     """Every valid pixel's depth along its K ray, placed by the pose, is on a surface of
     the scene at mid-exposure (a ray cast, 1e-4 relative); z-depth is range x the ray's
     z through K."""
-    config = _config(MOVING_CAMERA)
+    config = _config({**MOVING_CAMERA, "backdrop": {"kind": backdrop}})
     description, _, truth = _truth(config, index)
     still = _still_scene(description, ".")  # the mid-exposure poses, held still
     rays = _pixel_rays(truth)
