@@ -30,12 +30,14 @@ def _parser() -> argparse.ArgumentParser:
     _add_figures_command(sub)
     # ---- the commands of the subpackages (each sets its own func)
     from .cameras import cli as cameras_cli
+    from .dataset import cli as dataset_cli
     from .diff.cli import add_subcommand
     from .experiments.cli import add_subcommands
 
     add_subcommands(sub)  # sweep, report, animate
     add_subcommand(sub)  # fit
     cameras_cli.add_subcommand(sub)  # cameras
+    dataset_cli.add_subcommand(sub)  # dataset
     return p
 
 

@@ -1,0 +1,243 @@
+"""Dataset configurations: the TOML format of ``dopplertof dataset``, checked strictly.
+
+Every section and key is listed in :data:`SCHEMA` with its type, range and meaning; an
+unknown or misspelt key is one line naming the file and the key (with the nearest known
+name), as the camera presets' loader says it. A range is ``[low, high]`` and a sample
+draws uniformly in it; ``[x, x]`` fixes the value. ``examples/dataset.toml`` is the
+commented reference; docs/dataset.md describes what each key does to a scene.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from ..arguments import check_seed
+from ..hints import did_you_mean
+from ..io import read_toml
+
+#: shapes a configuration may draw ("mesh": a file of [objects] mesh_folder)
+SHAPES = ("sphere", "cube", "rectangle", "mesh")
+#: materials a configuration may draw
+MATERIALS = ("diffuse", "plastic", "conductor")
+#: backdrops: a closed room around camera and objects, one wall behind them, or nothing
+BACKDROPS = ("room", "wall", "none")
+#: where the point light is: on the camera's centre, or at an offset riding with it
+LIGHT_PLACEMENTS = ("camera", "offset")
+#: mesh files a mesh folder may hold
+MESH_EXTENSIONS = (".obj", ".ply")
+#: the largest turn of a body within half a sequence (the keyframes' interpolation takes
+#: the short arc: below pi it is the drawn rotation)
+MAX_HALF_TURN = 0.9 * math.pi
+
+
+class DatasetError(ValueError):
+    """A dataset configuration or output folder that cannot be used; one line."""
+
+
+def _range(lo=None, hi=None):
+    """A check of a [low, high] range inside [lo, hi]."""
+    def check(v):
+        return (len(v) == 2 and v[0] <= v[1] and (lo is None or v[0] >= lo)
+                and (hi is None or v[1] <= hi))
+    return check
+
+
+def _positive(x):
+    return x > 0
+
+
+#: section -> key -> (type, check, meaning, default or REQUIRED)
+REQUIRED = object()
+SCHEMA = {
+    "": {"name": (str, None, "the dataset's name", "dataset"),
+         "samples": (int, _positive, "how many samples", REQUIRED),
+         "seed": (int, None, "the seed every sample's own is derived from", 0),
+         "samples_per_shard": (int, _positive, "samples in one HDF5 shard", 8)},
+    "render": {"resolution": ("ints", lambda v: len(v) == 2 and min(v) >= 1,
+                              "[width, height] pixels", REQUIRED),
+               "spp": (int, _positive, "samples per pixel per raw frame", REQUIRED),
+               "max_depth": (int, lambda x: x >= 2, "path length of the full and ideal "
+                             "splits (2: direct light only)", 5),
+               "camera": (str, None, "a camera preset's name or a preset .toml file "
+                          "(dopplertof cameras --list)", "paper-dtof"),
+               "light_intensity": ("range", _range(0), "point light, W/sr", [20.0, 20.0])},
+    "backdrop": {"kind": (str, lambda x: x in BACKDROPS, "one of " + ", ".join(BACKDROPS),
+                          "room"),
+                 "size": ("floats", lambda v: len(v) == 3 and min(v) > 0,
+                          "[width, height, depth] m of the room (the wall: width, height "
+                          "and its distance)", [6.0, 4.0, 8.0]),
+                 "albedo": ("range", _range(0, 1), "diffuse albedo", [0.3, 0.8])},
+    "objects": {"count": ("ints", _range(0), "[fewest, most] objects", [1, 3]),
+                "shapes": ("names", lambda v: set(v) <= set(SHAPES),
+                           "drawn from " + ", ".join(SHAPES), ["sphere", "cube"]),
+                "mesh_folder": (str, None, "folder of .obj/.ply meshes (each fits the "
+                                "cube [-1, 1]^3; scaled by size)", ""),
+                "materials": ("names", lambda v: set(v) <= set(MATERIALS),
+                              "drawn from " + ", ".join(MATERIALS), ["diffuse"]),
+                "size": ("range", _range(1e-3), "radius or half-size, m", [0.2, 0.5]),
+                "distance": ("range", _range(1e-2), "from the camera along its view, m",
+                             [2.0, 4.0]),
+                "spread": (float, lambda x: 0 <= x <= 1, "lateral placement: fraction of "
+                           "the half field of view", 0.6),
+                "albedo": ("range", _range(0, 1), "diffuse albedo", [0.2, 0.9]),
+                "roughness": ("range", _range(1e-3, 1), "alpha of conductors and plastics",
+                              [0.05, 0.4])},
+    "motion": {"speed": ("range", _range(0), "objects' linear speed, m/s, random direction",
+                         [0.0, 10.0]),
+               "angular_speed": ("range", _range(0), "objects' spin, rad/s, random axis",
+                                 [0.0, 50.0])},
+    "camera": {"position": ("range", _range(), "each coordinate's jitter about the origin, m",
+                            [0.0, 0.0]),
+               "yaw_deg": ("range", _range(-90, 90), "turn about +y from looking down -z",
+                           [0.0, 0.0]),
+               "pitch_deg": ("range", _range(-60, 60), "tilt up (+) or down", [0.0, 0.0]),
+               "speed": ("range", _range(0), "ego-motion, m/s, random direction", [0.0, 0.0]),
+               "angular_speed": ("range", _range(0), "ego-rotation, rad/s, random axis",
+                                 [0.0, 0.0])},
+    "light": {"placement": (str, lambda x: x in LIGHT_PLACEMENTS,
+                            "one of " + ", ".join(LIGHT_PLACEMENTS), "camera"),
+              "offset": ("floats", lambda v: len(v) == 3, "[x, y, z] m in the camera's frame "
+                         "(x right, y down, z forward) for placement = 'offset'",
+                         [0.0, 0.0, 0.0])},
+}
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """A checked configuration: ``values[section][key]``, every default filled in."""
+
+    values: dict
+    source: str  #: the file, for messages
+    base_dir: str  #: relative paths (mesh folder, camera file) are relative to it
+
+    def __getitem__(self, section: str) -> dict:
+        return self.values[section]
+
+    @property
+    def samples(self) -> int:
+        return self.values[""]["samples"]
+
+    @property
+    def shard_size(self) -> int:
+        return self.values[""]["samples_per_shard"]
+
+    def to_json(self) -> dict:
+        return {s or "dataset": dict(v) for s, v in self.values.items()}
+
+
+def load_config(path) -> DatasetConfig:
+    """The checked configuration of a TOML file (:class:`DatasetError` on anything)."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise DatasetError(f"dataset configuration not found: {path}")
+    return config_from_mapping(read_toml(path, DatasetError), path,
+                               os.path.dirname(os.path.abspath(path)))
+
+
+def config_from_mapping(data: dict, source: str = "<config>",
+                        base_dir: str = ".") -> DatasetConfig:
+    """The checked configuration of parsed TOML ``data``."""
+    sections = [s for s in SCHEMA if s]
+    values = {"": _section(data, "", source, extra=sections)}
+    for section in sections:
+        table = data.get(section, {})
+        if not isinstance(table, dict):
+            raise DatasetError(f"{source}: [{section}] must be a table, got {table!r}")
+        values[section] = _section(table, section, source)
+    check_seed(values[""]["seed"], f"{source}: seed", DatasetError)
+    _check_together(values, source, base_dir)
+    return DatasetConfig(values, source, os.path.abspath(base_dir))
+
+
+def _section(table: dict, section: str, source: str, extra=()) -> dict:
+    """One section's keys checked against :data:`SCHEMA`, defaults filled in."""
+    schema = SCHEMA[section]
+    prefix = f"{section}." if section else ""
+    for key in table:
+        if key not in schema and key not in extra:
+            raise DatasetError(f"{source}: unknown key {prefix}{key}"
+                               f"{did_you_mean(key, list(schema) + list(extra))}")
+    out = {}
+    for key, (kind, check, meaning, default) in schema.items():
+        if key not in table:
+            if default is REQUIRED:
+                raise DatasetError(f"{source}: missing key {prefix}{key} ({meaning})")
+            out[key] = default
+            continue
+        out[key] = _typed(table[key], kind, check, f"{source}: {prefix}{key}", meaning)
+    return out
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+#: what each kind of value must be, and how it is said
+_KINDS = {str: (lambda v: isinstance(v, str), "a string"),
+          int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
+          float: (_number, "a number"),
+          "range": (lambda v: isinstance(v, list) and all(map(_number, v)), "[low, high]"),
+          "floats": (lambda v: isinstance(v, list) and all(map(_number, v)), "a list of numbers"),
+          "ints": (lambda v: isinstance(v, list) and all(isinstance(x, int) and not
+                                                        isinstance(x, bool) for x in v),
+                   "a list of integers"),
+          "names": (lambda v: isinstance(v, list) and v and all(isinstance(x, str) for x in v),
+                    "a non-empty list of names")}
+
+
+def _typed(value, kind, check, where: str, meaning: str):
+    """``value`` checked as ``kind`` (numbers of a range or list as floats)."""
+    is_kind, said = _KINDS[kind]
+    if not is_kind(value):
+        raise DatasetError(f"{where} must be {said} ({meaning}), got {value!r}")
+    if kind in ("range", "floats") or kind is float:
+        value = [float(x) for x in value] if isinstance(value, list) else float(value)
+    if check is not None and not check(value):
+        raise DatasetError(f"{where} out of range ({meaning}), got {value!r}")
+    return value
+
+
+def _check_together(values: dict, source: str, base_dir: str) -> None:
+    """What one key cannot say alone: a mesh folder for the mesh shape, a known camera."""
+    from ..cameras.preset import PresetError, load_preset
+
+    objects = values["objects"]
+    if "mesh" in objects["shapes"]:
+        folder = objects["mesh_folder"]
+        if not folder:
+            raise DatasetError(f"{source}: objects.shapes has 'mesh': set objects.mesh_folder")
+        if not mesh_files(os.path.join(base_dir, folder)):
+            raise DatasetError(f"{source}: objects.mesh_folder {folder!r} holds no "
+                               f"{'/'.join(MESH_EXTENSIONS)} file")
+    camera = values["render"]["camera"]
+    if camera.endswith(".toml"):
+        camera = values["render"]["camera"] = os.path.join(base_dir, camera)
+    try:
+        preset = load_preset(camera)
+    except PresetError as e:
+        raise DatasetError(f"{source}: render.camera: {e}") from None
+    _check_spins(values, preset, source)
+
+
+def _check_spins(values: dict, preset, source: str) -> None:
+    """The fastest spins turn less than MAX_HALF_TURN in half the camera's sequence
+    (the keyframes' interpolation takes the short arc)."""
+    from ..cameras.capture import sequence_window
+
+    first, last = sequence_window(preset)
+    for section in ("motion", "camera"):
+        fastest = values[section]["angular_speed"][1]
+        if fastest * 0.5 * (last - first) > MAX_HALF_TURN:
+            raise DatasetError(f"{source}: {section}.angular_speed: {fastest:g} rad/s turns "
+                               f"more than {MAX_HALF_TURN:.3g} rad in half of "
+                               f"{preset.name}'s {last - first:g} s sequence")
+
+
+def mesh_files(folder: str) -> list:
+    """The mesh files of ``folder`` (sorted: a sample's draw is by position)."""
+    if not os.path.isdir(folder):
+        return []
+    return sorted(os.path.join(os.path.abspath(folder), n) for n in os.listdir(folder)
+                  if n.lower().endswith(MESH_EXTENSIONS))

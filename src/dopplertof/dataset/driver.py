@@ -1,0 +1,239 @@
+"""``dopplertof dataset``: every shard not yet complete, one Dask task each.
+
+Output folder::
+
+    DIR/
+      dataset.json            the configuration, its hash, the layout and units, the
+                              shards, failed samples, the last run's samples per hour
+      shard_00000.h5 ...      samples [0, S), [S, 2S), ... (S = samples_per_shard)
+      meshes/                 a copy of the mesh folder (the scenes name meshes/NAME)
+      logs/workers.log        the workers' stderr (local cluster)
+
+A rerun with the same configuration skips the complete shards (a killed run resumes at
+the first unfinished one; its samples depend on (configuration, seed, index) only, so
+the result is bitwise the same). Another configuration in the same folder is refused.
+A sample that raises is tried again ``retries`` times within its shard's task, then
+its shard is written without it and dataset.json lists it with its error.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field, replace
+
+from ..experiments.cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
+from .config import DatasetConfig, DatasetError
+from .shards import shard_name, shard_state
+
+DATASET_JSON = "dataset.json"
+#: format of the folder (a reader refuses another)
+LAYOUT_VERSION = 1
+#: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
+SPLITS = {"full": "raw", "ideal": "raw_ideal", "direct": "raw_direct"}
+
+
+@dataclass(frozen=True)
+class ShardTask:
+    """One shard: the samples it holds, rendered in order by one worker."""
+
+    number: int
+    name: str  #: shard_00000 (also the Dask task's name)
+    path: str  #: absolute
+    config: DatasetConfig
+    indices: tuple
+    config_hash: str
+    variant: str
+    sample_retries: int = DEFAULT_RETRIES
+    threads: int | None = None
+
+    @property
+    def hash(self) -> str:
+        return self.config_hash
+
+
+@dataclass
+class DatasetSummary:
+    samples: int
+    shards: int
+    skipped_shards: int
+    rendered: int = 0  #: samples rendered by this run
+    failed: list = field(default_factory=list)  #: [{"index", "error"}], every run's
+    failed_shards: list = field(default_factory=list)  #: (shard, error) of this run
+    seconds: float = 0.0
+    samples_per_hour: float | None = None
+    output: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed and not self.failed_shards
+
+
+def config_hash(config: DatasetConfig, variant: str) -> str:
+    """What defines the samples: the configuration, the camera preset's and the meshes'
+    contents and the Mitsuba variant."""
+    from ..cameras.preset import load_preset
+    from ..experiments.tasks import spec_hash
+
+    preset = load_preset(config["render"]["camera"]).describe()
+    preset.pop("source_file", None)
+    return spec_hash({"config": config.to_json(), "camera": preset,
+                      "meshes": mesh_digests(config), "variant": variant,
+                      "layout": LAYOUT_VERSION})
+
+
+def mesh_digests(config: DatasetConfig) -> list:
+    """[file name, sha256] of every mesh the configuration may draw."""
+    import hashlib
+
+    from .config import mesh_files
+    from .generate import mesh_folder
+
+    if "mesh" not in config["objects"]["shapes"]:
+        return []
+    out = []
+    for path in mesh_files(mesh_folder(config)):
+        with open(path, "rb") as f:
+            out.append([os.path.basename(path), hashlib.sha256(f.read()).hexdigest()])
+    return out
+
+
+def copy_meshes(config: DatasetConfig, output: str) -> None:
+    """The mesh folder's files into ``output/meshes`` (each atomically), so that the
+    dataset holds everything its scenes reference."""
+    import shutil
+
+    from .. import io
+    from .config import mesh_files
+    from .generate import MESH_DIR, mesh_folder
+
+    if "mesh" not in config["objects"]["shapes"]:
+        return
+    for path in mesh_files(mesh_folder(config)):
+        with io.atomic_path(os.path.join(output, MESH_DIR, os.path.basename(path))) as tmp:
+            shutil.copyfile(path, tmp)
+
+
+def plan_shards(config: DatasetConfig, output: str, variant: str,
+                retries: int = DEFAULT_RETRIES) -> list:
+    """Every shard of the dataset, in order."""
+    digest = config_hash(config, variant)
+    size, total = config.shard_size, config.samples
+    return [ShardTask(n, shard_name(n)[:-3], os.path.join(output, shard_name(n)), config,
+                      tuple(range(start, min(start + size, total))), digest, variant,
+                      retries)
+            for n, start in enumerate(range(0, total, size))]
+
+
+def check_same_config(output: str, digest: str, source: str) -> None:
+    """Refuse a folder that holds a dataset of another configuration."""
+    path = os.path.join(output, DATASET_JSON)
+    if not os.path.isfile(path):
+        return
+    try:
+        with open(path, encoding="utf-8") as f:
+            previous = json.load(f).get("config_hash")
+    except (OSError, ValueError, AttributeError):
+        raise DatasetError(f"{path} is unreadable: not a dopplertof dataset folder "
+                           "(choose another -o)") from None
+    if previous != digest:
+        raise DatasetError(f"{output} holds a dataset of another configuration than "
+                           f"{source} (config hash {str(previous)[:12]} vs {digest[:12]}): "
+                           "use a new folder, or the configuration it was made with")
+
+
+def run_shard_task(task: ShardTask) -> dict:
+    """Render the shard's samples and write the shard (runs on a worker)."""
+    from ..experiments.tasks import RENDER_LOCK, package_versions, prepare_worker
+    from .sample import UNITS, render_sample
+    from .shards import write_shard
+
+    started = time.perf_counter()
+    samples, failed = [], []
+    with RENDER_LOCK:
+        prepare_worker(task.variant, task.threads)
+        for index in task.indices:
+            error = None
+            for _ in range(1 + task.sample_retries):
+                try:
+                    samples.append(render_sample(task.config, index,
+                                                 os.path.dirname(task.path)))
+                    error = None
+                    break
+                except Exception as exc:  # a failing sample is tried again, then listed
+                    error = f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:800]
+            if error is not None:
+                failed.append({"index": index, "error": error})
+    versions = package_versions()
+    write_shard(task.path, samples, failed,
+                {"config_hash": task.config_hash, "variant": task.variant,
+                 "mitsuba": versions["mitsuba"] or "", "dopplertof": versions["dopplertof"]
+                 or "", "layout_version": LAYOUT_VERSION}, UNITS)
+    return {"shard": task.name, "rendered": len(samples), "failed": failed,
+            "seconds": time.perf_counter() - started}
+
+
+def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
+                workers: int | None = None, client=None, retries: int = DEFAULT_RETRIES,
+                variant: str | None = None, progress=None) -> DatasetSummary:
+    """Render every shard of ``config`` not complete in ``output``; write dataset.json."""
+    from .. import io
+    from ..backend import DEFAULT_VARIANT
+
+    started = time.perf_counter()
+    output = io.check_output_folder(os.fspath(output))
+    variant = variant or DEFAULT_VARIANT
+    tasks = plan_shards(config, output, variant, retries)
+    check_same_config(output, tasks[0].config_hash, config.source)
+    summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
+                             output=output)
+    write_dataset_json(output, config, tasks, summary)  # (claims the folder first)
+    copy_meshes(config, output)
+    pending = []
+    for task in tasks:
+        if shard_state(task.path, task.config_hash) is None:
+            io.remove_temporaries(task.path)  # (a killed writer's)
+            pending.append(task)
+    summary.skipped_shards = len(tasks) - len(pending)
+    if pending:
+        log_file = os.path.join(output, WORKER_LOG) if client is None else None
+        with dask_client(scheduler, workers, client, log_file) as (dask, threads):
+            if threads:
+                pending = [replace(t, threads=threads) for t in pending]
+            outcome = run_tasks(dask, run_shard_task, pending, retries=retries,
+                                progress=progress, description="shards",
+                                already_done=summary.skipped_shards)
+        summary.rendered = sum(r["rendered"] for r in outcome.done)
+        summary.failed_shards = outcome.failed
+        if summary.rendered:
+            summary.samples_per_hour = summary.rendered * 3600.0 / outcome.seconds
+    summary.failed = [f for t in tasks for f in (shard_state(t.path, t.config_hash)
+                                                 or ([], []))[1]]
+    summary.seconds = time.perf_counter() - started
+    write_dataset_json(output, config, tasks, summary)
+    return summary
+
+
+def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> None:
+    """dataset.json: what the folder is, how to read it and what the last run did."""
+    from .. import io
+    from .sample import UNITS
+
+    with io.output_folder(output, "dataset") as staged:
+        io.write_json(staged.path(DATASET_JSON), {
+            "layout_version": LAYOUT_VERSION, "config_hash": tasks[0].config_hash,
+            "config": config.to_json(), "config_file": config.source,
+            "samples": config.samples, "samples_per_shard": config.shard_size,
+            "shards": [{"file": os.path.basename(t.path), "samples": list(t.indices)}
+                       for t in tasks],
+            "groups": "sample_<index, 8 digits> in each shard",
+            "units": UNITS, "splits": SPLITS, "variant": tasks[0].variant,
+            "failed_samples": summary.failed,
+            "last_run": {"rendered": summary.rendered, "skipped_shards": summary.skipped_shards,
+                         "failed_shards": [{"shard": n, "error": e}
+                                           for n, e in summary.failed_shards],
+                         "seconds": round(summary.seconds, 3),
+                         "samples_per_hour": summary.samples_per_hour},
+            "documentation": "docs/dataset.md",
+        })

@@ -1,0 +1,473 @@
+"""``dopplertof dataset``: geometry conventions (K, pose, depth), flow and scene flow
+against the sampled motion, the splits (noise model, direct light), kill and resume,
+a changed configuration refused, the reader's round trip, the example configuration."""
+
+import copy
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("h5py")
+
+from dopplertof.dataset import Dataset, DatasetError  # noqa: E402
+from dopplertof.dataset.config import config_from_mapping  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLE = os.path.join(ROOT, "examples", "dataset.toml")
+
+#: a tiny dataset: 3 samples, one per shard, 12x10 pixels
+TINY = {"samples": 3, "samples_per_shard": 1, "seed": 7,
+        "render": {"resolution": [12, 10], "spp": 4, "max_depth": 4},
+        "objects": {"count": [2, 2], "shapes": ["sphere", "cube", "rectangle"],
+                    "materials": ["diffuse", "plastic", "conductor"]}}
+
+
+def _config(changes=None, base=TINY):
+    data = copy.deepcopy(base)
+    for section, values in (changes or {}).items():
+        data.setdefault(section, {}).update(values)
+    return config_from_mapping(data, "<test>")
+
+
+def _truth(config, index, folder="."):
+    """(description, loaded scene, truth arrays) of sample ``index`` (no render)."""
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.dataset.generate import draw_scene
+    from dopplertof.dataset.sample import sample_truth
+    from dopplertof.dataset.scene_text import scene_xml
+
+    dopplertof.set_variant()
+    description = draw_scene(config, index, load_preset(config["render"]["camera"]))
+    scene = dopplertof.scene.load_string(scene_xml(description, 4, 4), {}, base_dir=folder)
+    return description, scene, sample_truth(scene, description)
+
+
+def _pixel_rays(truth):
+    """Unit rays through the pixel centres in camera coordinates, from K."""
+    height, width = truth["depth"].shape
+    u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    rays = np.stack([u, v, np.ones_like(u)], -1) @ np.linalg.inv(truth["K"]).T
+    return rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+
+
+def _ray_cast(scene, origin, directions):
+    """Distances to the nearest surface of a still scene (static part and bodies)."""
+    import mitsuba as mi
+
+    rays = mi.Ray3f(mi.Point3f(*[np.full(len(directions), c, np.float32) for c in origin]),
+                    mi.Vector3f(*[np.ascontiguousarray(directions[:, i], np.float32)
+                                  for i in range(3)]))
+    best = np.full(len(directions), np.inf)
+    for part in [scene.static] + [b.scene for b in scene.bodies]:
+        si = part.ray_intersect(rays)
+        t = np.where(np.asarray(si.is_valid()), np.asarray(si.t, np.float64), np.inf)
+        best = np.minimum(best, t)
+    return best
+
+
+MOVING_CAMERA = {"camera": {"position": [-0.3, 0.3], "yaw_deg": [-15, 15],
+                            "pitch_deg": [-8, 8], "speed": [1.0, 3.0],
+                            "angular_speed": [0.5, 2.0]}}
+
+
+@pytest.mark.parametrize("index,backdrop", [(0, "room"), (1, "room"), (2, "wall")])
+def test_depth_unprojected_with_k_and_pose_lies_on_the_surfaces(index, backdrop):
+    """Every valid pixel's depth along its K ray, placed by the pose, is on a surface of
+    the scene at mid-exposure (a ray cast, 1e-4 relative); z-depth is range x the ray's
+    z through K."""
+    config = _config({**MOVING_CAMERA, "backdrop": {"kind": backdrop}})
+    description, _, truth = _truth(config, index)
+    still = _still_scene(description, ".")  # the mid-exposure poses, held still
+    rays = _pixel_rays(truth)
+    valid = truth["mask"]
+    assert valid.sum() > 50 and np.isfinite(truth["depth"][valid]).all()
+    pose = truth["pose"]
+    world = rays[valid] @ pose[:3, :3].T
+    cast = _ray_cast(still, pose[:3, 3], world)
+    np.testing.assert_allclose(cast, truth["depth"][valid], rtol=1e-4)
+    np.testing.assert_allclose(truth["depth_z"][valid], truth["depth"][valid] * rays[valid][:, 2],
+                               rtol=1e-5)
+    assert np.isnan(truth["depth"][~valid]).all()
+    objects = truth["instance"][valid]
+    assert set(np.unique(objects)) <= set(range(len(description["objects"]) + 1))
+
+
+def _project(K, pose, points):
+    q = (points - pose[:3, 3]) @ pose[:3, :3]
+    return (q @ K.T)[..., :2] / q[..., 2:3], q
+
+
+def _object_pixels(truth, description):
+    """(pixel mask, object per pixel, hit points in world) of the pixels on objects."""
+    on = truth["instance"] >= 1
+    rays = _pixel_rays(truth) @ truth["pose"][:3, :3].T
+    points = truth["pose"][:3, 3] + truth["depth"][..., None].astype(np.float64) * rays
+    return on, truth["instance"] - 1, points
+
+
+@pytest.mark.parametrize("motion,rtol", [({"speed": [2.0, 10.0], "angular_speed": [0, 0]}, 1e-4),
+                                         ({"speed": [0, 0], "angular_speed": [10.0, 50.0]},
+                                          1e-2)])
+def test_flow_and_scene_flow_follow_the_sampled_motion(motion, rtol):
+    """Flow (px over the sequence) and scene flow (m) are the projected motion of the
+    sampled velocities: exact for translation, first order for rotation."""
+    config = _config({"motion": motion})
+    checked = 0
+    for index in range(3):
+        description, _, truth = _truth(config, index)
+        times = description["times_s"]
+        span = times["end"] - times["start"]
+        on, which, points = _object_pixels(truth, description)
+        for k, obj in enumerate(description["objects"]):
+            mask = on & (which == k)
+            if not mask.any():
+                continue
+            p = points[mask]
+            step = (np.asarray(obj["velocity_m_s"]) + np.cross(
+                obj["angular_velocity_rad_s"], p - obj["centre_m"])) * (span / 2)
+            ends = [_project(truth["K"], truth["pose"], p + s * step) for s in (-1, 1)]
+            flow = ends[1][0] - ends[0][0]
+            scale = np.abs(flow).max() + 1e-3
+            np.testing.assert_allclose(truth["flow"][mask], flow, rtol=0, atol=rtol * scale + 1e-4)
+            scene_flow = ends[1][1] - ends[0][1]
+            np.testing.assert_allclose(truth["scene_flow"][mask], scene_flow, rtol=0,
+                                       atol=rtol * np.abs(scene_flow).max() + 1e-6)
+            checked += mask.sum()
+    assert checked > 30
+
+
+@pytest.mark.parametrize("camera", [{}, MOVING_CAMERA["camera"]])
+def test_radial_velocity_truth_is_the_scene_flow_along_the_ray(camera):
+    """velocity_along_ray is the scene flow's component along the pixel's ray (per
+    second); velocity_gt, the rate of the distance along the fixed ray that the phase
+    follows, is the scene flow along the normal over the ray's cosine to it."""
+    config = _config({"motion": {"speed": [2.0, 10.0], "angular_speed": [10.0, 50.0]},
+                      "camera": camera})
+    checked = 0
+    for index in range(3):
+        description, _, truth = _truth(config, index)
+        span = description["times_s"]["end"] - description["times_s"]["start"]
+        rays = _pixel_rays(truth)
+        flow = truth["scene_flow"].astype(np.float64) / span  # m/s
+        normals = truth["normals"].astype(np.float64)
+        cosine = np.sum(rays * normals, -1)
+        valid = truth["mask"] & (np.abs(cosine) > 0.3)
+        along = np.sum(flow * rays, -1)
+        scale = np.abs(along[valid]).max()
+        np.testing.assert_allclose(truth["velocity_along_ray"][valid], along[valid], rtol=0,
+                                   atol=1e-2 * scale + 1e-4)
+        radial = np.sum(flow * normals, -1) / cosine
+        np.testing.assert_allclose(truth["velocity_gt"][valid], radial[valid], rtol=0,
+                                   atol=1e-2 * np.abs(radial[valid]).max() + 1e-4)
+        checked += valid.sum()
+        moving = truth["instance"][valid] >= 1
+        assert np.abs(truth["velocity_gt"][valid][moving]).max() > 0.5  # (something moves)
+    assert checked > 100
+
+
+# ---- Rendered datasets ---------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def in_process_client():
+    """One in-process Dask worker thread (the renders run in this process)."""
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                           dashboard_address=":0")
+    with Client(cluster) as client:
+        yield client
+    cluster.close()
+
+
+def _write_toml(path, data):
+    """``data`` (two levels) as a TOML file."""
+    lines = [f"{k} = {json.dumps(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for section, values in data.items():
+        if isinstance(values, dict):
+            lines.append(f"[{section}]")
+            lines += [f"{k} = {json.dumps(v)}" for k, v in values.items()]
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory, in_process_client):
+    """The TINY dataset rendered once: (its configuration file, its folder)."""
+    from dopplertof.dataset import load_config
+    from dopplertof.dataset.driver import run_dataset
+
+    folder = tmp_path_factory.mktemp("tiny")
+    config_file = _write_toml(folder / "tiny.toml", TINY)
+    summary = run_dataset(load_config(config_file), folder / "out", client=in_process_client,
+                          progress=False)
+    assert summary.ok and summary.rendered == 3 and summary.samples_per_hour > 0
+    return config_file, str(folder / "out")
+
+
+def _shard_bytes(folder):
+    return {n: open(os.path.join(folder, n), "rb").read()
+            for n in sorted(os.listdir(folder)) if n.endswith(".h5")}
+
+
+def test_full_minus_ideal_has_the_noise_models_mean_and_variance(tiny):
+    """raw - raw_ideal over the unclipped pixels: mean 0 and the predicted variance
+    raw_variance (standardized: mean 0 +- 5 sigma of the mean, variance 1 +- 5 sigma;
+    false failure about 1e-6)."""
+    ds = Dataset(tiny[1])
+    z = []
+    for i in range(len(ds)):
+        s = ds[i]
+        raw = s["raw"].astype(np.float64)
+        inside = (raw > 0) & (raw < 4095)
+        z.append(((raw - s["raw_ideal"]) / np.sqrt(s["raw_variance"]))[inside])
+    z = np.concatenate(z)
+    assert z.size > 1000
+    assert abs(z.mean()) < 5 / np.sqrt(z.size)
+    assert abs(z.var() - 1) < 5 * np.sqrt(2 / z.size)
+    assert np.array_equal(Dataset(tiny[1], split="full")[0]["raw"], ds[0]["raw"])
+
+
+def test_direct_split_is_a_max_depth_2_render(tiny):
+    """raw_direct re-rendered from the stored scene alone at max_depth 2 (no noise, the
+    stored photon scale), bitwise; and it differs from the ideal split (multipath)."""
+    import dopplertof
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.sensor import read_frames
+
+    ds = Dataset(tiny[1], split="direct")
+    attrs, sample = ds.attributes(0), ds[0]
+    dopplertof.set_variant()
+    scene = ds.scene(0)
+    preset = load_preset(attrs["camera_preset"]["name"])
+    direct = capture_camera(scene, preset, 4, attrs["render_seed"], params={"max_depth": 2},
+                            noise=False, progress=False)
+    readout = read_frames(direct.rendered, direct.radiance.mean(-1),
+                          [f.integration_s for f in preset.frames], preset.sensor,
+                          preset.contrast, None, photons_per_unit=attrs["photons_per_unit"])
+    assert np.array_equal(readout.raw_ideal.astype(np.float32), sample["raw"])
+    assert np.array_equal(sample["raw"], sample["raw_direct"])
+    assert np.abs(sample["raw_direct"] - sample["raw_ideal"]).max() > 1.0
+
+
+def test_reader_round_trip_of_every_key_with_its_units(tiny):
+    """Every key comes back as rendered (sample 0 rendered again here), with its unit
+    in the file and in Dataset.units."""
+    import h5py
+
+    import dopplertof
+    from dopplertof.dataset import load_config
+    from dopplertof.dataset.sample import UNITS, render_sample
+
+    dopplertof.set_variant()
+    arrays, attributes = render_sample(load_config(tiny[0]), 0, tiny[1])
+    ds = Dataset(tiny[1])
+    assert len(ds) == 3 and ds.failed == [] and ds.units == UNITS
+    sample = ds[0]
+    assert set(UNITS) <= set(sample) and int(sample["seed"]) == attributes["render_seed"]
+    for key in UNITS:
+        assert sample[key].dtype == arrays[key].dtype, key
+        np.testing.assert_array_equal(sample[key], arrays[key], err_msg=key)
+    with h5py.File(os.path.join(tiny[1], "shard_00000.h5")) as f:
+        group = f["sample_00000000"]
+        assert {k: group[k].attrs["units"] for k in group} == UNITS
+        assert group["depth"].compression == "gzip" and group["depth"].chunks
+    assert ds.attributes(0)["scene_xml"] == attributes["scene_xml"]
+    with pytest.raises(DatasetError, match="unknown split"):
+        Dataset(tiny[1], split="noisy")
+
+
+def test_a_changed_config_in_the_same_folder_is_refused(tiny, tmp_path, capsys):
+    from dopplertof.cli import main
+
+    before = _shard_bytes(tiny[1])
+    changed = copy.deepcopy(TINY)
+    changed["render"]["spp"] = 8
+    code = main(["dataset", _write_toml(tmp_path / "changed.toml", changed), "-o", tiny[1],
+                 "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "another configuration" in err and "Traceback" not in err
+    assert _shard_bytes(tiny[1]) == before
+    with open(os.path.join(tiny[1], "dataset.json")) as f:
+        assert json.load(f)["config"]["render"]["spp"] == 4
+
+
+def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_process_client):
+    """Sample 1 raises every time: tried 1 + retries times, its shard written without it,
+    dataset.json and the reader list it; the others are there."""
+    from dopplertof.dataset import load_config, sample
+    from dopplertof.dataset.driver import run_dataset
+
+    calls = []
+    real = sample.render_sample
+
+    def flaky(config, index, folder):
+        calls.append(index)
+        if index == 1:
+            raise RuntimeError("out of luck")
+        return real(config, index, folder)
+
+    monkeypatch.setattr(sample, "render_sample", flaky)
+    data = {**TINY, "samples": 2, "samples_per_shard": 2}
+    config = load_config(_write_toml(tmp_path / "two.toml", data))
+    summary = run_dataset(config, tmp_path / "out", client=in_process_client, retries=1,
+                          progress=False)
+    assert calls == [0, 1, 1] and not summary.ok
+    assert summary.failed == [{"index": 1, "error": "RuntimeError: out of luck"}]
+    with open(tmp_path / "out" / "dataset.json") as f:
+        assert json.load(f)["failed_samples"] == summary.failed
+    ds = Dataset(tmp_path / "out")
+    assert len(ds) == 1 and ds.failed == summary.failed and int(ds[0]["index"]) == 0
+
+
+def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
+    from dopplertof.cli import main
+
+    for data, words in (({**TINY, "sampels": 3}, "unknown key sampels, did you mean 'samples'"),
+                        ({**TINY, "objects": {"shapes": ["torus"]}}, "objects.shapes"),
+                        ({**TINY, "render": {"resolution": [8, 8]}}, "missing key render.spp"),
+                        ({**TINY, "motion": {"speed": [3.0, 1.0]}}, "motion.speed out of range"),
+                        ({**TINY, "motion": {"angular_speed": [0.0, 5000.0]}},
+                         "motion.angular_speed: 5000 rad/s turns more than")):
+        code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
+                     str(tmp_path / "out")])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and words in err, err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_killed_run_resumes_bitwise(tiny, tmp_path):
+    """The command killed (SIGKILL, its workers too) after its first shard, run again:
+    the shards are bitwise those of the uninterrupted run."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "dopplertof.cli", "dataset", tiny[0], "-o", str(out),
+               "--workers", "1", "--quiet"]
+    env = {**os.environ, "PYTHONPATH": os.path.join(ROOT, "src")}
+    process = subprocess.Popen(command, env=env, start_new_session=True,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while not (out / "shard_00000.h5").exists() and process.poll() is None:
+            assert time.monotonic() < deadline, "no shard after 300 s"
+            time.sleep(0.05)
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert not (out / "shard_00002.h5").exists(), "the run finished before the kill"
+    first = os.stat(out / "shard_00000.h5").st_ino
+    again = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert _shard_bytes(out) == _shard_bytes(tiny[1])
+    assert os.stat(out / "shard_00000.h5").st_ino == first  # resumed: not written again
+    assert not [n for n in os.listdir(out) if ".tmp" in n]
+
+
+def test_example_config_renders_4_samples_at_32x32(tmp_path, in_process_client):
+    from dopplertof.dataset import load_config
+    from dopplertof.dataset.driver import run_dataset
+
+    summary = run_dataset(load_config(EXAMPLE), tmp_path / "out", client=in_process_client,
+                          progress=False)
+    ds = Dataset(tmp_path / "out")
+    assert summary.ok and len(ds) == 4
+    assert ds[3]["raw"].shape == (6, 32, 32) and ds[3]["flow"].shape == (32, 32, 2)
+
+
+OCTAHEDRON = """v 1 0 0
+v -1 0 0
+v 0 1 0
+v 0 -1 0
+v 0 0 1
+v 0 0 -1
+f 1 3 5
+f 3 2 5
+f 2 4 5
+f 4 1 5
+f 3 1 6
+f 2 3 6
+f 4 2 6
+f 1 4 6
+"""
+
+
+def _still_scene(description, folder):
+    """The scene of ``description`` with everything held at its mid-exposure pose."""
+    import dopplertof
+    from dopplertof.dataset.scene_text import scene_xml
+
+    description = copy.deepcopy(description)
+    for thing in description["objects"] + [description["camera"]]:
+        thing["velocity_m_s"] = thing["angular_velocity_rad_s"] = [0.0, 0.0, 0.0]
+    description["camera"]["moving"] = False
+    return dopplertof.scene.load_string(scene_xml(description, 4, 4), {}, base_dir=folder)
+
+
+def test_meshes_are_drawn_copied_into_the_dataset_and_seen(tmp_path, in_process_client):
+    """A mesh folder's files are objects; the dataset holds its own copy (the sample's
+    scene loads with the folder gone) and the pixels on them unproject onto them."""
+    import shutil
+
+    from dopplertof.dataset.driver import run_dataset
+
+    (tmp_path / "config" / "shapes").mkdir(parents=True)
+    (tmp_path / "config" / "shapes" / "octahedron.obj").write_text(OCTAHEDRON)
+    data = copy.deepcopy(TINY)
+    data.update(samples=1)
+    data["objects"].update(shapes=["mesh"], mesh_folder="shapes", size=[0.6, 0.8])
+    config = config_from_mapping(data, "<test>", str(tmp_path / "config"))
+    out = str(tmp_path / "out")
+    assert run_dataset(config, out, client=in_process_client, progress=False).ok
+    shutil.rmtree(tmp_path / "config")
+    ds = Dataset(out)
+    description, truth = ds.attributes(0)["description"], ds[0]
+    assert {o["mesh"] for o in description["objects"]} == {"meshes/octahedron.obj"}
+    assert len(ds.scene(0).bodies) == 2
+    on = truth["instance"] >= 1
+    assert on.sum() > 5
+    world = _pixel_rays(truth)[on] @ truth["pose"][:3, :3].T
+    np.testing.assert_allclose(_ray_cast(_still_scene(description, out), truth["pose"][:3, 3],
+                                         world), truth["depth"][on], rtol=1e-4)
+    with pytest.raises(DatasetError, match="holds no"):
+        config_from_mapping({**data, "objects": {**data["objects"], "mesh_folder": "."}},
+                            "<test>", str(tmp_path))
+
+
+@pytest.mark.parametrize("placement,offset", [("camera", [0.0, 0.0, 0.0]),
+                                              ("offset", [0.4, -0.1, 0.2])])
+def test_the_light_rides_with_the_camera_at_its_offset(placement, offset):
+    """The point light is where the camera's frame puts it (x right, y down, z forward)
+    at the first keyframe, and moves with the camera."""
+    import mitsuba as mi
+
+    from dopplertof.dataset.generate import camera_pose
+
+    config = _config({**MOVING_CAMERA, "light": {"placement": placement, "offset": offset}})
+    description, scene, _ = _truth(config, 0)
+    times = description["times_s"]
+    pose = camera_pose(description["camera"], times["start"] - times["mid"])
+    (emitter,) = scene.static.emitters()
+    position = np.array(mi.traverse(emitter)["position"], np.float64).ravel()
+    np.testing.assert_allclose(position, pose[:3, :3] @ offset + pose[:3, 3], atol=1e-5)
+    assert [m for _, m in scene.light_motions] == [scene.sensor_motion]
+
+
+def test_a_complete_dataset_run_again_renders_nothing(tiny, capsys):
+    """The same command on a complete folder: every shard skipped, no cluster started,
+    exit 0, the shards untouched."""
+    from dopplertof.cli import main
+
+    before = _shard_bytes(tiny[1])
+    assert main(["dataset", tiny[0], "-o", tiny[1]]) == 0
+    out = capsys.readouterr().out
+    assert "0 rendered now, 3 shards already complete, 0 samples failed" in out
+    assert _shard_bytes(tiny[1]) == before
