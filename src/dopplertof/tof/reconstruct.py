@@ -74,8 +74,28 @@ INVALID_REASONS = {
     3: "a tap saturated (full well or ADC maximum)",
     4: "predicted standard deviation above the trust limit (max_velocity_std or "
        "max_depth_std)",
+    5: "footprint mixes surfaces (during the exposure the filter footprint sees two "
+       "bodies, a body and the static scene or the background, or an occluding edge: a "
+       "silhouette pixel, whose captures mix two surfaces' phases and brightness); from "
+       "the scene's geometry (ground_truth.mixed_footprints), kept with keep_mixed_pixels",
 }
-VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED, TOO_UNCERTAIN = 0, 1, 2, 3, 4
+VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED, TOO_UNCERTAIN, MIXED_FOOTPRINT = 0, 1, 2, 3, 4, 5
+
+
+def reason_name(code: int) -> str:
+    """The short name of a reason code (its explanation up to the first parenthesis or
+    colon): summary.json's keys and the previews' captions."""
+    return INVALID_REASONS[code].split(" (")[0].split(":")[0]
+
+
+def reason_counts(reasons) -> dict:
+    """{short name: pixels} of every reason code present in ``reasons`` (valid left out)."""
+    counts = {}
+    for code in INVALID_REASONS:
+        n = int(np.sum(np.asarray(reasons) == code))
+        if n:
+            counts[reason_name(code)] = n
+    return counts
 
 
 class ReconstructionError(ValueError):
