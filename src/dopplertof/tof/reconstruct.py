@@ -435,6 +435,18 @@ def velocity_inverse_square(ratio, phase_mid, depth, model: CaptureModel) -> np.
     return np.where(disc >= 0, v, np.nan)
 
 
+def brightness_curvature_bias(model: CaptureModel, curvature) -> np.ndarray:
+    """The velocity bias (m/s) of a path whose brightness is curved in time during the
+    exposure, b(tau) ~ b_mid (1 + curvature tau^2) (tau from mid-exposure, curvature in
+    1/s^2), for the sinusoid: the least squares of the offsets 0 and 1/4 cancels the
+    linear term of b, not this one. With omega_d T = 2 pi h the heterodyne capture's
+    tau^2 term is (-1)^h 2 T / omega_d^2 cos(a) over T, so r = 2 curvature / omega_d^2
+    and v = c curvature / (omega_d omega_g). A surface turning at omega under a
+    colocated light, cos(theta(t)): curvature -omega^2 / 2 (docs/camera.md)."""
+    return (SPEED_OF_LIGHT * np.asarray(curvature, np.float64)
+            / (model.omega_d * model.omega_g))
+
+
 def resolve_calibration(calibration: str | None, waveform: str) -> str:
     calibration = "auto" if calibration is None else calibration
     if calibration not in VELOCITY_CALIBRATIONS:
