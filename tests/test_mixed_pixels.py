@@ -51,8 +51,6 @@ def test_kept_pixels_are_within_noise_of_the_truth_and_the_mean_error_is_small(f
     ball = result.summary["bodies"][0]
     assert abs(ball["velocity_error_m_s"]["mean_signed"]) < 0.5
     assert ball["velocity_error_m_s"]["p95_abs"] < 4.0
-    # the truth's spread is over the same pixels: no grazing silhouette truth in it
-    assert ball["velocity_gt_p5_m_s"] > -14.0
 
 
 def test_keep_mixed_pixels_reconstructs_them_and_says_so(frames):

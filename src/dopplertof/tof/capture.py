@@ -543,9 +543,7 @@ def _region(name, on, recon: Reconstruction, truth: GroundTruth) -> dict:
     """Per-pixel velocity error statistics over the pixels ``on`` (the same pixels for
     truth and measurement), with the spread of the truth there."""
     measured = recon.velocity[on & np.isfinite(recon.velocity)]
-    # the truth's spread over the same pixels: mixed footprints (NaN) left out too
-    kept = on & (recon.velocity_reasons != rec.MIXED_FOOTPRINT)
-    true = truth.velocity[kept & np.isfinite(truth.velocity)]
+    true = truth.velocity[on & np.isfinite(truth.velocity)]
     return {
         "name": name, "pixels": int(on.sum()),
         "velocity_error_m_s": error_stats(recon.velocity[on], truth.velocity[on]),
