@@ -142,3 +142,17 @@ def test_an_occluding_edge_is_a_depth_jump_and_a_grazing_plane_is_not():
     missed[:, 3:] = np.nan  # nothing hit there: the bodies' test's business, not a jump
     assert _depth_jump(np.stack([grazing, edge, edge.T, missed])).tolist() == \
         [False, True, True, False]
+
+
+def test_the_command_line_keeps_them_on_request(tmp_path, capsys):
+    import json
+
+    from dopplertof.cli import main
+
+    for flag, expected in (([], "NaN"), (["--keep-mixed-pixels"], "kept")):
+        out = tmp_path / expected
+        assert main(["capture", SPHERE, "-D", "res=8", "--spp", "4", "--quiet", "-o",
+                     str(out), *flag]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["velocity"]["mixed_pixels"] == expected
+    assert "footprint mixes surfaces" in capsys.readouterr().out
