@@ -156,3 +156,13 @@ def test_the_command_line_keeps_them_on_request(tmp_path, capsys):
         summary = json.loads((out / "summary.json").read_text())
         assert summary["velocity"]["mixed_pixels"] == expected
     assert "footprint mixes surfaces" in capsys.readouterr().out
+
+
+def test_the_footprints_traced_a_row_at_a_time_are_the_same(monkeypatch):
+    import sys
+
+    gt = sys.modules["dopplertof.tof.ground_truth"]  # (the package's name is the function)
+    scene = sphere(res=12)
+    whole = mixed_footprints(scene)
+    monkeypatch.setattr(gt, "FOOTPRINT_LANES", 1)  # (one row of pixels per kernel)
+    assert np.array_equal(mixed_footprints(scene), whole) and whole.any()

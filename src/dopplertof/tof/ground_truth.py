@@ -23,6 +23,7 @@ Pixels that hit nothing are NaN. Static surfaces seen by a static camera move at
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,9 +156,12 @@ def _trace(mi, scene, position, time, start: float, end: float):
     return ray, si, body
 
 
-#: footprint samples per side of a pixel's filter footprint (edge to edge), traced at
-#: the exposure's start, middle and end by :func:`mixed_footprints`
-FOOTPRINT_SAMPLES = 5
+#: spacing of the footprint samples (pixels) of :func:`mixed_footprints`: a quarter pixel,
+#: 5 x 5 over the box filter's pixel (edge to edge), 17 x 17 over a radius-2 gaussian's
+FOOTPRINT_SPACING = 0.25
+
+#: at most this many rays per footprint kernel (rows of pixels at a time): a few hundred MB
+FOOTPRINT_LANES = 1 << 22
 
 #: neighbouring footprint samples on one body whose depths differ by more than this
 #: fraction of the nearer see an occluding edge, not one surface: on a continuous
@@ -166,34 +170,48 @@ FOOTPRINT_SAMPLES = 5
 FOOTPRINT_DEPTH_JUMP = 0.2
 
 
-def mixed_footprints(scene, params=None, samples: int = FOOTPRINT_SAMPLES) -> np.ndarray:
+def mixed_footprints(scene, params=None) -> np.ndarray:
     """(H, W) bool: the pixels whose filter footprint sees more than one surface during
-    the exposure. At the exposure's start, middle and end, the rays through a ``samples``
-    x ``samples`` grid spanning the film filter's reach (the box filter's: the pixel,
-    edges included) hit different bodies (a moving body and the static scene, another
-    body, or nothing), or neighbouring samples' depths jump by more than
-    :data:`FOOTPRINT_DEPTH_JUMP` (an occluding edge, of one body or of the static scene). Such a pixel's captures mix
-    two surfaces' phases and brightness: its velocity and depth are neither surface's
-    (a silhouette of the starter sphere reads -500 to -900 m/s). Shapes of one motion
-    meeting at a crease (two walls in a corner) are one surface here: one velocity and
-    a continuous depth, whose mixture is that of a curved surface."""
+    the exposure. At the exposure's start, middle and end, the rays through a grid of
+    samples :data:`FOOTPRINT_SPACING` apart over the film filter's reach (the box
+    filter's: the pixel, edges included) hit different bodies (a moving body and the
+    static scene, another body, or nothing), or neighbouring samples' depths jump by
+    more than :data:`FOOTPRINT_DEPTH_JUMP` (an occluding edge, of one body or of the
+    static scene). Such a pixel's captures mix two surfaces' phases and brightness: its
+    velocity and depth are neither surface's (a silhouette of the starter sphere reads
+    -500 to -900 m/s). Shapes of one motion meeting at a crease (two walls in a corner)
+    are one surface here: one velocity and a continuous depth, as a curved surface."""
+    from ..integrators.film import _filter_of
+
+    width, height = (int(v) for v in scene.sensor.film().crop_size())
+    reach = _filter_of(scene.sensor.film())[1]
+    samples = int(math.ceil(2 * reach / FOOTPRINT_SPACING - 1e-9)) + 1
+    offsets = np.linspace(-reach, reach, samples)
+    rows = max(1, FOOTPRINT_LANES // (width * samples * samples))
+    mixed = np.zeros((height, width), bool)
+    for first in range(0, height, rows):  # ---- a block of rows at a time ----
+        last = min(height, first + rows)
+        mixed[first:last] = _mixed_rows(scene, params, width, height, first, last, offsets)
+    return mixed
+
+
+def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, offsets):
+    """:func:`mixed_footprints` of the pixel rows first .. last - 1 ((rows, W) bool), with
+    the footprint samples at ``offsets`` (pixels) from the pixel centre in x and y."""
     import drjit as dr
 
     from ..backend import require_variant
-    from ..integrators.film import _filter_of
 
     mi = require_variant()
-    width, height = (int(v) for v in scene.sensor.film().crop_size())
-    reach = _filter_of(scene.sensor.film())[1]
+    samples = len(offsets)
     # ---- Film positions: every pixel's grid of footprint samples, pixel-major ----
-    offsets = np.linspace(-reach, reach, samples)
     sx, sy = (a.ravel() for a in np.meshgrid(offsets, offsets))
-    py, px = (a.ravel() for a in np.mgrid[0:height, 0:width] + 0.5)
+    py, px = (a.ravel() for a in np.mgrid[first:last, 0:width] + 0.5)
     x = ((px[:, None] + sx[None, :]) / width).ravel()
     y = ((py[:, None] + sy[None, :]) / height).ravel()
     position = mi.Point2f(mi.Float(x), mi.Float(y))
     # ---- Traced at the exposure's start, middle and end ----
-    mixed = np.zeros(width * height, bool)
+    mixed = np.zeros(px.size, bool)
     start, _, end = mid_exposure(scene, params)
     for instant in (start, 0.5 * (start + end), end):
         _, si, body = _trace(mi, scene, position, dr.full(mi.Float, instant, x.size),
@@ -201,10 +219,9 @@ def mixed_footprints(scene, params=None, samples: int = FOOTPRINT_SAMPLES) -> np
         dr.eval(si.t, body)
         body = np.asarray(body, np.int64).reshape(-1, sx.size)
         mixed |= body.min(axis=1) != body.max(axis=1)
-        depth = np.asarray(si.t, np.float64).reshape(-1, samples, samples)
-        mixed |= _depth_jump(np.where(body > -2, depth.reshape(body.shape), np.nan)
-                             .reshape(depth.shape))
-    return mixed.reshape(height, width)
+        depth = np.where(body > -2, np.asarray(si.t, np.float64).reshape(body.shape), np.nan)
+        mixed |= _depth_jump(depth.reshape(-1, samples, samples))
+    return mixed.reshape(last - first, width)
 
 
 def _depth_jump(depth) -> np.ndarray:
