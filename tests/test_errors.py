@@ -1,5 +1,6 @@
 """Errors that name the cause (issue 15, items 6-9, 11-13, 15): one line, exit 2."""
 
+import json
 import os
 import subprocess
 import sys
@@ -86,6 +87,23 @@ def test_scene_without_integrator_says_the_defaults_on_stderr(tmp_path, capsys):
     assert "has no <integrator>" in err and "homodyne" in err and "30 MHz" in err
     assert out == ""
     assert dopplertof.load_file(SPHERE, {"res": 4}).notes == ()
+
+
+def test_capture_without_integrator_says_what_it_runs(tmp_path, capsys):
+    # issue 24 section 4 item 5: the note said "a homodyne capture", then heterodyne ran
+    text = open(SPHERE).read()
+    start, end = text.index("<integrator"), text.index("</integrator>") + len("</integrator>")
+    plain = tmp_path / "plain.xml"
+    plain.write_text(text[:start] + text[end:])
+    out_dir = tmp_path / "c"
+    assert main(["capture", str(plain), "-o", str(out_dir), *TINY]) == 0
+    err = capsys.readouterr().err
+    summary = json.loads((out_dir / "summary.json").read_text())
+    ran = {c["kind"]: c["hetero_frequency"] for c in summary["captures"]}
+    assert ran["heterodyne"] == summary["modulation"]["hetero_frequency"] == 1.0
+    assert "a homodyne capture" not in err
+    assert "`capture` its homodyne captures and heterodyne ones at 1 beat period" in err
+    assert "`render` renders one homodyne image" in err
 
 
 def test_cuda_without_a_gpu_says_so_and_what_works():

@@ -120,6 +120,9 @@ def _add_capture_command(sub) -> None:
     c.add_argument("--min-signal", type=float, metavar="FRACTION",
                    help="velocity/depth are NaN where the homodyne signal is below this "
                    "fraction of the image's 99th percentile (default 0.01)")
+    c.add_argument("--keep-mixed-pixels", action="store_true",
+                   help="reconstruct the pixels whose footprint mixes surfaces (silhouettes: "
+                   "a mixture of two surfaces' velocities) instead of NaN")
     # ---- how it runs
     _add_variant_option(c)
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
@@ -306,7 +309,8 @@ def _cmd_capture(args) -> int:
                                 progress=False if args.quiet else None, on_capture=report,
                                 mc_batches=args.mc_batches,
                                 max_velocity_std=args.max_velocity_std,
-                                max_depth_std=args.max_depth_std)
+                                max_depth_std=args.max_depth_std,
+                                keep_mixed_pixels=args.keep_mixed_pixels)
     result.write(args.output)
     _print_warnings(result.summary)
     print(format_summary(result.summary, args.output))

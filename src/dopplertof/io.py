@@ -493,6 +493,14 @@ NO_SIGNAL_COLOUR = "#ff00ff"
 NO_SIGNAL_NOTE = "hatched magenta: NaN (nothing hit or signal too weak)"
 
 
+def masked_note(counts: dict) -> str:
+    """The caption of a preview's hatched (NaN) pixels, each kind by its own reason:
+    ``counts`` maps a reason to its pixels, e.g. "hatched magenta: NaN, 124 px footprint
+    mixes surfaces, 3 px nothing hit" (kinds without pixels left out)."""
+    kinds = [f"{n} px {why}" for why, n in counts.items() if n]
+    return "hatched magenta: NaN, " + ", ".join(kinds) if kinds else "no NaN pixels"
+
+
 def no_signal_colours(cmap: str):
     """The colour map ``cmap`` with NaN transparent: the hatching behind shows through."""
     import matplotlib

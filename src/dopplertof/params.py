@@ -24,6 +24,10 @@ FILM_NORMALIZATIONS = ("expected", "weights")
 #: default exposure in seconds when neither ``time`` nor the sensor's shutter gives one
 DEFAULT_EXPOSURE = 0.0015
 
+#: beat periods per exposure of a capture's heterodyne captures when the scene sets no
+#: (non-zero) hetero_frequency and the capture is given none (tof.capture)
+CAPTURE_HETERO_FREQUENCY = 1.0
+
 #: the modulation frequencies accepted, in MHz (w_g, w_s, capture's unwrap frequency,
 #: precision's --w-g): 1 Hz (the radiance capture's constant weight) to 100 GHz, every
 #: ToF camera's and far beyond; a value above is a unit mistake (Hz for MHz: w_g=30e6)

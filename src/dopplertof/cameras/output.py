@@ -46,27 +46,41 @@ def write_camera_result(result, folder) -> list:
     return written
 
 
+def masked_caption(recon, truth=None) -> str:
+    """The caption of a camera map's NaN pixels, each mask by its name and count (as the
+    summary's masked_pixels: a pixel can be in several), and with ``truth`` (a map that
+    needs it) the others where the truth's ray hits nothing."""
+    counts = dict(recon.describe()["masked_pixels"])
+    if truth is not None:
+        masked = recon.saturated | recon.low_confidence | recon.unwrap_failed
+        counts["nothing hit"] = int(np.sum(~np.isfinite(truth) & ~masked))
+    return io.masked_note(counts)
+
+
 def _write_previews(result, path, camera: str) -> None:
     """depth, truth, error, amplitude (and velocity) maps and the raw frames' grid."""
     recon = result.reconstruction
+    nothing = io.masked_note({"nothing hit": int(np.sum(~np.isfinite(result.depth_gt)))})
     finite = np.concatenate([a[np.isfinite(a)] for a in (recon.depth, result.depth_gt)])
     lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
               if finite.size else (None, None))
-    for name, data, title in (("depth", recon.depth, f"{camera}: radial range"),
-                              ("depth_gt", result.depth_gt, "ground truth range, mid-sequence")):
+    for name, data, title, note in (
+            ("depth", recon.depth, f"{camera}: radial range", masked_caption(recon)),
+            ("depth_gt", result.depth_gt, "ground truth range, mid-sequence", nothing)):
         figures.write_map(path(f"{name}.png"), data, title, "m along the ray", vmin=lo,
-                          vmax=hi, note=io.NO_SIGNAL_NOTE)
+                          vmax=hi, note=note)
     figures.write_map(path("depth_error.png"), recon.depth - result.depth_gt,
                       f"{camera}: range error (camera - truth)", "m", cmap="PuOr_r",
-                      symmetric=True, note=io.NO_SIGNAL_NOTE)
+                      symmetric=True, note=masked_caption(recon, result.depth_gt))
     figures.write_map(path("amplitude.png"), recon.amplitude, f"{camera}: amplitude", "DN",
                       cmap="gray")
     if recon.velocity is not None:
         limit = figures.truth_limit(result.velocity_gt, recon.velocity)
-        for name, data in (("velocity", recon.velocity), ("velocity_gt", result.velocity_gt)):
+        for name, data, note in (("velocity", recon.velocity, masked_caption(recon)),
+                                 ("velocity_gt", result.velocity_gt, nothing)):
             figures.write_map(path(f"{name}.png"), data, f"{camera}: {name}",
                               "m/s (+ receding)", cmap="RdBu_r", vmax=limit, symmetric=True,
-                              note=io.NO_SIGNAL_NOTE)
+                              note=note)
     _write_raw_grid(path("raw.png"), result.readout.raw, result.summary["frames"], camera)
 
 

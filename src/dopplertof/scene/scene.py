@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-from ..params import ParameterError, RenderParams
+from ..params import CAPTURE_HETERO_FREQUENCY, ParameterError, RenderParams
 
 
 #: the integrator types of a D-ToF scene (the second is the published name)
@@ -205,10 +205,13 @@ def default_integrator_note(source: str) -> str:
     """What a scene without a D-ToF integrator renders with."""
     p = RenderParams()
     depth = "unbounded" if p.max_depth == -1 else p.max_depth
-    return (f"{source} has no <integrator>: using the D-ToF defaults, a homodyne capture "
-            f"(hetero_frequency 0, sensor offset 0) at w_g {p.w_g:g} MHz, "
+    return (f"{source} has no <integrator>: using the D-ToF defaults: w_g {p.w_g:g} MHz, "
             f"{p.wave_function_type} waveform, max_depth {depth}, time sampling "
-            f"{p.time_sampling_method}")
+            f"{p.time_sampling_method}, no hetero_frequency; `render` "
+            "renders one homodyne image (sensor offset 0), `capture` its homodyne captures "
+            f"and heterodyne ones at {CAPTURE_HETERO_FREQUENCY:g} beat period(s) per "
+            "exposure (its default where the scene sets no hetero_frequency; a --camera "
+            "preset: the preset's frames)")
 
 
 @dataclass

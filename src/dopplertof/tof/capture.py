@@ -34,10 +34,10 @@ import numpy as np
 
 from ..arguments import check_params, check_scene, check_seed, check_spp
 from ..modulation import SPEED_OF_LIGHT
-from ..params import RenderParams, frequency_problem
+from ..params import CAPTURE_HETERO_FREQUENCY, RenderParams, frequency_problem
 from ..scene.scene import keyframe_coverage_warning
 from . import reconstruct as rec
-from .ground_truth import GroundTruth, ground_truth, light_colocation
+from .ground_truth import GroundTruth, ground_truth, light_colocation, mixed_footprints
 from .noise import NoiseModel, apply_noise
 from . import precision as prec
 
@@ -45,7 +45,7 @@ from . import precision as prec
 RADIANCE_FREQUENCY_MHZ = 1e-6
 
 #: default heterodyne beat periods per exposure when the scene gives none
-DEFAULT_HETERO_FREQUENCY = 1.0
+DEFAULT_HETERO_FREQUENCY = CAPTURE_HETERO_FREQUENCY
 
 
 CALIBRATION_NOTES = {
@@ -62,7 +62,7 @@ CALIBRATION_NOTES = {
 ROTATION_NOTE = ("the inverse-square calibration does not model the brightness change of a "
                  "turning surface (its cosine term): expect a velocity bias of several "
                  "percent on {names} with this waveform (rectangular, examples/"
-                 "rotating_cube.xml: -12% median); the sinusoidal waveform has none (+0.3%)")
+                 "rotating_cube.xml: -13% median); the sinusoidal waveform has none (+0.3%)")
 
 
 def rotating_bodies(scene, base: RenderParams) -> list:
@@ -224,8 +224,8 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
             noise: NoiseModel | bool | None = None, min_signal_fraction: float | None = None,
             velocity_calibration: str = "auto", common_random_numbers: bool = True,
             progress: bool | None = None, on_capture=None, mc_batches: int | None = None,
-            max_velocity_std: float | None = None,
-            max_depth_std: float | None = None) -> CaptureResult:
+            max_velocity_std: float | None = None, max_depth_std: float | None = None,
+            keep_mixed_pixels: bool = False) -> CaptureResult:
     """Render every capture of one D-ToF frame, reconstruct velocity and depth, and
     compare them with the exact truth.
 
@@ -240,18 +240,17 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     colocated point light; uses each pixel's depth) or "auto" (inverse-square for
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
-    as on_capture(spec, seconds) after each render.
-    mc_batches: render every capture B times with spp samples (the first is the capture,
-    bitwise as without) and predict per-pixel standard deviations of velocity and depth
-    (result.uncertainty, summary "precision"; its "cost": B x the render time).
-    max_velocity_std, max_depth_std: NaN where the predicted total standard deviation
-    is larger (implies mc_batches=8 when not given).
-    """
+    as on_capture(spec, seconds) after each render. mc_batches: render every capture B
+    times with spp samples (the first is the capture, bitwise as without) and predict
+    per-pixel standard deviations (result.uncertainty, summary "precision" and its
+    "cost"). max_velocity_std, max_depth_std: NaN where the predicted total standard
+    deviation is larger (implies mc_batches=8). keep_mixed_pixels: reconstruct the
+    pixels whose footprint mixes surfaces (silhouettes) instead of NaN (reason 5)."""
     started = _time.perf_counter()
     settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
                                noise, min_signal_fraction, velocity_calibration,
                                common_random_numbers, mc_batches, max_velocity_std,
-                               max_depth_std)
+                               max_depth_std, keep_mixed_pixels)
     base, model, unwrap = settings.base, settings.model, settings.unwrap
 
     # ---- Render every capture ----
@@ -260,13 +259,14 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
         int(settings.spp), settings.seed, settings.common_random_numbers,
         settings.mc_batches, progress, on_capture)
 
-    # ---- Reconstruct, with sensor noise when asked, and the truth ----
+    # ---- The truth; reconstruct (mixed footprints NaN), with sensor noise when asked ----
     truth = ground_truth(scene, base)
+    truth.mixed = mixed_footprints(scene, base)
     unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
     clean = _reconstruct(rendered, model, unwrap, settings.min_signal_fraction,
-                         settings.calibration)
+                         settings.calibration, mixed=settings.masked_mixed(truth))
     captures, reconstruction, noise_free, noise, noise_info = _sensor_readout(
-        rendered, unmodulated, clean, settings)
+        rendered, unmodulated, clean, settings, settings.masked_mixed(truth))
 
     # ---- Predicted precision and the masks it sets ----
     uncertainty, limit_counts = _predict_precision(rendered, batches, unmodulated, clean,
@@ -296,11 +296,17 @@ class _Settings:
     common_random_numbers: bool  #: one seed for every capture (else seed + its index)
     limits: tuple  #: (max_velocity_std, max_depth_std), each None when not set
     mc_batches: int | None
+    keep_mixed_pixels: bool = False  #: reconstruct mixed footprints instead of NaN
+
+    def masked_mixed(self, truth: GroundTruth):
+        """The footprints to mask as mixed (reason MIXED_FOOTPRINT), or None (kept)."""
+        return None if self.keep_mixed_pixels else truth.mixed
 
 
 def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency, noise,
                     min_signal_fraction, velocity_calibration, common_random_numbers,
-                    mc_batches, max_velocity_std, max_depth_std) -> _Settings:
+                    mc_batches, max_velocity_std, max_depth_std,
+                    keep_mixed_pixels=False) -> _Settings:
     """:func:`capture`'s arguments checked and resolved, in the order of its error
     messages (a CaptureError or PrecisionError names the first bad one)."""
     check_scene(scene, "scene")
@@ -323,21 +329,26 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
         mc_batches = prec.check_batches(mc_batches)
+    if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
+        raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
     return _Settings(base, spp, seed, model, unwrap, calibration, noise,
-                     min_signal_fraction, common_random_numbers, limits, mc_batches)
+                     min_signal_fraction, common_random_numbers, limits, mc_batches,
+                     bool(keep_mixed_pixels))
 
 
-def _sensor_readout(rendered, unmodulated, clean: Reconstruction, settings: _Settings):
+def _sensor_readout(rendered, unmodulated, clean: Reconstruction, settings: _Settings,
+                    mixed=None):
     """What the camera records and reports: (captures, reconstruction, the noise-free
-    reconstruction, the noise model resolved, its summary entry). Without sensor noise,
-    the renders and ``clean`` (and None for the rest)."""
+    reconstruction, the noise model resolved, its summary entry), with the footprints
+    ``mixed`` masked. Without sensor noise, the renders and ``clean`` (and None for the
+    rest)."""
     if settings.noise is None:
         return rendered, clean, None, None, None
     captures, saturated, noise = apply_noise(rendered, unmodulated, settings.model.exposure,
                                              settings.noise)
     reconstruction = _reconstruct(captures, settings.model, settings.unwrap,
                                   settings.min_signal_fraction, settings.calibration,
-                                  saturated)
+                                  saturated, mixed)
     noise_info = noise.describe()
     noise_info["saturated_pixels"] = int(saturated.sum())
     noise_info["signal_electrons_per_unit"] = noise.electrons_per_unit(settings.model.exposure)
@@ -444,7 +455,11 @@ def _homodyne_set(captures, prefix):
     return {o: captures[f"{prefix}_{_offset_name(o)}"] for o in rec.DEPTH_OFFSETS}
 
 
-def _reconstruct(captures, model, unwrap, min_signal_fraction, calibration, saturated=None):
+def _reconstruct(captures, model, unwrap, min_signal_fraction, calibration, saturated=None,
+                 mixed=None):
+    """Velocity and depth with their reason codes (rec.INVALID_REASONS) from the captures;
+    the pixels ``mixed`` (footprints that see two surfaces) and ``saturated`` are NaN
+    with their own reasons (saturation wins: it is what the sensor saw)."""
     homodyne = _homodyne_set(captures, "homodyne")
     heterodyne = {o: captures[f"heterodyne_{_offset_name(o)}"] for o in rec.VELOCITY_OFFSETS}
     depth, phase, amplitude, d_reasons = rec.homodyne_depth(homodyne, model,
@@ -459,11 +474,12 @@ def _reconstruct(captures, model, unwrap, min_signal_fraction, calibration, satu
     velocity, v_reasons = rec.reconstruct_velocity(homodyne, heterodyne, model,
                                                    min_signal_fraction, calibration,
                                                    phase, depth)
-    if saturated is not None:
-        v_reasons = np.where(saturated, rec.SATURATED, v_reasons)
-        d_reasons = np.where(saturated, rec.SATURATED, d_reasons)
-        velocity = np.where(saturated, np.nan, velocity)
-        depth = np.where(saturated, np.nan, depth)
+    for code, masked in ((rec.MIXED_FOOTPRINT, mixed), (rec.SATURATED, saturated)):
+        if masked is not None:
+            v_reasons = np.where(masked, code, v_reasons)
+            d_reasons = np.where(masked, code, d_reasons)
+            velocity = np.where(masked, np.nan, velocity)
+            depth = np.where(masked, np.nan, depth)
     return Reconstruction(velocity, v_reasons, depth, d_reasons, amplitude)
 
 
@@ -473,9 +489,10 @@ def reconstruct_noisy(result: CaptureResult, noise: NoiseModel) -> Reconstructio
     s = result.summary
     model, unmodulated = result.sensor_model()
     noisy, saturated, _ = apply_noise(result.rendered, unmodulated, model.exposure, noise)
+    mixed = None if s["velocity"].get("mixed_pixels") == "kept" else result.truth.mixed
     return _reconstruct(noisy, model, s["depth"]["unwrap_frequency_MHz"],
                         s["velocity"]["min_signal_fraction"], s["velocity"]["calibration"],
-                        saturated)
+                        saturated, mixed)
 
 
 # ---- Summary ---------------------------------------------------------------------------
@@ -498,13 +515,6 @@ def error_stats(estimate, truth, modulo: float | None = None) -> dict:
             "mean_signed": float(err.mean())}
 
 
-def _reason_counts(reasons):
-    counts = {}
-    for code, text in rec.INVALID_REASONS.items():
-        n = int(np.sum(reasons == code))
-        if n:
-            counts[text.split(" (")[0].split(":")[0]] = n
-    return counts
 
 
 def _errors(recon: Reconstruction, truth: GroundTruth, depth_modulo):
@@ -632,10 +642,12 @@ def _velocity_summary(scene, settings: _Settings, recon, truth) -> dict:
         "calibration_note": CALIBRATION_NOTES[calibration],
         "rotating_bodies": rotating_bodies(scene, settings.base),
         "velocity_per_ratio_m_s": model.omega_d * model.velocity_per_delta_omega(),
-        "nan_when": {text.split(" (")[0].split(":")[0]: text
-                     for text in rec.INVALID_REASONS.values()},
-        "nan_pixels": _reason_counts(recon.velocity_reasons),
+        "nan_when": {rec.reason_name(code): text
+                     for code, text in rec.INVALID_REASONS.items()},
+        "nan_pixels": rec.reason_counts(recon.velocity_reasons),
         "min_signal_fraction": fraction,
+        "mixed_pixels": "kept" if settings.keep_mixed_pixels else "NaN",
+        "mixed_footprints": int(truth.mixed.sum()) if truth.mixed is not None else None,
         "ground_truth": "velocity_gt.npy: (u . n) / (d . n) at mid-exposure from the "
                         "analytic motion; velocity_point.npy: u . d",
         "ground_truth_time_s": truth.time,
@@ -655,7 +667,7 @@ def _depth_summary(model, unwrap, recon, depth_modulo) -> dict:
         "unwrap_frequency_MHz": unwrap,
         "unambiguous_range_m": (rec.unambiguous_range(model.frequency_hz, unwrap * 1e6)
                                 if unwrap is not None else wrap),
-        "nan_pixels": _reason_counts(recon.depth_reasons),
+        "nan_pixels": rec.reason_counts(recon.depth_reasons),
         "error_modulo_m": depth_modulo,
         "ground_truth": "depth_gt.npy: distance to the first hit along the pixel-centre "
                         "ray at mid-exposure",

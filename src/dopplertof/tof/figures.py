@@ -1,7 +1,7 @@
 """PNG previews of capture products: one map per array, and the side-by-side figure.
 
 Every file is written atomically (:func:`dopplertof.io.atomic_path`). NaN pixels
-(nothing seen, or a signal too weak to reconstruct) are hatched on a magenta outside every
+(nothing seen, a signal too weak, a mixed footprint: each captioned by its reason) are hatched on a magenta outside every
 colour map (:data:`dopplertof.io.NO_SIGNAL_COLOUR`). Radiance is shown with one display
 gamma everywhere (:data:`RADIANCE_GAMMA`).
 """
@@ -147,8 +147,9 @@ def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> 
 
 
 def write_comparison(path, radiance, velocity, velocity_gt, title: str,
-                     metadata: dict | None = None) -> None:
-    """Side by side: radiance | reconstructed velocity | ground truth | error."""
+                     metadata: dict | None = None, note: str = NO_SIGNAL_NOTE) -> None:
+    """Side by side: radiance | reconstructed velocity | ground truth | error; ``note``
+    captions the NaN pixels (by their reasons, tof.output.masked_caption)."""
     plt = _pyplot()
     rad = radiance_scalar(radiance)
     velocity = np.asarray(velocity, np.float64)
@@ -167,6 +168,6 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
           -limit, limit)
     _draw(axes[3], fig, error, "error (reconstructed - truth)", "m/s", "PuOr_r",
           -err_limit, err_limit)
-    fig.suptitle(f"{title}   ({NO_SIGNAL_NOTE})", fontsize=11)
+    fig.suptitle(f"{title}   ({note})", fontsize=11)
     fig.tight_layout()
     save_figure(fig, path, metadata)

@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import io
 from . import figures
+from . import reconstruct as rec
 
 
 #: an output folder that cannot be used
@@ -40,11 +41,36 @@ def write_result(result, folder) -> list:
         _write_depth_maps(recon, truth, summary["depth"], path, noisy)
         figures.write_comparison(path("comparison.png"), result.radiance, recon.velocity,
                                  truth.velocity, f"{os.path.basename(summary['scene'])}: "
-                                 f"{summary['spp_per_capture']} spp per capture{noisy}")
+                                 f"{summary['spp_per_capture']} spp per capture{noisy}",
+                                 note=masked_caption(recon.velocity_reasons, truth))
         if getattr(result, "uncertainty", None) is not None:
-            write_uncertainty(result.uncertainty, path)
+            # NaN where the noise-free reconstruction is
+            write_uncertainty(result.uncertainty, path, result.noise_free or recon, truth)
         io.write_json(path("summary.json"), summary)
     return staged.written
+
+
+#: why a pixel of a truth map is NaN: its pixel-centre ray hits nothing
+NOTHING_HIT = "nothing hit"
+
+
+def masked_caption(reasons, truth, with_truth: bool = False) -> str:
+    """The caption of a map's NaN pixels, each by its reason (rec.INVALID_REASONS): a
+    weak signal where the pixel-centre ray hits nothing (``truth.body``) is "nothing
+    hit"; ``with_truth``: a map that also needs the truth (an error), NaN where that
+    ray hits nothing."""
+    nothing = truth.body == -2
+    weak_nothing = (reasons == rec.WEAK_SIGNAL) & nothing
+    counts = {NOTHING_HIT: int(weak_nothing.sum())}
+    counts.update(rec.reason_counts(np.where(weak_nothing, rec.VALID, reasons)))
+    if with_truth:
+        counts[f"{NOTHING_HIT} at the pixel centre"] = int(np.sum(nothing & (reasons == rec.VALID)))
+    return io.masked_note(counts)
+
+
+def truth_caption(truth) -> str:
+    """The caption of a truth map's NaN pixels (their rays hit nothing)."""
+    return io.masked_note({NOTHING_HIT: int(np.sum(truth.body == -2))})
 
 
 def _write_captures(result, path, noisy: str) -> None:
@@ -71,19 +97,21 @@ def _write_velocity_maps(recon, truth, path, noisy: str) -> None:
     (.npy, .png on one symmetric colour scale) and the error's preview."""
     v_limit = figures.truth_limit(truth.velocity, recon.velocity)
     velocity_maps = (
-        ("velocity", recon.velocity, f"reconstructed radial velocity{noisy}"),
-        ("velocity_gt", truth.velocity, "ground truth radial velocity (u.n)/(d.n), mid-exposure"),
-        ("velocity_point", truth.velocity_point, "hit-point velocity along the ray u.d"),
+        ("velocity", recon.velocity, f"reconstructed radial velocity{noisy}",
+         masked_caption(recon.velocity_reasons, truth)),
+        ("velocity_gt", truth.velocity, "ground truth radial velocity (u.n)/(d.n), mid-exposure",
+         truth_caption(truth)),
+        ("velocity_point", truth.velocity_point, "hit-point velocity along the ray u.d",
+         truth_caption(truth)),
     )
-    for name, data, title in velocity_maps:
+    for name, data, title, note in velocity_maps:
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
-                          cmap="RdBu_r", vmax=v_limit, symmetric=True,
-                          note=io.NO_SIGNAL_NOTE)
+                          cmap="RdBu_r", vmax=v_limit, symmetric=True, note=note)
     error = recon.velocity - truth.velocity
     figures.write_map(path("velocity_error.png"), error, "velocity error (reconstructed - truth)",
                       "m/s", cmap="PuOr_r", symmetric=True,
-                      note=io.NO_SIGNAL_NOTE)
+                      note=masked_caption(recon.velocity_reasons, truth, with_truth=True))
 
 
 def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
@@ -98,12 +126,14 @@ def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
     d_lo = float(np.percentile(finite, 0.5)) if finite.size else None
     d_hi = float(np.percentile(finite, 99.5)) if finite.size else None
     for name, data, title, note in (
-            ("depth", recon.depth, f"reconstructed depth{noisy}", wrap_note),
-            ("depth_gt", truth.depth, "ground truth depth, mid-exposure", "not wrapped")):
+            ("depth", recon.depth, f"reconstructed depth{noisy}",
+             f"{wrap_note}; {masked_caption(recon.depth_reasons, truth)}"),
+            ("depth_gt", truth.depth, "ground truth depth, mid-exposure",
+             f"not wrapped; {truth_caption(truth)}")):
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
-                          vmin=d_lo, vmax=d_hi, note=f"{note}; {io.NO_SIGNAL_NOTE}")
+                          vmin=d_lo, vmax=d_hi, note=note)
 
 
 _STD_TITLES = {
@@ -116,15 +146,18 @@ _STD_TITLES = {
 }
 
 
-def write_uncertainty(uncertainty, path) -> None:
+def write_uncertainty(uncertainty, path, recon=None, truth=None) -> None:
     """The predicted standard deviations (.npy) and their log-scale previews (.png);
-    ``path(name)`` gives a file's path in the output folder."""
+    ``path(name)`` gives a file's path in the output folder; ``recon`` and ``truth``
+    (the reconstruction whose NaN pixels the maps share) caption the NaN pixels by
+    their reasons."""
     for name, data in uncertainty.maps().items():
         title, unit = _STD_TITLES[name]
         io.write_npy(path(f"{name}.npy"), data)
         if np.any(np.isfinite(data) & (data > 0)):
+            masked = (io.NO_SIGNAL_NOTE if recon is None else masked_caption(
+                getattr(recon, f"{name.split('_')[0]}_reasons"), truth))
             figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
-                                  note=f"{io.NO_SIGNAL_NOTE}; top colour: also first order "
-                                  "fails (inf)")
+                                  note=f"{masked}; top colour: also first order fails (inf)")
     for name, data in (uncertainty.capture_std_mc or {}).items():
         io.write_npy(path(f"{name}_std_mc.npy"), data)

@@ -74,8 +74,28 @@ INVALID_REASONS = {
     3: "a tap saturated (full well or ADC maximum)",
     4: "predicted standard deviation above the trust limit (max_velocity_std or "
        "max_depth_std)",
+    5: "footprint mixes surfaces (during the exposure the filter footprint sees two "
+       "bodies, a body and the static scene or the background, or an occluding edge: a "
+       "silhouette pixel, whose captures mix two surfaces' phases and brightness); from "
+       "the scene's geometry (ground_truth.mixed_footprints), kept with keep_mixed_pixels",
 }
-VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED, TOO_UNCERTAIN = 0, 1, 2, 3, 4
+VALID, WEAK_SIGNAL, OUT_OF_RANGE, SATURATED, TOO_UNCERTAIN, MIXED_FOOTPRINT = 0, 1, 2, 3, 4, 5
+
+
+def reason_name(code: int) -> str:
+    """The short name of a reason code (its explanation up to the first parenthesis or
+    colon): summary.json's keys and the previews' captions."""
+    return INVALID_REASONS[code].split(" (")[0].split(":")[0]
+
+
+def reason_counts(reasons) -> dict:
+    """{short name: pixels} of every reason code present in ``reasons`` (valid left out)."""
+    counts = {}
+    for code in INVALID_REASONS:
+        n = int(np.sum(np.asarray(reasons) == code))
+        if n:
+            counts[reason_name(code)] = n
+    return counts
 
 
 class ReconstructionError(ValueError):
@@ -413,6 +433,18 @@ def velocity_inverse_square(ratio, phase_mid, depth, model: CaptureModel) -> np.
         disc = s1 * s1 + 4 * s2 * r
         v = 2 * r / (s1 + np.sign(s1) * np.sqrt(disc))
     return np.where(disc >= 0, v, np.nan)
+
+
+def brightness_curvature_bias(model: CaptureModel, curvature) -> np.ndarray:
+    """The velocity bias (m/s) of a path whose brightness is curved in time during the
+    exposure, b(tau) ~ b_mid (1 + curvature tau^2) (tau from mid-exposure, curvature in
+    1/s^2), for the sinusoid: the least squares of the offsets 0 and 1/4 cancels the
+    linear term of b, not this one. With omega_d T = 2 pi h the heterodyne capture's
+    tau^2 term is (-1)^h 2 T / omega_d^2 cos(a) over T, so r = 2 curvature / omega_d^2
+    and v = c curvature / (omega_d omega_g). A surface turning at omega under a
+    colocated light, cos(theta(t)): curvature -omega^2 / 2 (docs/camera.md)."""
+    return (SPEED_OF_LIGHT * np.asarray(curvature, np.float64)
+            / (model.omega_d * model.omega_g))
 
 
 def resolve_calibration(calibration: str | None, waveform: str) -> str:
