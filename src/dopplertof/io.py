@@ -387,10 +387,40 @@ def write_npy(path, array: np.ndarray) -> None:
 
 
 def write_json(path, data: dict) -> None:
+    """``data`` as JSON (float32 values as their shortest decimal: :func:`json_ready`)."""
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=2, sort_keys=True, default=_json_default)
+            json.dump(json_ready(data), f, indent=2, sort_keys=True, default=_json_default)
             f.write("\n")
+
+
+def json_ready(value):
+    """``value`` (dicts, lists, tuples, floats, NumPy scalars and arrays) for JSON, with
+    every float that is a float32 value (Mitsuba's shutter times, np.float32 scalars and
+    arrays) as its shortest float32 decimal: 0.0015, not 0.001500000013038516. A float
+    that float32 cannot hold exactly is kept as it is; what JSON cannot hold is left to
+    the encoder."""
+    if isinstance(value, dict):
+        return {key: json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, (float, np.floating)):
+        return _shortest_float(float(value))
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _shortest_float(x: float) -> float:
+    """``x``, or the float of float32's shortest decimal of ``x`` when ``x`` is exactly
+    a float32 value (that decimal reads back as the same float32)."""
+    with np.errstate(over="ignore"):
+        single = np.float32(x)
+    if not np.isfinite(single) or float(single) != x:
+        return x
+    return float(str(single))
 
 
 def _json_default(x):
@@ -412,7 +442,8 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
     if metadata:
         props = bitmap.metadata()
         for key, value in metadata.items():
-            text = value if isinstance(value, str) else json.dumps(value, default=_json_default)
+            text = (value if isinstance(value, str) else
+                    json.dumps(json_ready(value), default=_json_default))
             props[f"dopplertof.{key}"] = text
     with atomic_path(path) as tmp, _exr_writer_threads():
         try:
@@ -554,7 +585,7 @@ def save_figure(fig, path, metadata: dict | None = None) -> None:
 
     info = {"Software": "dopplertof"}
     if metadata:
-        info["Description"] = json.dumps(metadata, default=_json_default)
+        info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", metadata=info)
     plt.close(fig)
