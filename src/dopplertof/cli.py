@@ -252,6 +252,10 @@ def _cmd_render(args) -> int:
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
     _print_warnings(result.metadata)
+    if "resumed_from_samples" in result.metadata:
+        print(f"dopplertof: resumed from checkpoint {args.checkpoint}: "
+              f"{result.metadata['resumed_from_samples']:g} of {result.metadata['spp']} "
+              "samples per pixel were saved there", file=sys.stderr)
     if args.checkpoint and not result.metadata["timed_out"]:  # the output is safe:
         os.unlink(args.checkpoint)  # the checkpoint has served (a timed-out one resumes)
     md = result.metadata
