@@ -538,8 +538,11 @@ def _render_key(scene, params: RenderParams, spp: int, seed: int, variant: str,
     """What must match for a checkpoint to be resumed (hex digest)."""
     import hashlib
 
-    text = repr((scene.fingerprint or scene.source, params, spp, int(seed), variant, chunk,
-                 GROUPS_PER_CHUNK))
+    parts = (scene.fingerprint or scene.source, params, spp, int(seed), variant, chunk,
+             GROUPS_PER_CHUNK)
+    if scene.shutter_window is not None:  # (a camera's raw frame: its own window)
+        parts += (scene.shutter_window,)
+    text = repr(parts)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
