@@ -149,3 +149,14 @@ def test_a_camera_capture_stopped_after_two_raw_frames_resumes_bitwise(tmp_path,
     for name in ("rendered", "radiance", "raw", "depth", "depth_gt"):
         a, b = getattr(resumed, name), getattr(reference, name)
         assert np.asarray(a).tobytes() == np.asarray(b).tobytes(), name
+
+
+def test_error_bar_batches_are_kept_and_reused(tmp_path, capsys):
+    """With --mc-batches every batch render is kept too: a second capture reuses all 14
+    renders and predicts the same standard deviations, bitwise."""
+    scene = dopplertof.load_file(SPHERE, {"res": "4", "spp": "8"})
+    first = dopplertof.capture(scene, mc_batches=2, checkpoint=tmp_path / "ckpt")
+    capsys.readouterr()
+    again = dopplertof.capture(scene, mc_batches=2, checkpoint=tmp_path / "ckpt")
+    assert "14 of 14 renders reused, 0 resumed part way, 0 rendered" in capsys.readouterr().err
+    assert again.uncertainty.velocity_std.tobytes() == first.uncertainty.velocity_std.tobytes()
