@@ -61,6 +61,8 @@ def saved(monkeypatch):
     original = Figure.savefig
 
     def measure_then_save(fig, path, *args, **kwargs):
+        if kwargs.get("dpi") not in (None, "figure"):  # (measured at the saved resolution)
+            fig.set_dpi(kwargs["dpi"])
         found.append((os.path.basename(str(path)), outside(fig), margins(fig), fig))
         return original(fig, path, *args, **kwargs)
 
@@ -194,4 +196,17 @@ def test_angular_fit_convergence_plot_shows_omega(tmp_path, saved):
     (line,) = omega[0].get_lines()
     np.testing.assert_allclose(line.get_ydata(), [h["parameters"][4] for h in history])
     assert "omega_y" in line.get_label()
+    assert_laid_out(saved)
+
+
+@pytest.mark.slow
+def test_analysis_figures_show_their_titles_and_legends(tmp_path, saved):
+    """`dopplertof figures --quick`: e6dc814 drew legends past the right and bottom edges
+    (waveform_correlations.png, 0.6 in), titles past the bottom and the left edge
+    (doppler_geometric_vs_photon.png, convergence_rates.png). Measured at the dpi each
+    figure is saved at."""
+    from dopplertof.analysis import FIGURE_FILES, write_figures
+
+    write_figures(tmp_path / "figs", quick=True)
+    assert len(saved) == len(FIGURE_FILES)
     assert_laid_out(saved)
