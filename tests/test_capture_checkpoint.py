@@ -160,3 +160,31 @@ def test_error_bar_batches_are_kept_and_reused(tmp_path, capsys):
     again = dopplertof.capture(scene, mc_batches=2, checkpoint=tmp_path / "ckpt")
     assert "14 of 14 renders reused, 0 resumed part way, 0 rendered" in capsys.readouterr().err
     assert again.uncertainty.velocity_std.tobytes() == first.uncertainty.velocity_std.tobytes()
+
+
+def test_a_capture_the_timeout_stopped_keeps_its_checkpoint(tmp_path, monkeypatch, capsys):
+    """Like `render --checkpoint`: when the timeout stopped a render (here the first
+    capture's, as the pipeline reports it), the command keeps DIR and says so; the next
+    run, with every render complete, removes it."""
+    R = __import__("sys").modules["dopplertof.render"]
+    original = R.render_result
+    calls = []
+
+    def first_one_timed_out(*args, **kwargs):
+        result = original(*args, **kwargs)
+        calls.append(kwargs.get("checkpoint"))
+        if len(calls) == 1:
+            result.metadata["timed_out"] = True
+        return result
+
+    monkeypatch.setattr(R, "render_result", first_one_timed_out)
+    ckpt = tmp_path / "ckpt"
+    args = ["capture", SPHERE, "-D", "res=4", "-D", "spp=8", "--quiet", "-o",
+            str(tmp_path / "out"), "--checkpoint", str(ckpt)]
+    assert dopplertof.cli.main(args) == 0
+    err = capsys.readouterr().err
+    assert "1 stopped by the timeout (the same command resumes them)" in err, err
+    assert f"checkpoint {ckpt} kept: the timeout stopped 1 of its renders" in err, err
+    assert (ckpt / MANIFEST).is_file() and len(list(ckpt.iterdir())) == 8
+    assert dopplertof.cli.main(args) == 0
+    assert "7 of 7 captures reused" in capsys.readouterr().err and not ckpt.exists()

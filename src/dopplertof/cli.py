@@ -319,7 +319,7 @@ def _cmd_capture(args) -> int:
                                 max_velocity_std=args.max_velocity_std,
                                 max_depth_std=args.max_depth_std, checkpoint=args.checkpoint)
     result.write(args.output)
-    if args.checkpoint:  # the outputs are safe: the checkpoint has served
+    if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         remove_checkpoint(args.checkpoint)
     _print_warnings(result.summary)
     print(format_summary(result.summary, args.output))

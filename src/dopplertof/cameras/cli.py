@@ -160,7 +160,7 @@ def run_camera_capture(args, load_defines) -> int:
                             progress=False if args.quiet else None, on_frame=report,
                             checkpoint=args.checkpoint)
     result.write(args.output)
-    if args.checkpoint:  # the outputs are safe: the checkpoint has served
+    if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         from ..tof.checkpoint import remove_checkpoint
 
         remove_checkpoint(args.checkpoint)

@@ -35,9 +35,10 @@ def batch_name(name: str, batch: int) -> str:
 class CaptureCheckpoint:
     """The checkpoint folder of one run of renders; :meth:`open` checks or starts it."""
 
-    def __init__(self, folder: str, names: list):
-        self.folder, self.names = folder, list(names)
+    def __init__(self, folder: str, names: list, key: str = ""):
+        self.folder, self.names, self.key = folder, list(names), key
         self.reused, self.resumed, self.rendered = 0, 0, 0
+        self.timed_out = 0  #: renders the timeout stopped (their checkpoints resume them)
 
     @classmethod
     def open(cls, folder, scene, renders) -> "CaptureCheckpoint":
@@ -63,8 +64,8 @@ class CaptureCheckpoint:
                 "scene or a file it references, the parameters, spp, seed, camera or "
                 "variant differ); delete it or choose another checkpoint folder")
         if saved is None:
-            io.write_json(manifest, {"key": key, "renders": names})
-        return cls(folder, names)
+            io.write_json(manifest, {"key": key, "renders": names, "timed_out": 0})
+        return cls(folder, names, key)
 
     def path(self, name: str) -> str:
         """The render checkpoint file of the render ``name``."""
@@ -74,6 +75,7 @@ class CaptureCheckpoint:
         """Count a finished render by its metadata: reused (its checkpoint was complete),
         resumed (part of it was saved) or rendered afresh."""
         saved = metadata.get("resumed_from_samples")
+        self.timed_out += bool(metadata.get("timed_out"))
         if saved is None:
             self.rendered += 1
         elif saved >= metadata["spp"]:
@@ -82,10 +84,18 @@ class CaptureCheckpoint:
             self.resumed += 1
 
     def report(self, what: str = "renders") -> None:
-        """Say on stderr how many renders the checkpoint served."""
+        """Say on stderr how many renders the checkpoint served, and record in the
+        manifest how many the timeout stopped (:func:`remove_checkpoint` keeps the
+        folder then)."""
+        from .. import io
+
+        io.write_json(os.path.join(self.folder, MANIFEST),
+                      {"key": self.key, "renders": self.names, "timed_out": self.timed_out})
+        stopped = (f", {self.timed_out} stopped by the timeout (the same command resumes "
+                   "them)" if self.timed_out else "")
         print(f"dopplertof: checkpoint {self.folder}: {self.reused} of "
               f"{len(self.names)} {what} reused, {self.resumed} resumed part way, "
-              f"{self.rendered} rendered", file=sys.stderr, flush=True)
+              f"{self.rendered} rendered{stopped}", file=sys.stderr, flush=True)
 
 
 def _read_manifest(path: str, error):
@@ -106,10 +116,12 @@ def _read_manifest(path: str, error):
     return saved
 
 
-def remove_checkpoint(folder) -> None:
+def remove_checkpoint(folder) -> bool:
     """Delete a checkpoint folder's files (its manifest and the render checkpoints it
     names; nothing else), and the folder when that leaves it empty: what a finished run
-    whose outputs are safe does."""
+    whose outputs are safe does. A folder whose last run the timeout stopped is kept
+    (the same command resumes it; like ``render --checkpoint``), which it says on
+    stderr: returns False then."""
     import contextlib
 
     from .. import io
@@ -117,6 +129,11 @@ def remove_checkpoint(folder) -> None:
     folder = os.path.abspath(os.fspath(folder))
     manifest = os.path.join(folder, MANIFEST)
     saved = _read_manifest(manifest, io.OutputError) or {}
+    if saved.get("timed_out"):
+        print(f"dopplertof: checkpoint {folder} kept: the timeout stopped "
+              f"{saved['timed_out']} of its renders; the same command resumes them",
+              file=sys.stderr)
+        return False
     for name in saved.get("renders", []):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(os.path.join(folder, os.path.basename(name) + RENDER_CHECKPOINT_EXT))
@@ -124,3 +141,4 @@ def remove_checkpoint(folder) -> None:
         os.unlink(manifest)
     with contextlib.suppress(OSError):
         os.rmdir(folder)  # (only when empty)
+    return True
