@@ -64,3 +64,47 @@ def test_cli_killed_render_resumes(tmp_path):
     assert not ckpt.exists()
     scene = dopplertof.load_file(PUBLISHED, {"resx": 96, "resy": 96})
     assert np.array_equal(np.load(out), dopplertof.render(scene, spp=512, seed=2))
+
+
+
+def test_cli_render_says_it_resumed_and_from_how_many_samples(tmp_path, monkeypatch,
+                                                               capsys):
+    """A render interrupted after 2 of its passes (one chunk of 8 groups each) were
+    saved: the render command resumes it and says so on stderr, with the samples per
+    pixel the checkpoint held (the library's metadata has the number); a fresh render
+    says nothing of the kind."""
+    import shutil
+
+    import dopplertof.cli
+
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 6, "resy": 5})
+    ckpt, copy, out = tmp_path / "r.ckpt", tmp_path / "copy.ckpt", tmp_path / "r.npy"
+    fresh = dopplertof.render_result(scene, spp=64, seed=3, checkpoint=ckpt)
+    assert "resumed_from_samples" not in fresh.metadata
+    ckpt.unlink()
+    R = sys.modules["dopplertof.render"]
+    original = R.Checkpoint.save
+
+    def save_then_stop(self, accumulator, next_chunk, counts):
+        original(self, accumulator, next_chunk, counts)
+        if next_chunk == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(R.Checkpoint, "save", save_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        dopplertof.render(scene, spp=64, seed=3, pass_chunks=1, checkpoint=ckpt)
+    monkeypatch.setattr(R.Checkpoint, "save", original)
+    shutil.copy(ckpt, copy)
+    saved = 2 * 8 * scene.params.time_correlate_number  # two chunks of 8 groups
+    assert 0 < saved < 64
+    resumed = dopplertof.render_result(scene, spp=64, seed=3, checkpoint=copy)
+    assert resumed.metadata["resumed_from_samples"] == saved
+    assert np.array_equal(resumed.image, fresh.image)
+    capsys.readouterr()
+    args = ["render", PUBLISHED, "-D", "resx=6", "-D", "resy=5", "--spp", "64", "--seed",
+            "3", "--quiet", "-o", str(out), "--checkpoint", str(ckpt)]
+    assert dopplertof.cli.main(args) == 0
+    err = capsys.readouterr().err
+    assert (f"dopplertof: resumed from checkpoint {ckpt}: {saved} of 64 samples per pixel "
+            "were saved there") in err, err
+    assert np.array_equal(np.load(out), fresh.image) and not ckpt.exists()

@@ -429,3 +429,21 @@ def test_a_changed_mesh_changes_the_frames_markers_and_stops_a_planned_frame(tmp
     assert [t.hash for t in replanned] != [t.hash for t in planned]
     with pytest.raises(RuntimeError, match="or a file it references changed"):
         run_frame_task(planned[1])
+
+
+def test_animation_json_writes_float32_times_as_their_shortest_decimal(tmp_path):
+    """The scene's exposure comes from Mitsuba's float32 shutter: animation.json says
+    0.0015, not 0.001500000013038516 (and its frames' starts 0.0015 apart)."""
+    from dopplertof.experiments.animate import (AnimationSummary, _write_animation_json,
+                                                plan_animation)
+
+    tasks = plan_animation(SCENE, tmp_path / "frames", 2, defines={"res": 4})
+    assert tasks[0].params["time"] != 0.0015  # (the float32 value, as a float64)
+    path = tmp_path / "animation.json"
+    _write_animation_json(path, tasks, AnimationSummary(frames=2, skipped=0, done=2), 10.0,
+                          None)
+    text = path.read_text()
+    assert '"exposure_s": 0.0015,' in text and "0.0015000000" not in text
+    record = json.loads(text)
+    assert record["frame_period_s"] == 0.0015 and record["params"]["time"] == 0.0015
+    assert np.float32(record["exposure_s"]) == np.float32(tasks[0].params["time"])

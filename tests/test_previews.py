@@ -71,3 +71,38 @@ def test_one_radiance_gamma_everywhere():
     for path in src.rglob("*.py"):
         text = path.read_text()
         assert "gamma 0.5" not in text and "1 / 2.2" not in text, path
+
+
+def test_depth_preview_marks_the_pixels_beyond_the_wrap(tmp_path, monkeypatch):
+    """At 40 MHz depth wraps at 3.747 m: the sphere's wall (4.6 m and more) is beyond it.
+    depth.png cross-hatches exactly the pixels whose true depth is beyond the wrap and its
+    caption counts them; with a range beyond the wall (unwrapped) nothing is marked."""
+    import dopplertof
+    from dopplertof.tof import output
+
+    figures_drawn = {}
+    monkeypatch.setattr(figures, "save_figure", lambda fig, path, metadata=None:
+                        figures_drawn.__setitem__(os.path.basename(path), fig))
+    scene = dopplertof.load_file(SPHERE, {"res": "12", "spp": "4"})
+    result = dopplertof.capture(scene, params={"w_g": 40.0}, progress=False)
+    depth_info = result.summary["depth"]
+    beyond = result.truth.depth >= depth_info["wrap_distance_m"]
+    for info, marked in ((depth_info, True), (dict(depth_info, unambiguous_range_m=10.0),
+                                              False)):
+        figures_drawn.clear()
+        output._write_depth_maps(result.reconstruction, result.truth, info,
+                                 lambda n: str(tmp_path / n), "")
+        fig = figures_drawn["depth.png"]
+        hatched = [c for c in fig.axes[0].collections if c.get_hatch() == figures.MARK_HATCH]
+        caption = " ".join(t.get_text() for t in fig.texts)
+        if not marked:
+            assert not hatched and "beyond" not in caption
+            continue
+        assert beyond.any() and not beyond.all()
+        assert len(hatched) == 1 and f"{int(beyond.sum())} px beyond it" in caption
+        covered = np.zeros_like(beyond)
+        for path in hatched[0].get_paths():
+            (x0, y0), (x1, y1) = path.vertices.min(axis=0), path.vertices.max(axis=0)
+            covered[int(round(y0 + 0.5)):int(round(y1 + 0.5)),
+                    int(round(x0 + 0.5)):int(round(x1 + 0.5))] = True
+        assert np.array_equal(covered, beyond)

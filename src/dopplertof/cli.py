@@ -126,6 +126,11 @@ def _add_capture_command(sub) -> None:
     # ---- how it runs
     _add_variant_option(c)
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
+    c.add_argument("--checkpoint", metavar="DIR",
+                   help="keep every finished render (capture, raw frame, batch) in DIR; "
+                   "after Ctrl-C or a kill the same command renders only the missing ones, "
+                   "bitwise as an uninterrupted run (DIR is emptied when the outputs are "
+                   f"written; its folder {FOLDER_HELP})")
     # ---- the groups: precision limits, sensor noise
     _add_capture_precision_options(c)
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
@@ -257,6 +262,10 @@ def _cmd_render(args) -> int:
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
     _print_warnings(result.metadata)
+    if "resumed_from_samples" in result.metadata:
+        print(f"dopplertof: resumed from checkpoint {args.checkpoint}: "
+              f"{result.metadata['resumed_from_samples']:g} of {result.metadata['spp']} "
+              "samples per pixel were saved there", file=sys.stderr)
     if args.checkpoint and not result.metadata["timed_out"]:  # the output is safe:
         os.unlink(args.checkpoint)  # the checkpoint has served (a timed-out one resumes)
     md = result.metadata
@@ -283,7 +292,9 @@ _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
 
 def _cmd_capture(args) -> int:
     import dopplertof
+    from . import io
     from .tof import format_summary, prepare_folder
+    from .tof.checkpoint import remove_checkpoint
 
     _check_before_loading(args, "capture parameters")
     from .cameras import cli as cameras_cli
@@ -291,6 +302,8 @@ def _cmd_capture(args) -> int:
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     cameras_cli.check_capture_options(args)
+    if args.checkpoint:
+        io.check_output_folder(args.checkpoint)
     if args.camera is not None:
         return cameras_cli.run_camera_capture(args, parse_pairs(args.defines, "-D"))
     noise = _noise_model(args, args.noise)
@@ -310,8 +323,11 @@ def _cmd_capture(args) -> int:
                                 mc_batches=args.mc_batches,
                                 max_velocity_std=args.max_velocity_std,
                                 max_depth_std=args.max_depth_std,
-                                keep_mixed_pixels=args.keep_mixed_pixels)
+                                keep_mixed_pixels=args.keep_mixed_pixels,
+                                checkpoint=args.checkpoint)
     result.write(args.output)
+    if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
+        remove_checkpoint(args.checkpoint)
     _print_warnings(result.summary)
     print(format_summary(result.summary, args.output))
     from .tof.precision import format_precision

@@ -387,10 +387,40 @@ def write_npy(path, array: np.ndarray) -> None:
 
 
 def write_json(path, data: dict) -> None:
+    """``data`` as JSON (float32 values as their shortest decimal: :func:`json_ready`)."""
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=2, sort_keys=True, default=_json_default)
+            json.dump(json_ready(data), f, indent=2, sort_keys=True, default=_json_default)
             f.write("\n")
+
+
+def json_ready(value):
+    """``value`` (dicts, lists, tuples, floats, NumPy scalars and arrays) for JSON, with
+    every float that is a float32 value (Mitsuba's shutter times, np.float32 scalars and
+    arrays) as its shortest float32 decimal: 0.0015, not 0.001500000013038516. A float
+    that float32 cannot hold exactly is kept as it is; what JSON cannot hold is left to
+    the encoder."""
+    if isinstance(value, dict):
+        return {key: json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, (float, np.floating)):
+        return _shortest_float(float(value))
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _shortest_float(x: float) -> float:
+    """``x``, or the float of float32's shortest decimal of ``x`` when ``x`` is exactly
+    a float32 value (that decimal reads back as the same float32)."""
+    with np.errstate(over="ignore"):
+        single = np.float32(x)
+    if not np.isfinite(single) or float(single) != x:
+        return x
+    return float(str(single))
 
 
 def _json_default(x):
@@ -412,7 +442,8 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
     if metadata:
         props = bitmap.metadata()
         for key, value in metadata.items():
-            text = value if isinstance(value, str) else json.dumps(value, default=_json_default)
+            text = (value if isinstance(value, str) else
+                    json.dumps(json_ready(value), default=_json_default))
             props[f"dopplertof.{key}"] = text
     with atomic_path(path) as tmp, _exr_writer_threads():
         try:
@@ -548,21 +579,107 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
                    zorder=1)
     ax.set_title(title, fontsize=10)
     ax.set_axis_off()
-    saturated = finite.size and np.abs(finite).max() > vmax
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
-                       extend=("both" if signed else "max") if saturated else "neither")
+                       extend=colorbar_extend(data, -vmax if signed else 0.0, vmax))
     bar.set_label(label)
     fig.tight_layout()
     save_figure(fig, path, metadata)
 
 
+def colorbar_extend(data, vmin, vmax) -> str:
+    """A colour bar's ``extend`` for ``data`` shown from ``vmin`` to ``vmax``: an arrow
+    at each end that finite values pass ("both", "min", "max" or "neither")."""
+    values = np.asarray(data, np.float64)
+    values = values[np.isfinite(values)]
+    low = bool(values.size and vmin is not None and values.min() < vmin)
+    high = bool(values.size and vmax is not None and values.max() > vmax)
+    return {(True, True): "both", (True, False): "min", (False, True): "max"}.get(
+        (low, high), "neither")
+
+
+#: room left around everything a figure draws when it is fitted (inches)
+FIGURE_PAD_INCHES = 0.08
+
+
+def _figure_texts(fig) -> list:
+    """Every text of ``fig`` that a layout can push off its edges: the axes' titles and
+    axis labels (colour bars' included), the figure's texts and its suptitle."""
+    texts = [t for t in fig.texts]
+    if getattr(fig, "_suptitle", None) is not None:
+        texts.append(fig._suptitle)
+    for ax in fig.axes:
+        texts += [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+    return [t for t in texts if t.get_visible() and t.get_text()]
+
+
+def wrap_texts(fig, renderer=None) -> bool:
+    """Break every text of ``fig`` longer than the figure (wider, or taller when it
+    runs vertically) into lines that fit; returns whether any text changed."""
+    import textwrap
+
+    if renderer is None:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+    width, height = fig.bbox.width, fig.bbox.height
+    changed = False
+    for text in _figure_texts(fig):
+        box = text.get_window_extent(renderer)
+        vertical = box.height > box.width
+        size, room = (box.height, height) if vertical else (box.width, width)
+        room -= 2 * FIGURE_PAD_INCHES * fig.dpi
+        if size <= room:
+            continue
+        words = " ".join(text.get_text().split())
+        text.set_text(textwrap.fill(words, max(8, int(0.92 * len(words) * room / size))))
+        changed = True
+    return changed
+
+
+def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
+    """Make the figure the size of what it draws: long texts wrapped (:func:`wrap_texts`),
+    then the figure cropped or grown to the tight box of its artists with ``pad`` inches
+    around (no title, label, colour bar or legend past an edge, no empty margins); the
+    axes and the figure's texts keep their places relative to each other."""
+    fig.canvas.draw()
+    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as drawn)
+        fig.set_layout_engine("none")
+    if wrap_texts(fig, fig.canvas.get_renderer()):
+        fig.canvas.draw()
+    box = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
+    old_w, old_h = fig.get_size_inches()
+    x0, y0 = box.x0 - pad, box.y0 - pad
+    new_w, new_h = box.width + 2 * pad, box.height + 2 * pad
+    places = [(ax, ax.get_position()) for ax in fig.axes]
+    texts = [(t, t.get_position()) for t in fig.texts
+             + ([fig._suptitle] if getattr(fig, "_suptitle", None) is not None else [])]
+    fig.set_size_inches(new_w, new_h)
+    for ax, p in places:
+        ax.set_axes_locator(None)
+        ax.set_position([(p.x0 * old_w - x0) / new_w, (p.y0 * old_h - y0) / new_h,
+                         p.width * old_w / new_w, p.height * old_h / new_h])
+    for text, (x, y) in texts:
+        text.set_position(((x * old_w - x0) / new_w, (y * old_h - y0) / new_h))
+
+
+def add_caption(fig, text: str, fontsize: float = 8) -> None:
+    """``text`` centred under everything ``fig`` draws now (lay the figure out first):
+    :func:`fit_figure` wraps it to the figure's width and grows the figure to hold it."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    bottom = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes) / fig.bbox.height
+    fig.text(0.5, bottom - 0.01, text, ha="center", va="top", fontsize=fontsize,
+             color="#444444")
+
+
 def save_figure(fig, path, metadata: dict | None = None) -> None:
-    """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description."""
+    """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description,
+    fitted to what it draws (:func:`fit_figure`)."""
     import matplotlib.pyplot as plt
 
+    fit_figure(fig)
     info = {"Software": "dopplertof"}
     if metadata:
-        info["Description"] = json.dumps(metadata, default=_json_default)
+        info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", metadata=info)
     plt.close(fig)

@@ -85,21 +85,23 @@ def _base_params(scene, preset: CameraPreset, params) -> RenderParams:
 
 def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, params=None,
                    noise: bool = True, noise_seed: int = 0, progress: bool | None = None,
-                   on_frame=None) -> CameraResult:
+                   on_frame=None, checkpoint=None) -> CameraResult:
     """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
     .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
     resolution; :func:`load_scene_for_camera` gives a scene file the preset's).
 
     params: integrator parameter overrides for every frame. noise: shot and read noise
     (numpy PCG64 seeded ``noise_seed``); without it the sensor runs on mean electrons.
-    on_frame(spec, seconds) is called after each render."""
+    on_frame(spec, seconds) is called after each render. checkpoint: a folder keeping
+    every render (:mod:`dopplertof.tof.checkpoint`): run again, only the missing ones
+    render, bitwise as uninterrupted."""
     started = _time.perf_counter()
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
     base = _base_params(scene, preset, params)
     spp = scene.spp if spp is None else spp
     check_spp_seed(base, spp, seed)
     rendered, radiance, records, truth_scene, truth_params = _render_frames(
-        scene, preset, base, int(spp), int(seed), progress, on_frame)
+        scene, preset, base, int(spp), int(seed), progress, on_frame, checkpoint)
     # ---- The sensor, then the camera's own reconstruction ----
     unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
     rng = np.random.Generator(np.random.PCG64(int(noise_seed))) if noise else None
@@ -119,31 +121,55 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     return result
 
 
-def _render_frames(scene, preset: CameraPreset, base: RenderParams, spp: int, seed: int,
-                   progress, on_frame):
-    """Every raw frame in its own window and the radiance over the sequence: (frames
-    (K, H, W), radiance (H, W, C), records, the sequence's scene and parameters)."""
-    from ..render import render_result
-
+def _frame_renders(scene, preset: CameraPreset, base: RenderParams):
+    """(name, scene in the render's window, parameters, CaptureSpec) of every render of
+    a camera frame: each raw frame in its own window, then the radiance over the
+    sequence."""
     t0 = scene.shutter_open
-    frames, records = [], []
+    renders = []
     for spec, frame in zip(frame_specs(preset), preset.frames):
         window = scene.with_shutter(t0 + frame.start_s, frame.integration_s)
         p = replace(spec.params(base), time=frame.integration_s).validated(spec.name)
-        result = render_result(window, spp=spp, seed=seed, params=p, progress=progress)
-        frames.append(result.image.mean(axis=-1, dtype=np.float64))
-        records.append({"name": spec.name, "kind": spec.kind, "w_g_MHz": spec.frequency_mhz,
-                        "phase_deg": frame.phase_deg, "hetero_frequency": spec.hetero_frequency,
-                        "window_s": [t0 + frame.start_s, t0 + frame.start_s + frame.integration_s],
-                        "render_seconds": round(result.metadata["render_seconds"], 3)})
-        if on_frame is not None:
-            on_frame(spec, result.metadata["render_seconds"])
+        renders.append((spec.name, window, p, spec))
     first, last = sequence_window(preset)
-    sequence = scene.with_shutter(t0 + first, last - first)
     spec = CaptureSpec("radiance", "radiance", RADIANCE_FREQUENCY_MHZ, 0.0, 0.0)
     p = replace(spec.params(base), time=last - first).validated("radiance")
-    radiance = render_result(sequence, spp=spp, seed=seed, params=p, progress=progress).image
-    return np.stack(frames), radiance, records, sequence, p
+    renders.append(("radiance", scene.with_shutter(t0 + first, last - first), p, spec))
+    return renders
+
+
+def _render_frames(scene, preset: CameraPreset, base: RenderParams, spp: int, seed: int,
+                   progress, on_frame, checkpoint=None):
+    """Every raw frame in its own window and the radiance over the sequence: (frames
+    (K, H, W), radiance (H, W, C), records, the sequence's scene and parameters).
+    ``checkpoint``: a folder that keeps every render (tof.checkpoint)."""
+    from ..render import render_result
+    from ..tof.checkpoint import CaptureCheckpoint
+
+    t0 = scene.shutter_open
+    renders = _frame_renders(scene, preset, base)
+    saved = None if checkpoint is None else CaptureCheckpoint.open(
+        checkpoint, scene, [(name, window.shutter_window, p, spp, seed)
+                            for name, window, p, _ in renders])
+    results = []
+    for name, window, p, spec in renders:
+        result = render_result(window, spp=spp, seed=seed, params=p, progress=progress,
+                               checkpoint=None if saved is None else saved.path(name))
+        results.append(result)
+        if saved is not None:
+            saved.count(result.metadata)
+        if on_frame is not None and spec.kind != "radiance":
+            on_frame(spec, result.metadata["render_seconds"])
+    if saved is not None:
+        saved.report("renders (raw frames and radiance)")
+    records = [{"name": spec.name, "kind": spec.kind, "w_g_MHz": spec.frequency_mhz,
+                "phase_deg": frame.phase_deg, "hetero_frequency": spec.hetero_frequency,
+                "window_s": [t0 + frame.start_s, t0 + frame.start_s + frame.integration_s],
+                "render_seconds": round(result.metadata["render_seconds"], 3)}
+               for (_, _, _, spec), frame, result in zip(renders, preset.frames, results)]
+    frames = [result.image.mean(axis=-1, dtype=np.float64) for result in results[:-1]]
+    _, sequence, p, _ = renders[-1]
+    return np.stack(frames), results[-1].image, records, sequence, p
 
 
 def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, seed, noise,

@@ -157,7 +157,12 @@ def run_camera_capture(args, load_defines) -> int:
                             params=parse_pairs(args.params, "-P") or None,
                             noise=not args.noiseless,
                             noise_seed=args.noise_seed if args.noise_seed is not None else 0,
-                            progress=False if args.quiet else None, on_frame=report)
+                            progress=False if args.quiet else None, on_frame=report,
+                            checkpoint=args.checkpoint)
     result.write(args.output)
+    if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
+        from ..tof.checkpoint import remove_checkpoint
+
+        remove_checkpoint(args.checkpoint)
     print(format_camera_summary(result.summary, os.fspath(args.output)))
     return 0

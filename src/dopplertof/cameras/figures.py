@@ -63,7 +63,8 @@ def write_camera_comparison(path, results, title: str) -> None:
         shown = row[0].imshow(np.ma.masked_invalid(error), cmap="PuOr_r", vmin=-limit,
                               vmax=limit, interpolation="nearest")
         row[0].set_title(f"{name}: range error (m)", fontsize=8)
-        fig.colorbar(shown, ax=row[0], fraction=0.046)
+        fig.colorbar(shown, ax=row[0], fraction=0.046,
+                     extend=io.colorbar_extend(error, -limit, limit))
         shown = row[1].imshow(result.reconstruction.amplitude, cmap="gray", interpolation="nearest")
         row[1].set_title(f"{name}: amplitude (DN)", fontsize=8)
         fig.colorbar(shown, ax=row[1], fraction=0.046)
@@ -73,7 +74,8 @@ def write_camera_comparison(path, results, title: str) -> None:
             shown = row[2].imshow(np.ma.masked_invalid(velocity), cmap="RdBu_r", vmin=-v,
                                   vmax=v, interpolation="nearest")
             row[2].set_title(f"{name}: radial velocity (m/s)", fontsize=8)
-            fig.colorbar(shown, ax=row[2], fraction=0.046)
+            fig.colorbar(shown, ax=row[2], fraction=0.046,
+                         extend=io.colorbar_extend(velocity, -v, v))
         else:
             row[2].text(0.5, 0.5, "no velocity\n(homodyne frames only)", ha="center",
                         va="center", fontsize=8, transform=row[2].transAxes)

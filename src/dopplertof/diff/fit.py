@@ -717,7 +717,8 @@ def write_convergence_plot(result: FitResult, path) -> None:
 
     its = [h["iteration"] for h in result.history]
     loss = np.array([h["loss"] for h in result.history])
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    angular = bool(result.settings.get("angular"))
+    fig, axes = plt.subplots(1, 3 if angular else 2, figsize=(15 if angular else 10, 4))
     # ---- The loss: |loss| on a log axis, negative values (the cross loss's noise) open ----
     magnitude = np.maximum(np.abs(loss), np.finfo(float).tiny)
     axes[0].semilogy(its, magnitude, "-", color="C0")
@@ -743,9 +744,30 @@ def write_convergence_plot(result: FitResult, path) -> None:
     axes[1].set_ylabel("radial velocity (m/s, median over the body)")
     axes[1].set_title("fitted radial velocity")
     axes[1].legend(fontsize=7)
+    if angular:
+        _plot_angular_velocity(axes[2], result, its)
     fig.tight_layout()
     io.save_figure(fig, path)
     plt.close(fig)
+
+
+def _plot_angular_velocity(ax, result: FitResult, its) -> None:
+    """The fitted angular velocity (omega, rad/s) of every body over the iterations (an
+    --angular fit): each component the captures see, from the history's parameters."""
+    names = result.settings["parameters"]
+    unseen = set(result.settings.get("unconstrained", ()))
+    for k, body in enumerate(result.bodies):
+        for axis in "xyz":
+            name = f"body{k}.w{axis}"
+            if name not in names or name in unseen:
+                continue
+            column = names.index(name)
+            ax.plot(its, [h["parameters"][column] for h in result.history], "o-",
+                    label=f"{body['name']}: omega_{axis}")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("angular velocity omega (rad/s)")
+    ax.set_title("fitted angular velocity")
+    ax.legend(fontsize=7)
 
 
 def _vector(values, uncertainties, unit: str) -> str:

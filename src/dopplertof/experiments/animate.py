@@ -310,6 +310,8 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     radiance = [np.asarray(load(t, "radiance.npy"), np.float64) for t in tasks]
     radiance = [r.mean(axis=-1) if r.ndim == 3 else r for r in radiance]
     vlim = _velocity_limit(truth, velocity)
+    extend = io.colorbar_extend(np.concatenate([np.ravel(v) for v in velocity + truth]),
+                                -vlim, vlim)  # (the same bar, arrows by every frame)
     norm = radiance_norm(radiance_top(*radiance))
     images = []
     for task, rad, vel, gt in zip(tasks, radiance, velocity, truth):
@@ -326,10 +328,11 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
             ax.set_title(title, fontsize=9)
         for ax in axes:
             ax.set_axis_off()
-        bar = fig.colorbar(shown, ax=list(axes[1:]), shrink=0.85)
-        bar.set_label("m/s (+ receding, − approaching; hatched magenta: NaN)", fontsize=8)
+        bar = fig.colorbar(shown, ax=list(axes[1:]), shrink=0.85, extend=extend)
+        bar.set_label("m/s (+ receding, − approaching;\nhatched magenta: NaN)", fontsize=8)
         fig.suptitle(f"frame {task.index}: exposure {task.shutter_open * 1e3:.4g}–"
                      f"{task.shutter_close * 1e3:.4g} ms", fontsize=10)
+        io.wrap_texts(fig)  # (the label fits the frame's height, whatever its size)
         fig.canvas.draw()
         rgba = np.asarray(fig.canvas.buffer_rgba())
         images.append(Image.fromarray(rgba[..., :3].copy()))

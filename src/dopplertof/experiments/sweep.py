@@ -182,7 +182,7 @@ def reserve_summary(path: str, summary: SweepSummary, pending: int) -> None:
     the tasks fill up still takes the final summary (:func:`write_summary`)."""
     from .. import io
 
-    text = json.dumps(summary.to_json(), indent=2, sort_keys=True)
+    text = json.dumps(io.json_ready(summary.to_json()), indent=2, sort_keys=True)
     with io.atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text + "\n" + " " * (SUMMARY_BYTES_PER_TASK * pending) + "\n")
@@ -200,7 +200,7 @@ def write_summary(config: SweepConfig, tasks, output: str, summary: SweepSummary
     except (OSError, io.WriteError) as e:
         if not io.is_disk_full(e) or not os.path.isfile(path):
             raise
-        text = json.dumps(summary.to_json(), indent=2, sort_keys=True,
+        text = json.dumps(io.json_ready(summary.to_json()), indent=2, sort_keys=True,
                           default=str) + "\n"
         with open(path, "r+", encoding="utf-8") as f:
             f.write(text)

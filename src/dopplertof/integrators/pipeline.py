@@ -343,6 +343,8 @@ class _Passes:
         spp, chunk = plan.spp, plan.chunk
         done = (min(spp, next_chunk * chunk) if counts is None
                 else float(np.minimum(counts, next_chunk * chunk).mean()))
+        #: samples per pixel (mean) that a resumed checkpoint held, else None
+        self.resumed_from = done if next_chunk else None
         self.bar = tqdm(total=spp, initial=done, unit="spp", desc="rendering",
                         disable=not _show_progress(progress), leave=False, file=sys.stderr)
 
@@ -376,6 +378,8 @@ class _Passes:
                                             self.setup.shutter_open, metadata["exposure_s"])
         if warning:  # (for the caller to say: the render command prints it)
             metadata["warnings"] = [warning]
+        if self.resumed_from is not None:  # (the render command says it resumed)
+            metadata["resumed_from_samples"] = self.resumed_from
         if counts is None:
             return RenderResult(image, metadata)
         metadata["sample_counts"] = {"pilot": self.plan.pilot_chunks * chunk,
@@ -534,8 +538,11 @@ def _render_key(scene, params: RenderParams, spp: int, seed: int, variant: str,
     """What must match for a checkpoint to be resumed (hex digest)."""
     import hashlib
 
-    text = repr((scene.fingerprint or scene.source, params, spp, int(seed), variant, chunk,
-                 GROUPS_PER_CHUNK))
+    parts = (scene.fingerprint or scene.source, params, spp, int(seed), variant, chunk,
+             GROUPS_PER_CHUNK)
+    if scene.shutter_window is not None:  # (a camera's raw frame: its own window)
+        parts += (scene.shutter_window,)
+    text = repr(parts)
     return hashlib.sha256(text.encode()).hexdigest()
 
 

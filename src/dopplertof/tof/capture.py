@@ -62,7 +62,7 @@ CALIBRATION_NOTES = {
 ROTATION_NOTE = ("the inverse-square calibration does not model the brightness change of a "
                  "turning surface (its cosine term): expect a velocity bias of several "
                  "percent on {names} with this waveform (rectangular, examples/"
-                 "rotating_cube.xml: -13% median); the sinusoidal waveform has none (+0.3%)")
+                 "rotating_cube.xml: -14% median); the sinusoidal waveform has none (+1.0%)")
 
 
 def rotating_bodies(scene, base: RenderParams) -> list:
@@ -225,7 +225,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
             velocity_calibration: str = "auto", common_random_numbers: bool = True,
             progress: bool | None = None, on_capture=None, mc_batches: int | None = None,
             max_velocity_std: float | None = None, max_depth_std: float | None = None,
-            keep_mixed_pixels: bool = False) -> CaptureResult:
+            keep_mixed_pixels: bool = False, checkpoint=None) -> CaptureResult:
     """Render every capture of one D-ToF frame, reconstruct velocity and depth, and
     compare them with the exact truth.
 
@@ -245,7 +245,9 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     per-pixel standard deviations (result.uncertainty, summary "precision" and its
     "cost"). max_velocity_std, max_depth_std: NaN where the predicted total standard
     deviation is larger (implies mc_batches=8). keep_mixed_pixels: reconstruct the
-    pixels whose footprint mixes surfaces (silhouettes) instead of NaN (reason 5)."""
+    pixels whose footprint mixes surfaces (silhouettes) instead of NaN (reason 5).
+    checkpoint: a folder keeping every render (:mod:`.checkpoint`): run again, only the
+    missing ones render, bitwise."""
     started = _time.perf_counter()
     settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
                                noise, min_signal_fraction, velocity_calibration,
@@ -257,7 +259,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     rendered, records, radiance, batches = _render_captures(
         scene, base, plan_captures(base.w_g, model.hetero_frequency, unwrap),
         int(settings.spp), settings.seed, settings.common_random_numbers,
-        settings.mc_batches, progress, on_capture)
+        settings.mc_batches, progress, on_capture, checkpoint)
 
     # ---- The truth; reconstruct (mixed footprints NaN), with sensor noise when asked ----
     truth = ground_truth(scene, base)
@@ -406,10 +408,11 @@ def _check_signal_fraction(min_signal_fraction):
 
 
 def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: bool,
-                     mc_batches, progress, on_capture):
+                     mc_batches, progress, on_capture, checkpoint=None):
     """Every capture of ``specs``: the captures (mean of channels, float32), their
     records for the summary, the radiance image, and (mc_batches) each capture's batch
-    stack's channel mean."""
+    stack's channel mean. ``checkpoint``: a folder that keeps every render
+    (:mod:`.checkpoint`)."""
     from ..render import render_result
 
     # ---- Every capture's seed, checked before the first render (all below 2^64; the
@@ -417,18 +420,25 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
     capture_seeds = [check_seed(int(seed) + (0 if common_random_numbers else index),
                                 "seed + capture index", CaptureError)
                      for index in range(len(specs))]
+    saved = (None if checkpoint is None else
+             _open_checkpoint(checkpoint, scene, base, specs, spp, capture_seeds, mc_batches))
     rendered, records, radiance, batches = {}, [], None, {}
     for index, spec in enumerate(specs):
         capture_seed = capture_seeds[index]
         extra_seconds = None
         if mc_batches:
             image, stack, seconds, extra_seconds, dropped = prec.render_batches(
-                scene, spp, capture_seed, spec.params(base), mc_batches, progress)
+                scene, spp, capture_seed, spec.params(base), mc_batches, progress, saved,
+                spec.name)
             if spec.kind != "radiance":
                 batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
         else:
             result = render_result(scene, spp=spp, seed=capture_seed,
-                                   params=spec.params(base), progress=progress)
+                                   params=spec.params(base), progress=progress,
+                                   checkpoint=None if saved is None else
+                                   saved.path(spec.name))
+            if saved is not None:
+                saved.count(result.metadata)
             image = result.image
             seconds = result.metadata["render_seconds"]
             dropped = result.metadata["nonfinite_samples_dropped"]
@@ -448,7 +458,22 @@ def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: 
             records[-1]["error_bar_render_seconds"] = round(extra_seconds, 3)
         if on_capture is not None:
             on_capture(spec, seconds)
+    if saved is not None:
+        saved.report("renders" if mc_batches else "captures")
     return rendered, records, radiance, batches
+
+
+def _open_checkpoint(folder, scene, base, specs, spp: int, seeds, mc_batches):
+    """The CaptureCheckpoint in ``folder`` of every render of ``specs`` (and of their
+    error-bar batches)."""
+    from .checkpoint import CaptureCheckpoint, batch_name
+
+    renders = [(batch_name(spec.name, b), scene.shutter_window, spec.params(base), spp,
+                batch_seed)
+               for spec, seed in zip(specs, seeds)
+               for b, batch_seed in enumerate(prec.batch_seeds(seed, mc_batches)
+                                              if mc_batches else [seed])]
+    return CaptureCheckpoint.open(folder, scene, renders)
 
 
 def _homodyne_set(captures, prefix):

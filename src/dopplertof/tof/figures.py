@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import NO_SIGNAL_NOTE, no_signal_colours, save_figure, show_no_signal
+from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, no_signal_colours, save_figure,
+                  show_no_signal)
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
 RADIANCE_GAMMA = 2.2
@@ -63,7 +64,10 @@ def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
                        zorder=1)
     ax.set_title(title, fontsize=10)
     ax.set_axis_off()
-    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    im.autoscale_None()
+    shown = im.norm  # (an arrow at each end that the data passes)
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
+                       extend=colorbar_extend(data, shown.vmin, shown.vmax))
     bar.set_label(label, fontsize=9)
     bar.ax.tick_params(labelsize=8)
     return im
@@ -90,8 +94,9 @@ def _radiance_norm(data):
 
 def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=None,
               vmax=None, symmetric: bool = False, note: str | None = None,
-              metadata: dict | None = None) -> None:
-    """One scalar map with a colour bar; ``symmetric`` centres the range on zero."""
+              metadata: dict | None = None, marked=None) -> None:
+    """One scalar map with a colour bar; ``symmetric`` centres the range on zero;
+    ``marked`` (H, W bool): pixels cross-hatched in white (:func:`mark_pixels`)."""
     plt = _pyplot()
     data = np.asarray(data, np.float64)
     if symmetric:
@@ -104,10 +109,37 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
     _draw(ax, fig, data, title, label, cmap, vmin, vmax)
+    if marked is not None:
+        mark_pixels(ax, marked)
+    fig.tight_layout()
     if note:
-        fig.text(0.5, 0.01, note, ha="center", va="bottom", fontsize=8, color="#444444")
-    fig.tight_layout(rect=(0, 0.03 if note else 0, 1, 1))
+        add_caption(fig, note)
     save_figure(fig, path, metadata)
+
+
+#: how :func:`mark_pixels` marks a pixel (the depth preview: beyond the wrap distance)
+MARK_HATCH, MARK_COLOUR = "xx", "white"
+
+
+def mark_pixels(ax, marked):
+    """Cross-hatch the pixels ``marked`` (H, W bool) of the image on ``ax`` (white
+    lines over its colours, one rectangle per run of marked pixels in a row); returns
+    the PatchCollection (None when no pixel is marked)."""
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Rectangle
+
+    marked = np.asarray(marked, bool)
+    runs = []
+    for row in range(marked.shape[0]):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], marked[row].astype(np.int8), [0]])))
+        runs += [Rectangle((start - 0.5, row - 0.5), end - start, 1.0)
+                 for start, end in zip(edges[::2], edges[1::2])]
+    if not runs:
+        return None
+    patches = PatchCollection(runs, facecolor="none", edgecolor=MARK_COLOUR, hatch=MARK_HATCH,
+                              linewidth=0, zorder=2)
+    ax.add_collection(patches)
+    return patches
 
 
 def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
@@ -128,9 +160,9 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     h, w = data.shape
     fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
     _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
+    fig.tight_layout()
     if note:
-        fig.text(0.5, 0.01, note, ha="center", va="bottom", fontsize=8, color="#444444")
-    fig.tight_layout(rect=(0, 0.03 if note else 0, 1, 1))
+        add_caption(fig, note)
     save_figure(fig, path, metadata)
 
 

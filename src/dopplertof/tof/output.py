@@ -125,15 +125,31 @@ def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
     finite = np.concatenate([a[np.isfinite(a)] for a in shared] or [np.zeros(0)])
     d_lo = float(np.percentile(finite, 0.5)) if finite.size else None
     d_hi = float(np.percentile(finite, 99.5)) if finite.size else None
-    for name, data, title, note in (
+    beyond, beyond_note = beyond_range(truth.depth, depth_info)
+    for name, data, title, note, marked in (
             ("depth", recon.depth, f"reconstructed depth{noisy}",
-             f"{wrap_note}; {masked_caption(recon.depth_reasons, truth)}"),
+             f"{wrap_note}{beyond_note}; {masked_caption(recon.depth_reasons, truth)}",
+             beyond),
             ("depth_gt", truth.depth, "ground truth depth, mid-exposure",
-             f"not wrapped; {truth_caption(truth)}")):
+             f"not wrapped; {truth_caption(truth)}", None)):
         io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
-                          vmin=d_lo, vmax=d_hi, note=note)
+                          vmin=d_lo, vmax=d_hi, note=note, marked=marked)
+
+
+def beyond_range(depth_gt, depth_info: dict):
+    """The pixels whose true depth lies beyond the range the camera's depth covers (the
+    wrap distance c / (2 f_g), or the unambiguous range when unwrapped): there the
+    reconstructed depth is the true one modulo that range. (H, W bool, or None when no
+    pixel is; the depth preview's caption for them, '' when none)."""
+    limit = depth_info["unambiguous_range_m"]
+    with np.errstate(invalid="ignore"):
+        beyond = np.asarray(depth_gt, np.float64) >= limit
+    count = int(beyond.sum())
+    if not count:
+        return None, ""
+    return beyond, f"; white cross-hatch: {count} px beyond it, shown wrapped"
 
 
 _STD_TITLES = {

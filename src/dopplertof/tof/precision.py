@@ -397,18 +397,24 @@ def check_limit(name: str, value):
     return value
 
 
-def render_batches(scene, spp: int, seed: int, params, batches: int, progress=None):
+def render_batches(scene, spp: int, seed: int, params, batches: int, progress=None,
+                   checkpoint=None, name: str = ""):
     """A capture rendered ``batches`` times independently with ``spp`` samples each
     (seeds :func:`batch_seeds`): (the first render's image (H, W, C) float32: the
     capture with ``seed``, bitwise as without batches; all renders' images (B, H, W,
     C) float32; the first's render seconds; the others' render seconds; the first's
-    non-finite samples dropped)."""
+    non-finite samples dropped). ``checkpoint``: a CaptureCheckpoint that keeps each
+    render (named after the capture ``name``: checkpoint.batch_name)."""
     from ..render import render_result
+    from .checkpoint import batch_name
 
     images, seconds = [], []
-    for batch_seed in batch_seeds(seed, batches):
+    for b, batch_seed in enumerate(batch_seeds(seed, batches)):
         result = render_result(scene, spp=spp, seed=batch_seed, params=params,
-                               progress=progress)
+                               progress=progress, checkpoint=None if checkpoint is None
+                               else checkpoint.path(batch_name(name, b)))
+        if checkpoint is not None:
+            checkpoint.count(result.metadata)
         images.append(result.image)
         seconds.append(result.metadata["render_seconds"])
         if len(images) == 1:
