@@ -39,7 +39,12 @@ def write_shard(path: str, samples: list, failed: list, attributes: dict, units:
 
     with io.atomic_path(path) as tmp:
         try:
-            with h5py.File(tmp, "w", libver=("v110", "v110"), track_order=False) as f:
+            # no chunk cache (rdcc_nbytes=0): every chunk is placed in the file as it is
+            # written, in the order below, never when a cached chunk happens to be evicted
+            # or its dataset garbage-collected (which made a shard's bytes depend on the
+            # process: same arrays, chunks in another order)
+            with h5py.File(tmp, "w", libver=("v110", "v110"), track_order=False,
+                           rdcc_nbytes=0) as f:
                 for key, value in attributes.items():
                     f.attrs[key] = value
                 f.attrs["samples"] = np.asarray([a["index"] for _, a in samples], np.int64)

@@ -62,7 +62,7 @@ CALIBRATION_NOTES = {
 ROTATION_NOTE = ("the inverse-square calibration does not model the brightness change of a "
                  "turning surface (its cosine term): expect a velocity bias of several "
                  "percent on {names} with this waveform (rectangular, examples/"
-                 "rotating_cube.xml: -14% median); the sinusoidal waveform has none (+1.0%)")
+                 "rotating_cube.xml: -14% median); the sinusoidal waveform has none (+0.7%)")
 
 
 def rotating_bodies(scene, base: RenderParams) -> list:
