@@ -240,14 +240,12 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
     colocated point light; uses each pixel's depth) or "auto" (inverse-square for
     non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
     for every capture (default) rather than seed + capture index. on_capture: called
-    as on_capture(spec, seconds) after each render. mc_batches: render every capture B
-    times with spp samples (the first is the capture, bitwise as without) and predict
-    per-pixel standard deviations (result.uncertainty, summary "precision" and its
-    "cost"). max_velocity_std, max_depth_std: NaN where the predicted total standard
-    deviation is larger (implies mc_batches=8). keep_mixed_pixels: reconstruct the
-    pixels whose footprint mixes surfaces (silhouettes) instead of NaN (reason 5).
-    checkpoint: a folder keeping every render (:mod:`.checkpoint`): run again, only the
-    missing ones render, bitwise."""
+    as on_capture(spec, seconds) after each render. mc_batches: B renders of each capture
+    (the first the capture itself) for per-pixel standard deviations (result.uncertainty,
+    summary "precision", its "cost"). max_velocity_std, max_depth_std: NaN where the
+    predicted standard deviation is larger (implies mc_batches=8). keep_mixed_pixels:
+    silhouettes reconstructed, not NaN (reason 5). checkpoint: a folder keeping every
+    render (:mod:`.checkpoint`): run again, only the missing ones render, bitwise."""
     started = _time.perf_counter()
     settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
                                noise, min_signal_fraction, velocity_calibration,
