@@ -102,3 +102,39 @@ def test_sigint_at_any_moment_of_a_render_is_one_line(tmp_path):
     bad = [o for o in outcomes if o[1:] != (130, "dopplertof: interrupted\n")]
     assert not bad, bad
     assert not out.exists() and not list(tmp_path.glob(".*.tmp*"))
+
+
+def test_a_ctrl_c_python_drops_in_a_weakref_callback_still_stops_the_command(tmp_path, capsys,
+                                                                            monkeypatch):
+    """A SIGINT whose KeyboardInterrupt is raised inside a weakref callback (matplotlib's
+    transforms have them; Python prints such an exception and goes on) still stops the
+    command: exit 130, one line, no output committed, no 'Exception ignored' traceback.
+    Found by the capture --checkpoint test: a SIGINT 6 s into a capture (while its
+    previews were drawn) let the capture finish and exit 0."""
+    import weakref
+
+    import dopplertof.cli
+    from dopplertof import io
+
+    class Target:
+        pass
+
+    kept = []
+    path = io.StagedFolder.path
+
+    def path_then_lost_interrupt(self, name):  # the first file: a callback meets Ctrl-C
+        if not kept:
+            target = Target()
+            kept.append(weakref.ref(target, lambda ref: signal.raise_signal(signal.SIGINT)))
+            del target  # the callback runs now; its KeyboardInterrupt is dropped
+        return path(self, name)
+
+    monkeypatch.setattr(io.StagedFolder, "path", path_then_lost_interrupt)
+    out = tmp_path / "out"
+    code = dopplertof.cli.main(["capture", SPHERE, "-D", "res=4", "--spp", "8", "--quiet",
+                                "-o", str(out)])
+    err = capsys.readouterr().err
+    assert kept and code == 130, err
+    assert err.strip().splitlines()[-1] == "dopplertof: interrupted"
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert not out.exists() or not any(out.iterdir())

@@ -427,8 +427,9 @@ def main(argv=None) -> int:
             commands = {"render": _cmd_render, "capture": _cmd_capture, "demo": _cmd_demo,
                         "precision": _cmd_precision,
                         "figures": _cmd_figures}
-            return commands[args.command](args) if args.command in commands else \
+            code = commands[args.command](args) if args.command in commands else \
                 args.func(args)
+        return _interrupted() if interrupt.seen else code  # (a KeyboardInterrupt lost)
     except KeyboardInterrupt:
         return _interrupted()
     except Exception as exc:  # one line for the user; --debug for the traceback
@@ -458,23 +459,37 @@ class _InterruptWatch:
         self._previous = None
 
     def _on_sigint(self, signum, frame):
+        from .io import INTERRUPT_SEEN
+
         self.seen = True
+        INTERRUPT_SEEN.set()  # (outputs are not committed after it, if this raise is lost)
         raise KeyboardInterrupt
 
     def __enter__(self):
         import signal
         import threading
 
+        from .io import INTERRUPT_SEEN
+
         if threading.current_thread() is threading.main_thread() and \
                 signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            INTERRUPT_SEEN.clear()
             self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+            self._previous_hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
+
+    def _unraisable(self, info):
+        """Python's report of an exception it had to drop: a KeyboardInterrupt lost in a
+        weakref callback is ours (the command stops at its next output), not a traceback."""
+        if not (self.seen and issubclass(info.exc_type, KeyboardInterrupt)):
+            self._previous_hook(info)
 
     def __exit__(self, *exc_info):
         import signal
 
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
+            sys.unraisablehook = self._previous_hook
         return False
 
 

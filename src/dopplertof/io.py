@@ -217,6 +217,12 @@ def _plain_name(name) -> bool:
             and os.sep not in name and (os.altsep is None or os.altsep not in name))
 
 
+# A Ctrl-C that Python dropped: a KeyboardInterrupt raised inside a weakref callback or a
+# __del__ (matplotlib's transforms have such callbacks) is printed and ignored, and the
+# command goes on. The CLI's SIGINT handler sets this; no output set commits after it.
+INTERRUPT_SEEN = threading.Event()
+
+
 @contextlib.contextmanager
 def output_folder(folder, name: str):
     """Write a set of files into ``folder`` all or nothing: yields a
@@ -240,6 +246,8 @@ def output_folder(folder, name: str):
     try:
         staged = StagedFolder(target, staging)
         yield staged
+        if INTERRUPT_SEEN.is_set():  # interrupted, even if the KeyboardInterrupt was lost
+            raise KeyboardInterrupt
         with _locked(target):
             _commit(staged, name)
     except BaseException as exc:
