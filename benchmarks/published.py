@@ -8,10 +8,12 @@ the RMSE of the published renders computed from the fixture files (see the fixtu
 README: a Mitsuba 0.6 ``.npy`` holds 1 + T * value, T = 0.0015 s), and the ratios.
 
     .venv/bin/python benchmarks/published.py [--seeds 1 2 3] [--importance]
-        [--fixtures DIR]
+        [--pixel-sets independent joint] [--reference NPY] [--fixtures DIR]
 
 ``--importance`` adds the same rows with ``film_sampling="importance"`` (each sample in
-one pixel). The last line reads
+one pixel); every row is rendered with each ``--pixel-sets`` (default both, side by
+side); ``--reference`` adds the RMSE against a deeper reference
+(benchmarks/reference.py). The last line reads
 `RMSE against the published reference (auto + adaptive / published best): X`
 (X < 1: ours is closer to the reference at the same spp).
 """
@@ -26,6 +28,7 @@ import time
 
 import numpy as np
 
+PIXEL_SETS = ("independent", "joint")  #: (sampling.PIXEL_SETS, in the order rendered)
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURES = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "fixtures", "published"))
 EXPOSURE = 0.0015
@@ -67,6 +70,10 @@ def main(argv=None) -> int:
     p.add_argument("--spp", type=int, default=1024)
     p.add_argument("--importance", action="store_true",
                    help="also render every row with the importance film")
+    p.add_argument("--pixel-sets", nargs="+", default=list(PIXEL_SETS),
+                   choices=PIXEL_SETS, help="pixel_sets to render every row with, side by side")
+    p.add_argument("--reference", metavar="NPY",
+                   help="also the RMSE against this reference (benchmarks/reference.py)")
     args = p.parse_args(argv)
     if not os.path.isdir(args.fixtures):
         print(f"error: the published fixtures are not at {args.fixtures} (--fixtures DIR)",
@@ -89,20 +96,31 @@ def main(argv=None) -> int:
     print(f"dopplertof, {scene.sensor.film().crop_size()[0]}x"
           f"{scene.sensor.film().crop_size()[1]}, {args.spp} spp, seeds {args.seeds} "
           "(RMSE: mean over seeds; ratio: ours over the published render beside it):")
+    own = np.load(args.reference) if args.reference else None
     ours = {}
     for film in films:
-        for name, params, beside in CONFIGURATIONS:
-            started = time.perf_counter()
-            values = [rmse(dopplertof.render(scene, spp=args.spp, seed=seed, params={
-                **params, "film_sampling": film}), reference) for seed in args.seeds]
-            value = statistics.mean(values)
-            ours[film, name] = value
-            spread = f" (seeds {min(values):.3e}-{max(values):.3e})" if len(values) > 1 else ""
-            print(f"  [{film}] {name:60s} {value:.3e}{spread}   / {beside} "
-                  f"{value / theirs[beside]:.3f}   "
-                  f"{(time.perf_counter() - started) / len(values):.1f} s", flush=True)
-    best = ours["splat", "auto + adaptive_sampling"] / theirs["best"]
-    scene_settings = ours["splat", CONFIGURATIONS[1][0]] / theirs["Mitsuba 3 EXR"]
+        for sets in args.pixel_sets:
+            for name, params, beside in CONFIGURATIONS:
+                started = time.perf_counter()
+                images = [dopplertof.render(scene, spp=args.spp, seed=seed, params={
+                    **params, "film_sampling": film, "pixel_sets": sets})
+                    for seed in args.seeds]
+                values = [rmse(image, reference) for image in images]
+                value = statistics.mean(values)
+                ours[film, sets, name] = value
+                spread = (f" (seeds {min(values):.3e}-{max(values):.3e})" if len(values) > 1
+                          else "")
+                against_own = ("" if own is None else "   against ours "
+                               f"{statistics.mean(rmse(i, own) for i in images):.3e}")
+                print(f"  [{film}, {sets}] {name:60s} {value:.3e}{spread}   / {beside} "
+                      f"{value / theirs[beside]:.3f}   "
+                      f"{(time.perf_counter() - started) / len(values):.1f} s{against_own}",
+                      flush=True)
+    sets = dopplertof.RenderParams().pixel_sets  # the default
+    if sets not in args.pixel_sets:
+        return 0
+    best = ours["splat", sets, "auto + adaptive_sampling"] / theirs["best"]
+    scene_settings = ours["splat", sets, CONFIGURATIONS[1][0]] / theirs["Mitsuba 3 EXR"]
     print(f"RMSE against the published reference (scene's settings / published Mitsuba 3 "
           f"render): {scene_settings:.3f}")
     print(f"RMSE against the published reference (auto + adaptive / published best): "
