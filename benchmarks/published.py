@@ -13,7 +13,8 @@ README: a Mitsuba 0.6 ``.npy`` holds 1 + T * value, T = 0.0015 s), and the ratio
 ``--importance`` adds the same rows with ``film_sampling="importance"`` (each sample in
 one pixel); every row is rendered with each ``--pixel-sets`` (default both, side by
 side); ``--reference`` adds the RMSE against a deeper reference
-(benchmarks/reference.py). The last line reads
+(benchmarks/reference.py); ``--equal-time 256 1024 ...`` renders only `auto` + adaptive
+at those spp (the first ``--pixel-sets``) and prints RMSE, wall and CPU seconds. The last line reads
 `RMSE against the published reference (auto + adaptive / published best): X`
 (X < 1: ours is closer to the reference at the same spp).
 """
@@ -63,6 +64,20 @@ def rmse(image, reference) -> float:
     return float(np.sqrt(np.mean((np.asarray(image, np.float64) - reference) ** 2)))
 
 
+def equal_time(dopplertof, scene, reference, spps, pixel_sets: str) -> None:
+    """RMSE of `auto` + adaptive at each spp with its wall and CPU seconds (one seed,
+    after a warm-up render: kernels compiled), for the equal-time view."""
+    params = {"time_sampling_method": "auto", "adaptive_sampling": True,
+              "pixel_sets": pixel_sets}
+    dopplertof.render(scene, spp=min(spps), seed=99, params=params)  # warm-up
+    print(f"auto + adaptive_sampling, pixel_sets={pixel_sets}: spp, RMSE, wall s, CPU s")
+    for spp in spps:
+        wall, cpu = time.perf_counter(), time.process_time()
+        image = dopplertof.render(scene, spp=spp, seed=1, params=params)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        print(f"  {spp:6d} {rmse(image, reference):.3e} {wall:8.1f} {cpu:8.1f}", flush=True)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--fixtures", default=FIXTURES)
@@ -72,6 +87,8 @@ def main(argv=None) -> int:
                    help="also render every row with the importance film")
     p.add_argument("--pixel-sets", nargs="+", default=list(PIXEL_SETS),
                    choices=PIXEL_SETS, help="pixel_sets to render every row with, side by side")
+    p.add_argument("--equal-time", type=int, nargs="+", metavar="SPP",
+                   help="only `auto` + adaptive at these spp: RMSE, wall and CPU seconds")
     p.add_argument("--reference", metavar="NPY",
                    help="also the RMSE against this reference (benchmarks/reference.py)")
     args = p.parse_args(argv)
@@ -92,6 +109,9 @@ def main(argv=None) -> int:
         if name != "best":
             print(f"  {name:36s} {value:.3e}")
     scene = dopplertof.load_file(os.path.join(args.fixtures, "cornell_box_moving.xml"))
+    if args.equal_time:
+        equal_time(dopplertof, scene, reference, args.equal_time, args.pixel_sets[0])
+        return 0
     films = ("splat", "importance") if args.importance else ("splat",)
     print(f"dopplertof, {scene.sensor.film().crop_size()[0]}x"
           f"{scene.sensor.film().crop_size()[1]}, {args.spp} spp, seeds {args.seeds} "

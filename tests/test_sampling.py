@@ -304,8 +304,10 @@ def test_joint_decisions_stratify_each_2x2_block_of_pixels():
 
     s, pixel, sample = joint_streams(4, 4, 16)
     block = np.isin(pixel, [0, 1, 4, 5])
-    light0, direction0 = s.joint_decisions(0)
-    light1, direction1 = s.joint_decisions(mi.UInt32(np.ones(len(pixel), int)))
+    group, index = mi.UInt32(sample // 2), mi.UInt32(sample % 2)
+    light0, direction0 = (s.first_hit_2d(d, group, index, 8) for d in (0, 1))
+    second = mi.UInt32(np.ones(len(pixel), int))
+    light1, direction1 = (s.joint_decision(second, k) for k in (0, 1))
     for p in (direction0, light1, direction1):
         assert is_net(np.asarray(p.x)[block], np.asarray(p.y)[block])
     x, y = np.asarray(light0.x)[pixel == 5], np.asarray(light0.y)[pixel == 5]
@@ -322,7 +324,8 @@ def test_joint_sets_share_within_groups_and_time_with_film():
     s, pixel, sample = joint_streams(4, 4, 16, depth=FULL_CORRELATION)
     group, index = sample // 2, sample % 2
     film = s.film_2d(mi.UInt32(group), mi.UInt32(index), 8)
-    light, direction = s.joint_decisions(0)
+    light, direction = (s.first_hit_2d(d, mi.UInt32(group), mi.UInt32(index), 8)
+                        for d in (0, 1))
     for p in (film, light, direction):
         x = np.asarray(p.x)
         assert np.array_equal(x[index == 0], x[index == 1])

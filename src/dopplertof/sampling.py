@@ -520,38 +520,30 @@ class CorrelatedStreams:
         shared = stage < self.correlation_depth
         return tuple(dr.select(shared, a, b) for a, b in zip(self.joint_path, self.joint_own))
 
-    def joint_decisions(self, depth):
-        """The light and BSDF samples at surface hit ``depth`` (0-based; int or per
-        lane) from the joint sets (pixel_sets="joint"). The first hit's light sample is
-        Sobol's dimensions 3 and 4 at the film position's index in the image's net, so
-        that film position and light sample form one 4-D set over the image: a
-        pixel's splat weighs its samples by their film positions, and samples of
-        similar weight then still stratify the light (measured: 3.3x less variance
-        with a tent on direct light). The other decisions come from the tile's
-        sequence at the lane's point shuffled per decision (paired at random, not by
-        index; dimensions 0 and 1 of Sobol, whose 2-D sets are the best per pixel).
-        Values Owen-scrambled."""
-        import drjit as dr
-
+    def joint_decision(self, depth, which: int):
+        """A 2-D decision at surface hit ``depth`` (0-based; int or per lane; ``which``
+        0: the light sample, 1: the BSDF sample) from the tile's joint sets
+        (pixel_sets="joint"): Sobol's (0,2)-sequence at the lane's point shuffled per
+        decision (decisions paired at random, not by index), values Owen-scrambled.
+        The first hit's light sample comes from :meth:`first_hit_2d` instead."""
         mi = self.mi
-        point, key, film_index, film_key = self._lane_point(depth + 1)
+        point, key = self._lane_point(depth + 1)[:2]
+        hop = depth * 2 + which
+        seed_index, seed_x, seed_y = (_mix32(key ^ _hop_tag(mi, hop, k)) for k in range(3))
+        shuffled = _reverse_permute(mi, point, seed_index)
+        return mi.Point2f(_unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
+                          _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
 
-        def decision(hop):
-            seed_index, seed_x, seed_y = (_mix32(key ^ _hop_tag(mi, hop, k)) for k in range(3))
-            shuffled = _reverse_permute(mi, point, seed_index)
-            return mi.Point2f(*(_unit(mi, owen_sobol(mi, shuffled, d, seed))
-                                for d, seed in ((0, seed_x), (1, seed_y))))
-
-        def first_light():
-            return mi.Point2f(*(_unit(mi, owen_sobol(mi, film_index, d,
-                                                     _tagged(film_key, 5 + d)))
-                                for d in (3, 4)))
-
-        if isinstance(depth, int):
-            light = first_light() if depth == 0 else decision(2 * depth)
-        else:
-            light = dr.select(depth == 0, first_light(), decision(2 * depth))
-        return light, decision(2 * depth + 1)
+    def _joint_first_light(self):
+        """The first hit's light sample with joint sets: Sobol's dimensions 3 and 4 at
+        the film position's index in the image's net, so that film position and light
+        sample form one 4-D set over the image: a splat weighs a pixel's samples by
+        their film positions, and samples of similar weight then still stratify the
+        light (3.3x less variance with a tent on direct light, docs/benchmarks.md)."""
+        mi = self.mi
+        film_index, film_key = self._lane_point(1)[2:]
+        return mi.Point2f(*(_unit(mi, owen_sobol(mi, film_index, d, _tagged(film_key, 5 + d)))
+                            for d in (3, 4)))
 
     def joint_point(self, shared, kind_if_shared: str, group, index_in_group):
         """The tile's point and scramble key for one of the pixel's sets: by the
@@ -592,7 +584,7 @@ class CorrelatedStreams:
 
         mi = self.mi
         if self.joint is not None:
-            return self.joint_decisions(0)[dim]
+            return self._joint_first_light() if dim == 0 else self.joint_decision(0, 1)
         index = dr.select(1 < self.correlation_depth, self.path_group,
                           index_in_group * groups_per_pixel + group)
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))

@@ -164,11 +164,12 @@ def vertex_numbers(streams, depth, u_em_first, u_dir_first):
     stage = depth + 1
     dim_em = sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)
     dim_dir = sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)
-    if streams.joint is not None:  # every hit's light and BSDF samples from the tile's sets
-        u_em, u_dir = streams.joint_decisions(depth)
+    if streams.joint is not None:  # every hit's light and BSDF samples from joint sets
+        further_em, further_dir = (streams.joint_decision(depth, k) for k in (0, 1))
     else:
-        u_em = dr.select(depth == 0, u_em_first, streams.get_2d(stage, dim_em))
-        u_dir = dr.select(depth == 0, u_dir_first, streams.get_2d(stage, dim_dir))
+        further_em, further_dir = streams.get_2d(stage, dim_em), streams.get_2d(stage, dim_dir)
+    u_em = dr.select(depth == 0, u_em_first, further_em)
+    u_dir = dr.select(depth == 0, u_dir_first, further_dir)
     u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
     u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
     return u_em, u_lobe, u_dir, u_rr
