@@ -266,7 +266,7 @@ def test_joint_pixel_sets_splat_every_pixel_to_the_quadrature(kind):
     scene = plane(kind, 4, 1024, hetero_frequency=1.0, pixel_sets="joint")
     image = np.mean([dopplertof.render(scene, seed=s)[..., 0] for s in SPLAT_SEEDS], axis=0)
     assert np.abs(image - expected).max() <= 2e-3 * np.abs(expected).max() + 2e-7
-    independent = plane(kind, 4, 1024, hetero_frequency=1.0)
+    independent = plane(kind, 4, 1024, hetero_frequency=1.0, pixel_sets="independent")
     assert not np.array_equal(dopplertof.render(scene, seed=0),
                               dopplertof.render(independent, seed=0))
 
