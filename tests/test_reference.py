@@ -20,10 +20,10 @@ def reference_script():
     return module
 
 
-def test_reference_resumes_bitwise_from_its_pieces_and_checkpoints(tmp_path, monkeypatch):
+def test_reference_resumes_bitwise_from_its_pieces(tmp_path, monkeypatch):
     """A tiny reference (8x8, 4 pieces of 16 spp) stopped after 1 piece, then killed
-    inside a piece (after its first checkpoint), then resumed: the same image and hash
-    as an uninterrupted run, the pieces of the first runs read back, not rendered."""
+    inside the third (KeyboardInterrupt from its render), then resumed: the same image
+    and hash as an uninterrupted run, the finished pieces read back, not rendered."""
     import dopplertof
 
     script = reference_script()
@@ -34,33 +34,27 @@ def test_reference_resumes_bitwise_from_its_pieces_and_checkpoints(tmp_path, mon
     parts = tmp_path / "parts"
     assert script.main(["--out", str(parts), "--max-pieces", "1"] + tiny) == 0
     assert sorted(os.listdir(parts)) == ["piece_0000.npy"]
-    R = __import__("sys").modules["dopplertof.render"]
-    original, calls = R.Checkpoint.save, {"n": 0}
+    render, seeds = dopplertof.render, []
 
-    def save_then_die(self, *args):
-        original(self, *args)
-        calls["n"] += 1
-        raise KeyboardInterrupt
+    def render_then_die_in_the_third(*args, **kwargs):
+        seeds.append(kwargs["seed"])
+        if len(seeds) == 2:
+            raise KeyboardInterrupt
+        return render(*args, **kwargs)
 
-    monkeypatch.setattr(R.Checkpoint, "save", save_then_die)
-    monkeypatch.setattr(dopplertof, "render", _one_pass(dopplertof.render))
+    monkeypatch.setattr(dopplertof, "render", render_then_die_in_the_third)
     with pytest.raises(KeyboardInterrupt):
         script.main(["--out", str(parts)] + tiny)
-    assert os.path.exists(parts / "piece_0001.ckpt")
-    monkeypatch.setattr(R.Checkpoint, "save", original)
+    assert sorted(os.listdir(parts)) == ["piece_0000.npy", "piece_0001.npy"]
+    seeds.clear()
+    monkeypatch.setattr(dopplertof, "render", lambda *a, **k: seeds.append(k) or render(*a, **k))
     assert script.main(["--out", str(parts)] + tiny) == 0
+    assert [k["seed"] - script.SEED_BASE for k in seeds] == [2, 3]  # only the missing ones
     resumed = json.loads((parts / "reference.json").read_text())
     assert resumed["sha256"] == whole["sha256"]
     assert np.array_equal(np.load(parts / "reference.npy"),
                           np.load(tmp_path / "whole" / "reference.npy"))
-    assert not os.path.exists(parts / "piece_0001.ckpt")  # removed once the piece is done
     assert resumed["own_noise_rmse"] > 0 and "rmse_against_published" not in resumed
-
-
-def _one_pass(render):
-    def render_one_chunk_per_pass(*args, **kwargs):
-        return render(*args, pass_chunks=1, **kwargs)
-    return render_one_chunk_per_pass
 
 
 def test_reference_refuses_a_bad_piece_size(tmp_path, capsys):
