@@ -64,6 +64,21 @@ def rmse(image, reference) -> float:
     return float(np.sqrt(np.mean((np.asarray(image, np.float64) - reference) ** 2)))
 
 
+def our_row(dopplertof, scene, args, label, reference, own, theirs, beside, params):
+    """Render one row at every seed, print it; returns its mean RMSE."""
+    started = time.perf_counter()
+    images = [dopplertof.render(scene, spp=args.spp, seed=seed, params=params)
+              for seed in args.seeds]
+    values = [rmse(image, reference) for image in images]
+    value = statistics.mean(values)
+    spread = f" (seeds {min(values):.3e}-{max(values):.3e})" if len(values) > 1 else ""
+    against_own = ("" if own is None else "   against ours "
+                   f"{statistics.mean(rmse(i, own) for i in images):.3e}")
+    print(f"  {label:72s} {value:.3e}{spread}   / {beside} {value / theirs:.3f}   "
+          f"{(time.perf_counter() - started) / len(values):.1f} s{against_own}", flush=True)
+    return value
+
+
 def equal_time(dopplertof, scene, reference, spps, pixel_sets: str) -> None:
     """RMSE of `auto` + adaptive at each spp with its wall and CPU seconds (one seed,
     after a warm-up render: kernels compiled), for the equal-time view."""
@@ -121,21 +136,10 @@ def main(argv=None) -> int:
     for film in films:
         for sets in args.pixel_sets:
             for name, params, beside in CONFIGURATIONS:
-                started = time.perf_counter()
-                images = [dopplertof.render(scene, spp=args.spp, seed=seed, params={
-                    **params, "film_sampling": film, "pixel_sets": sets})
-                    for seed in args.seeds]
-                values = [rmse(image, reference) for image in images]
-                value = statistics.mean(values)
-                ours[film, sets, name] = value
-                spread = (f" (seeds {min(values):.3e}-{max(values):.3e})" if len(values) > 1
-                          else "")
-                against_own = ("" if own is None else "   against ours "
-                               f"{statistics.mean(rmse(i, own) for i in images):.3e}")
-                print(f"  [{film}, {sets}] {name:60s} {value:.3e}{spread}   / {beside} "
-                      f"{value / theirs[beside]:.3f}   "
-                      f"{(time.perf_counter() - started) / len(values):.1f} s{against_own}",
-                      flush=True)
+                ours[film, sets, name] = our_row(
+                    dopplertof, scene, args, f"[{film}, {sets}] {name}", reference, own,
+                    theirs[beside], beside, {**params, "film_sampling": film,
+                                             "pixel_sets": sets})
     sets = dopplertof.RenderParams().pixel_sets  # the default
     if sets not in args.pixel_sets:
         return 0
