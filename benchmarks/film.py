@@ -8,10 +8,12 @@ variance of every pixel over the seeds is compared on the smooth pixels of the w
 or a shadow inside; the light excluded).
 
     .venv/bin/python benchmarks/film.py [--res 48] [--spp 16] [--seeds 24]
+    .venv/bin/python benchmarks/film.py --timing 7     (throughput of the pixel sets)
 
-Prints, per filter and film (``splat`` with each normalization, ``importance``), the
-ratio of our variance to stock's (< 1: less noisy than stock); the last line reads
-`worst film variance ratio (splat, default normalization, over box/tent/gaussian): X`.
+Prints, per filter and film (``splat`` with each normalization and ``pixel_sets``,
+``importance``), the ratio of our variance to stock's (< 1: less noisy than stock); the
+last line reads `worst film variance ratio (splat, default normalization, joint pixel
+sets, over box/tent/gaussian): X`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,10 @@ import argparse
 import numpy as np
 
 WEIGHT = 0.25  #: g1 C(0): the D-ToF image over the radiance at a vanishing frequency
-FILMS = (("splat", "weights"), ("splat", "expected"), ("importance", "weights"))
+#: (film_sampling, film_normalization, pixel_sets), side by side; the first is the default
+PIXEL_SETS = ("independent", "joint")
+FILMS = (("splat", "weights", "joint"), ("splat", "weights", "independent"),
+         ("splat", "expected", "joint"), ("importance", "weights", "independent"))
 
 
 def scene(integrator, rfilter, res, spp):
@@ -45,11 +50,33 @@ def smooth_pixels(mean):
     return (spread < 0.3) & (mean < np.quantile(mean, 0.98)) & (mean > 0)
 
 
+def throughput(repeats: int) -> None:
+    """Seconds per render of the published scene (128x128, 64 spp, its tent filter,
+    ``auto``) with each pixel_sets, interleaved (benchmarks/timing.py), and the ratio."""
+    import os
+
+    import dopplertof
+    from timing import interleaved_medians
+
+    xml = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "fixtures",
+                       "cornell_box_moving.xml")
+    scene = dopplertof.load_file(xml, {"resx": 128, "resy": 128})
+    runs = {sets: (lambda sets=sets: dopplertof.render(scene, spp=64, seed=1, params={
+        "time_sampling_method": "auto", "pixel_sets": sets})) for sets in PIXEL_SETS}
+    _, warm = interleaved_medians(runs, repeats)
+    for sets in PIXEL_SETS:
+        print(f"  {sets:12s} {warm[sets]:.3f} s (median of {repeats})")
+    print(f"throughput ratio (joint / independent pixel sets): "
+          f"{warm['joint'] / warm['independent']:.3f}")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--res", type=int, default=48)
     p.add_argument("--spp", type=int, default=16)
     p.add_argument("--seeds", type=int, default=24)
+    p.add_argument("--timing", type=int, metavar="REPEATS",
+                   help="only time the pixel sets against each other (interleaved)")
     args = p.parse_args(argv)
 
     import mitsuba as mi
@@ -57,6 +84,9 @@ def main(argv=None) -> int:
     import dopplertof
 
     dopplertof.set_variant("llvm_ad_rgb")
+    if args.timing:
+        throughput(args.timing)
+        return 0
     worst = 0.0
     for rfilter in ("box", "tent", "gaussian"):
         stock_scene = mi.load_dict(scene({"type": "path", "max_depth": 6}, rfilter, args.res,
@@ -67,19 +97,20 @@ def main(argv=None) -> int:
         mask = smooth_pixels(reference[..., :3].mean(-1))
         stock_var = stock.var(0, ddof=1)[mask].mean()
         row = [f"{rfilter:9s} ({mask.sum()} smooth pixels)"]
-        for film, normalization in FILMS:
+        for film, normalization, sets in FILMS:
             ours_scene = dopplertof.load_dict(scene(
-                {"type": "dopplertof", "max_depth": 6, "w_g": 1e-9, "film_sampling": film,
-                 "film_normalization": normalization}, rfilter, args.res, args.spp))
+                {"type": "dopplertof", "max_depth": 6, "w_g": 1e-6, "film_sampling": film,
+                 "film_normalization": normalization, "pixel_sets": sets}, rfilter,
+                args.res, args.spp))
             ours = np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
                              for s in range(args.seeds)])
             ratio = ours.var(0, ddof=1)[mask].mean() / stock_var
-            row.append(f"{film}/{normalization} {ratio:.2f}")
-            if (film, normalization) == FILMS[0]:
+            row.append(f"{film}/{normalization}/{sets} {ratio:.2f}")
+            if (film, normalization, sets) == FILMS[0]:
                 worst = max(worst, ratio)
         print("  ".join(row), flush=True)
-    print("worst film variance ratio (splat, default normalization, over box/tent/gaussian): "
-          f"{worst:.2f}")
+    print("worst film variance ratio (splat, default normalization, joint pixel sets, over "
+          f"box/tent/gaussian): {worst:.2f}")
     return 0
 
 

@@ -195,3 +195,26 @@ def test_cli_writes_the_sample_counts(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 2 and "-P adaptive_sampling=true" in run.stderr
     assert not out.exists() and not (tmp_path / "c.npy").exists()
+
+
+def test_adaptive_joint_pixel_sets_match_quadrature_and_resume(monkeypatch, tmp_path):
+    # pixel_sets="joint": the pilot from each pixel's own sets, the rest joint; the
+    # checkerboard counts of test_adaptive_render_matches_quadrature (h = 1, its
+    # tolerance), then a render killed after its pilot resumes bitwise
+    def checkerboard(variance, spp, pilot, chunk):
+        y, x = np.indices(variance.shape)
+        return np.where((x + y) % 2 == 0, spp // 2, spp)
+
+    with monkeypatch.context() as patched:
+        patched.setattr(allocation, "sample_counts", checkerboard)
+        expected = reference(4.0, 30.0, hetero_frequency=1.0, hetero_offset=0.0)
+        scene = dopplertof.load_dict(plane_scene(4.0, 30.0, spp=2048, res=4, integrator={
+            "hetero_frequency": 1.0, "adaptive_sampling": True, "pixel_sets": "joint"}))
+        values = [dopplertof.render(scene, seed=seed)[..., 0].mean() for seed in range(3)]
+    assert abs(np.mean(values) - expected) <= 2e-3 * abs(expected) + 2e-7, (values, expected)
+    scene = dopplertof.load_file(PUBLISHED, {"resx": 12, "resy": 10})
+    params = {"adaptive_sampling": True, "pixel_sets": "joint"}
+    reference_image = dopplertof.render(scene, spp=256, seed=4, params=params)
+    resumed = render_killed_then_resumed(monkeypatch, scene, tmp_path / "r.ckpt", 5,
+                                         spp=256, seed=4, params=params)
+    assert np.array_equal(resumed, reference_image)

@@ -253,3 +253,29 @@ def test_ratio_normalization_bias_is_below_measurement_at_4_spp():
     assert abs(relative.mean()) < 2e-4, relative
     spread = {k: (v.std(0, ddof=1) / expected).mean() for k, v in images.items()}
     assert spread["weights"] < 0.05 * spread["expected"], spread
+
+
+# ---- Joint pixel sets (pixel_sets="joint") ----
+
+@pytest.mark.parametrize("kind", ["tent", "gaussian"])
+def test_joint_pixel_sets_splat_every_pixel_to_the_quadrature(kind):
+    # As test_every_splat_pixel_matches_quadrature (h = 1, its tolerance), with the
+    # film, time and decisions of neighbouring pixels stratified jointly: correlated
+    # pixels, each still unbiased
+    expected = pixel_references(kind, 4, 1.0, 0.0)
+    scene = plane(kind, 4, 1024, hetero_frequency=1.0, pixel_sets="joint")
+    image = np.mean([dopplertof.render(scene, seed=s)[..., 0] for s in SPLAT_SEEDS], axis=0)
+    assert np.abs(image - expected).max() <= 2e-3 * np.abs(expected).max() + 2e-7
+    independent = plane(kind, 4, 1024, hetero_frequency=1.0, pixel_sets="independent")
+    assert not np.array_equal(dopplertof.render(scene, seed=0),
+                              dopplertof.render(independent, seed=0))
+
+
+def test_joint_pixel_sets_are_bitwise_independent_of_the_passes():
+    scene = plane("gaussian", 5, 64, hetero_frequency=1.0, pixel_sets="joint")
+    a = dopplertof.render(scene, seed=3)
+    b = dopplertof.render(scene, seed=3, pass_chunks=1)
+    c = dopplertof.render(scene, seed=3, max_lanes=5 * 5 * 16)
+    assert np.array_equal(a, b) and np.array_equal(a, c)
+    with pytest.raises(dopplertof.SceneError, match="unknown pixel_sets .tiles."):
+        plane("tent", 4, 16, pixel_sets="tiles")

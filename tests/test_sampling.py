@@ -244,3 +244,130 @@ def test_seeds_outside_the_64_bit_range_or_not_integers_are_refused(seed, error)
     with pytest.raises(error, match="seed must be an integer in") as info:
         dopplertof.render(scene, seed=seed)
     assert "\n" not in str(info.value)
+
+
+# ---- Joint sets (pixel_sets="joint"): neighbouring pixels stratified together ----
+
+def joint_streams(width, height, spp, K=2, depth=0, pilot=0, seed=7):
+    """Streams of every sample of every pixel of a width x height film, joint sets."""
+    import mitsuba as mi
+
+    joint = sampling.JointSets(width, spp, K, K, pilot, height)
+    pixel = np.repeat(np.arange(width * height), spp)
+    sample = np.tile(np.arange(spp), width * height)
+    s = sampling.CorrelatedStreams(mi, mi.UInt32(pixel), mi.UInt32(sample // K),
+                                   mi.UInt32(sample), mi.UInt32(seed), mi.UInt32(depth),
+                                   joint=joint)
+    return s, pixel, sample
+
+
+def absolute_film(s, pixel, sample, width, K=2, G=8):
+    import mitsuba as mi
+
+    film = s.film_2d(mi.UInt32(sample // K), mi.UInt32(sample % K), G)
+    x, y = np.asarray(film.x), np.asarray(film.y)
+    assert x.min() >= 0 and x.max() < 1 and y.min() >= 0 and y.max() < 1
+    return (pixel % width + x) / width, (pixel // width + y) / width
+
+
+def is_net(x, y):
+    n = len(x)
+    levels = n.bit_length() - 1
+    return all(len(set(zip(np.floor(x * 2 ** k).astype(int),
+                           np.floor(y * 2 ** (levels - k)).astype(int)))) == n
+               for k in range(levels + 1))
+
+
+def test_joint_film_positions_are_one_net_over_the_image():
+    """8x8 pixels x 16 spp: the 1024 film positions, in image coordinates, are a
+    (0,10,2)-net (every elementary interval holds one), each pixel's 16 a net of its
+    own; the independent sets' union is not a net."""
+    import mitsuba as mi
+
+    s, pixel, sample = joint_streams(8, 8, 16)
+    x, y = absolute_film(s, pixel, sample, 8)
+    assert is_net(x, y)
+    for p in (0, 9, 63):
+        mine = pixel == p
+        assert is_net(x[mine] * 8 % 1, y[mine] * 8 % 1)
+    independent = sampling.CorrelatedStreams(
+        mi, mi.UInt32(pixel), mi.UInt32(sample // 2), mi.UInt32(sample), mi.UInt32(7),
+        mi.UInt32(0))
+    assert not is_net(*absolute_film(independent, pixel, sample, 8))
+
+
+def test_joint_decisions_stratify_each_2x2_block_of_pixels():
+    """The BSDF samples of a 2x2 block of pixels (4 x 16) form a (0,6,2)-net, as do
+    the second hit's light and BSDF samples; each pixel's first light samples are
+    stratified in 4x4 cells at least twice over (Sobol's dimensions 3 and 4: t = 1)."""
+    import mitsuba as mi
+
+    s, pixel, sample = joint_streams(4, 4, 16)
+    block = np.isin(pixel, [0, 1, 4, 5])
+    group, index = mi.UInt32(sample // 2), mi.UInt32(sample % 2)
+    light0, direction0 = (s.first_hit_2d(d, group, index, 8) for d in (0, 1))
+    second = mi.UInt32(np.ones(len(pixel), int))
+    light1, direction1 = (s.joint_decision(second, k) for k in (0, 1))
+    for p in (direction0, light1, direction1):
+        assert is_net(np.asarray(p.x)[block], np.asarray(p.y)[block])
+    x, y = np.asarray(light0.x)[pixel == 5], np.asarray(light0.y)[pixel == 5]
+    assert len(set(zip(np.floor(x * 4).astype(int), np.floor(y * 4).astype(int)))) >= 8
+    # decisions are paired at random: the first light is not the BSDF sample
+    assert not np.allclose(np.asarray(light1.x), np.asarray(direction1.x))
+
+
+def test_joint_sets_share_within_groups_and_time_with_film():
+    """Path groups share film and first-hit samples when their stages are shared;
+    antithetic times of a shared camera ray stratify the exposure per pixel."""
+    import mitsuba as mi
+
+    s, pixel, sample = joint_streams(4, 4, 16, depth=FULL_CORRELATION)
+    group, index = sample // 2, sample % 2
+    film = s.film_2d(mi.UInt32(group), mi.UInt32(index), 8)
+    light, direction = (s.first_hit_2d(d, mi.UInt32(group), mi.UInt32(index), 8)
+                        for d in (0, 1))
+    for p in (film, light, direction):
+        x = np.asarray(p.x)
+        assert np.array_equal(x[index == 0], x[index == 1])
+    t = np.asarray(sampling.time_fraction(
+        mi, s, mi.UInt32(group), mi.UInt32(index), group_size=2, groups_per_pixel=8,
+        method=mi.UInt32(2), antithetic_shift=0.5, stratify=True, double=False))
+    for p in range(16):
+        primal = t[(pixel == p) & (index == 0)]
+        assert sorted(np.floor(primal * 4).astype(int)) == [0, 0, 1, 1, 2, 2, 3, 3]
+
+
+def test_joint_pilot_is_each_pixels_own_and_the_rest_joint():
+    """Adaptive sampling: the pilot's film positions are each pixel's own sets (a
+    pixel's samples never depend on the neighbours' pilots that set its count: their
+    union is not a net), the samples after it one net over the image, scrambled apart
+    from the pilots (another seed changes them; the pilot's numbers are not reused)."""
+    s, pixel, sample = joint_streams(8, 8, 32, pilot=16)
+    x, y = absolute_film(s, pixel, sample, 8, G=16)
+    pilot = sample < 16
+    assert not is_net(x[pilot], y[pilot])
+    assert is_net(x[~pilot], y[~pilot])
+    # each pixel's pilot is a net of its own, and the rest's 16 points another
+    for part in (pilot, ~pilot):
+        mine = part & (pixel == 27)
+        assert is_net(x[mine] * 8 % 1, y[mine] * 8 % 1)
+    assert not np.allclose(np.sort(x[pilot & (pixel == 27)]), np.sort(x[~pilot & (pixel == 27)]))
+
+
+@pytest.mark.parametrize("width, height, spp", [(5, 3, 12), (1, 1, 6), (7, 7, 40)])
+def test_joint_sets_with_counts_and_sizes_not_powers_of_two(width, height, spp):
+    """Film positions stay in their pixel and uniform; adaptive counts above spp (more
+    groups than a block) start a new epoch instead of repeating points."""
+    import mitsuba as mi
+
+    s, pixel, sample = joint_streams(width, height, spp)
+    x, y = absolute_film(s, pixel, sample, width, G=spp // 2)
+    assert len(set(zip(x.round(6), y.round(6)))) == len(x)
+    joint = sampling.JointSets(width, spp, 2, 2, 0, height)
+    beyond = np.arange(4 * spp)  # samples of one pixel far above spp
+    many = sampling.CorrelatedStreams(mi, mi.UInt32(np.zeros_like(beyond)),
+                                      mi.UInt32(beyond // 2), mi.UInt32(beyond),
+                                      mi.UInt32(7), mi.UInt32(0), joint=joint)
+    film = many.film_2d(mi.UInt32(beyond // 2), mi.UInt32(beyond % 2), spp // 2)
+    fx = np.asarray(film.x)
+    assert len(set(fx.round(7))) == len(fx) and fx.min() >= 0 and fx.max() < 1

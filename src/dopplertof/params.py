@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, fields, replace
 from .hints import unknown_name
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
-                       METHOD_NAMES, auto_sampling)
+                       METHOD_NAMES, PIXEL_SETS, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -101,6 +101,10 @@ class RenderParams:
     #: noise on smooth surfaces, bias below measurement) or by the exact "expected"
     #: filter weight (unbiased)
     film_normalization: str = "weights"
+    #: "joint": a pixel's film, time and first-hit sets are strata of one scrambled
+    #: sequence with its neighbours' (sampling.JointSets); "independent": each pixel's
+    #: own
+    pixel_sets: str = "independent"
     # ---- Execution (the published integrators' own; none changes the image) ----
     is_doppler_integrator: bool = True  #: no effect: this integrator is a D-ToF one
     block_size: int = 0  #: no effect: the published scalar variants' tile size
@@ -229,6 +233,9 @@ class RenderParams:
         if self.film_normalization not in FILM_NORMALIZATIONS:
             return (f"unknown film_normalization {self.film_normalization!r}: expected one "
                     f"of {', '.join(FILM_NORMALIZATIONS)}")
+        if self.pixel_sets not in PIXEL_SETS:
+            return (f"unknown pixel_sets {self.pixel_sets!r}: expected one of "
+                    f"{', '.join(PIXEL_SETS)}")
         return None
 
     def _motion_mapping_problem(self) -> str | None:
@@ -336,6 +343,7 @@ _TYPES = {
     "antithetic_shift": float, "path_correlation_depth": int, "time_correlate_number": int,
     "use_stratified_sampling_for_each_interval": bool, "antithetic_mapping": str,
     "adaptive_sampling": bool, "film_sampling": str, "film_normalization": str,
+    "pixel_sets": str,
     "path_correlate_number": int, "is_doppler_integrator": bool, "block_size": int,
     "samples_per_pass": int, "timeout": float,
 }

@@ -83,6 +83,43 @@ def _mix32(x):
     return x ^ (x >> 16)
 
 
+def _tagged(key, tag: int):
+    """A scramble seed from a stream key and a tag (one cheap hash)."""
+    return _mix32(key ^ ((tag * 0x9E3779B9) & 0xFFFFFFFF))
+
+
+def _gf2_inverse_columns(columns, bits: int) -> list:
+    """The columns of the inverse of a ``bits`` x ``bits`` matrix over GF(2) given by its
+    columns (integers, bit r: row r): entry r solves B z = e_r (z: bit j for column j)."""
+    basis = {}  # leading bit -> (value, the columns it sums)
+    for j, column in enumerate(columns):
+        value, combination = column, 1 << j
+        for bit in reversed(range(bits)):
+            if (value >> bit) & 1:
+                if bit not in basis:
+                    basis[bit] = (value, combination)
+                    break
+                value ^= basis[bit][0]
+                combination ^= basis[bit][1]
+    if len(basis) != bits:
+        raise ValueError("the film net's generator block is singular")
+    inverse = []
+    for r in range(bits):
+        value, combination = 1 << r, 0
+        for bit in reversed(range(bits)):
+            if (value >> bit) & 1:
+                value ^= basis[bit][0]
+                combination ^= basis[bit][1]
+        inverse.append(combination)
+    return inverse
+
+
+def _hop_tag(mi, hop, k: int):
+    """Tag k of a joint-set hop (int or per lane) as a 32-bit word."""
+    tag = (hop * 4 + k + 16) * 0x9E3779B9
+    return mi.UInt32(tag & 0xFFFFFFFF) if isinstance(hop, int) else tag
+
+
 def hashed_uniform(mi, key, dim):
     """Uniform number in [0, 1) for a stream key and a dimension: two hash rounds, the
     dimension spread first so that consecutive dimensions are unrelated."""
@@ -182,12 +219,16 @@ def _sobol_directions(m_initial, taps):
     return tuple(m[k] << (31 - k) for k in range(32))
 
 
-#: Sobol's 2nd dimension (polynomial x + 1) and 3rd (x^2 + x + 1, m = 1, 3)
-_SOBOL_DIRECTIONS = {1: _sobol_directions([1], [1]), 2: _sobol_directions([1, 3], [1, 2])}
+#: Sobol's 2nd dimension (polynomial x + 1), 3rd (x^2 + x + 1, m = 1, 3), 4th (x^3 + x +
+#: 1, m = 1, 3, 1) and 5th (x^3 + x^2 + 1, m = 1, 1, 1): Joe and Kuo's initial numbers
+#: (each a (0,1)-sequence; the pairs (0,1) t = 0, (3,4) t = 1: tests/test_sampling.py)
+_SOBOL_DIRECTIONS = {1: _sobol_directions([1], [1]), 2: _sobol_directions([1, 3], [1, 2]),
+                     3: _sobol_directions([1, 3, 1], [2, 3]),
+                     4: _sobol_directions([1, 1, 1], [1, 3])}
 
 
 def sobol_component(mi, index, dim: int, shift):
-    """Component ``dim`` (0, 1, 2) of point ``index`` of Sobol's sequence, digitally
+    """Component ``dim`` (0 to 4) of point ``index`` of Sobol's sequence, digitally
     shifted by ``shift``, as a 32-bit integer. Every component alone is a (0,1)-sequence
     (aligned runs of 2^k points stratify [0,1) in 2^k intervals), the first two form
     a (0,2)-sequence and the three a (1,3)-sequence."""
@@ -233,6 +274,152 @@ def sobol_2d(mi, index, shift_x, shift_y):
                       _unit(mi, sobol_component(mi, index, 1, shift_y)))
 
 
+#: how a pixel's low-discrepancy sets relate to its neighbours' (``pixel_sets``):
+#: ``joint``, strata of one scrambled sequence per tile of pixels (:class:`JointSets`),
+#: or ``independent``, each pixel's sets scrambled on their own
+PIXEL_SETS = ("joint", "independent")
+
+#: a tile of joint sets is 2^TILE_LEVELS pixels square (fewer when spp is so large
+#: that the tile's sequence would not fit 32-bit indices)
+TILE_LEVELS = 3
+
+
+def _power_of_two_at_least(n: int) -> int:
+    return 1 << max(0, int(n) - 1).bit_length()
+
+
+def _morton(mi, x, y, levels: int):
+    """The Morton (Z-order) code of the low ``levels`` bits of x and y."""
+    code = mi.UInt32(0)
+    for bit in range(levels):
+        code |= ((x >> bit) & 1) << (2 * bit)
+        code |= ((y >> bit) & 1) << (2 * bit + 1)
+    return code
+
+
+class JointSets:
+    """Where a sample's low-discrepancy numbers come from when neighbouring pixels'
+    sets are stratified together: one Owen-scrambled sequence per tile of 2^L x 2^L
+    pixels, in which pixel p's sequence index s is point morton(p) * P + s (P: a power
+    of two covering the pixel's indices). Aligned runs of the sequence are nets, so a
+    pixel's set is one (its block of P), and so is the union of every 2x2, 4x4, ...
+    block of pixels in Z order: the film positions, times and first-hit decisions of
+    neighbouring pixels, whose splats a pixel averages, are stratified jointly.
+
+    Indices beyond a pixel's P (adaptive counts above spp) start a fresh sequence, an
+    *epoch*, scrambled on its own. With ``pilot_samples`` (adaptive sampling), the pilot
+    samples come from each pixel's own sets (a tile of one pixel, its own scramble)
+    and the rest from the joint sequence, scrambled apart from every pilot: a pixel's
+    samples then never depend on its neighbours' pilots, which set its count (the
+    estimate stays exactly unbiased; allocation.py).
+
+    ``width``: the crop window's width (pixels are numbered row-major in it);
+    ``spp``, ``group_size`` K, ``path_group_size`` Kp: the render's.
+    """
+
+    def __init__(self, width: int, spp: int, group_size: int, path_group_size: int,
+                 pilot_samples: int = 0, height: int | None = None):
+        self.width, self.pilot = int(width), int(pilot_samples)
+        self._film_net(self.width, int(height or width))
+        self.K = int(group_size)
+        after = spp - self.pilot  # samples per pixel after the pilot (at spp)
+        #: per kind of index: (first group, groups in a block, block size) of the pilot
+        #: and of the rest (the pilot's None without adaptive sampling)
+        self.parts = {}
+        for kind, per in (("group", self.K), ("path", int(path_group_size)),
+                          ("sample", self.K)):
+            parts = [self._part(kind, 0, self.pilot, per) if self.pilot else None,
+                     self._part(kind, self.pilot, after, per)]
+            self.parts[kind] = parts
+        largest = max(part[2] for parts in self.parts.values() for part in parts if part)
+        self.levels = max(0, min(TILE_LEVELS, (33 - largest.bit_length()) // 2))
+
+    def _film_net(self, width: int, height: int):
+        """The image-wide net of film positions: one (0,2)-sequence over a square of
+        2^a x 2^a pixels (2^a >= width, height), in which every pixel is an elementary
+        interval holding 2^(32 - 2a) points per epoch. Point k's x digits are k's low
+        bits reversed, so the pixel's column fixes k's low a bits; its row, Sobol's
+        second dimension, is linear in k over GF(2): the next a bits z solve
+        B z = row + (the rest's contribution), B the a x a block of the generator
+        (invertible: the sequence's first 4^a points are one per pixel)."""
+        a = max(width - 1, height - 1, 0).bit_length()
+        #: levels a of the image's net, or None (an image too large: tiles' sets)
+        self.image_levels = a if 2 * a <= 30 else None
+        self.film_bits = 32 - 2 * a  #: bits of a pixel's index in the net, per epoch
+        columns = [_SOBOL_DIRECTIONS[1][a + j] >> (32 - a) for j in range(a)] if a else []
+        self._inverse = _gf2_inverse_columns(columns, a) if self.image_levels else []
+
+    def film_point(self, mi, s, x, y):
+        """Index in the image's net of point ``s`` of pixel (x, y) (s < 2^film_bits)."""
+        import drjit as dr
+
+        a = self.image_levels
+        if not a:
+            return s
+        base = (dr.brev(x) >> (32 - a)) | (s << (2 * a))  # the column's digits, then s
+        t = y ^ (sobol_component(mi, base, 1, 0) >> (32 - a))  # the row still to reach
+        z = mi.UInt32(0)
+        for r, column in enumerate(self._inverse):
+            z ^= dr.select(((t >> r) & 1) != 0, mi.UInt32(column), 0)
+        return base | (z << a)
+
+    def _part(self, kind: str, first_sample: int, samples: int, per: int):
+        """(first group of the part, groups per block, points per block): the groups
+        (time or path groups) of a pixel's part, or for ``sample`` index-major blocks of
+        K runs of that many time groups."""
+        groups = _power_of_two_at_least(max(samples // per, 1))
+        size = _power_of_two_at_least(self.K * groups) if kind == "sample" else groups
+        return first_sample // per, groups, size
+
+    def lane_keys(self, mi, pixel, seed_low, seed_high, pixel_key):
+        """Per lane: (morton code in its tile, the tile's key, the pilot's key)."""
+        x, y = pixel % self.width, pixel // self.width
+        L = self.levels
+        tiles_across = -(-self.width // (1 << L))
+        tile = (y >> L) * tiles_across + (x >> L)
+        tile_key = _pixel_key(mi, tile | 0x80000000, seed_low, seed_high)
+        image_key = _pixel_key(mi, mi.UInt32(0xFFFFFFFF), seed_low, seed_high)
+        return (_morton(mi, x, y, L), tile_key, _mix32(pixel_key ^ 0x5BD1E995), image_key,
+                x, y)
+
+    def locate(self, mi, keys, kind: str, group, index_in_group, path_group):
+        """A lane's point in its sequence and that sequence's scramble key, for the
+        pixel's sequence index of ``kind``: "group" (the time group), "path" (the path
+        group) or "sample" (index-major: i * G' + g over the part's groups, so that the
+        leading digits follow the group, not the index in it)."""
+        import drjit as dr
+
+        morton, tile_key, pilot_key, image_key, x, y = keys
+        located = []
+        for part, key, spread in zip(self.parts[kind], (pilot_key, tile_key), (0, 1)):
+            if part is None:
+                continue
+            first, groups, size = part
+            h = (path_group if kind == "path" else group) - first
+            s = h & (groups - 1)
+            if kind == "sample":
+                s = index_in_group * groups + s
+            epoch = h // groups  # beyond the block: a fresh sequence
+            point = morton * size + s if spread else s
+            film = self._film_located(mi, s, epoch, key if not spread else image_key, x, y,
+                                      spread)
+            located.append((point, _mix32(key ^ epoch * 0x9E3779B9)) + film)
+        if len(located) == 1:
+            return located[0]
+        in_pilot = group < self.pilot // self.K
+        return tuple(dr.select(in_pilot, a, b) for a, b in zip(*located))
+
+    def _film_located(self, mi, s, epoch, key, x, y, spread: int):
+        """(index, key) of the lane's film position and time: in the image's net (the
+        part after any pilot), else, and in the pilot, in the pixel's own sequence."""
+        if not spread or self.image_levels is None:
+            return s, _mix32(key ^ (epoch * 0x9E3779B9 + 0x2545F491))
+        if self.film_bits < 32:  # the pixel's indices beyond the net: more epochs
+            epoch = (epoch << (32 - self.film_bits)) | (s >> self.film_bits)
+            s = s & ((1 << self.film_bits) - 1)
+        return self.film_point(mi, s, x, y), _mix32(key ^ epoch * 0x9E3779B9)
+
+
 def bounce_dim(depth, offset: int):
     """Dimension of a decision at surface hit ``depth`` (0-based)."""
     return DIM_FIRST_BOUNCE + DIMS_PER_BOUNCE * depth + offset
@@ -249,21 +436,32 @@ class CorrelatedStreams:
     """
 
     def __init__(self, mi, pixel, group, sample, seed, correlation_depth, path_group=None,
-                 seed_high=None):
+                 seed_high=None, joint: JointSets | None = None):
         self.mi = mi
         self.base = _pixel_key(mi, pixel, seed, seed_high)
         base = self.base
+        #: the tile's sequence for film, time and first hit (None: the pixel's own sets)
+        self.joint = joint
+        self.joint_keys = (None if joint is None
+                           else joint.lane_keys(mi, pixel, seed, seed_high, base))
         self.key_group, _ = mi.sample_tea_32(base, group * 2, _KEY_ROUNDS)
         self.path_group = group if path_group is None else path_group
         self.key_path = (self.key_group if path_group is None
                          else mi.sample_tea_32(base, path_group * 2, _KEY_ROUNDS)[0])
         self.key_own, _ = mi.sample_tea_32(base, sample * 2 + 1, _KEY_ROUNDS)
         self.correlation_depth = correlation_depth
+        if joint is not None:  # the lane's points in its tile: own and its path group's
+            index_in_group = sample - group * joint.K
+            self.joint_own, self.joint_path = (
+                joint.locate(mi, self.joint_keys, kind, group, index_in_group,
+                             self.path_group) for kind in ("sample", "path"))
+            self.joint_pilot = (group < joint.pilot // joint.K if joint.pilot
+                                else mi.Bool(False))
 
     def _pixel_seed(self, tag: int):
         """A per-pixel scramble seed: the pixel's key hashed with a tag (one cheap hash;
         the TEA rounds went into the key)."""
-        return _mix32(self.base ^ ((tag * 0x9E3779B9) & 0xFFFFFFFF))
+        return _tagged(self.base, tag)
 
     def key(self, stage):
         """The stream key of a sampling stage (0: camera, k: k-th surface hit)."""
@@ -288,9 +486,76 @@ class CorrelatedStreams:
     def film_2d(self, group, index_in_group, groups_per_pixel: int):
         """Film position: Sobol's first two dimensions (a scrambled (0,2)-sequence) at
         the sample's sequence index."""
+        if self.joint is not None:
+            return self._joint_film()
         index = self.sequence_index(group, index_in_group, groups_per_pixel)
         shift_x, shift_y = self._pixel_seed(1), self._pixel_seed(2)
         return sobol_2d(self.mi, index, shift_x, shift_y)
+
+    def _joint_film(self):
+        """Film position from the image's net (pixel_sets="joint"): the point's digits
+        below the pixel's, Owen-scrambled (the pixel's digits kept: the scramble is
+        nested, so the net stays one), as a position in the pixel."""
+        import drjit as dr
+
+        mi, joint = self.mi, self.joint
+        _, _, index, key = self._lane_point(0)
+        levels = joint.image_levels or 0
+        top = mi.UInt32((0xFFFFFFFF << (32 - levels)) & 0xFFFFFFFF if levels else 0)
+        keep = dr.select(self.joint_pilot, 0, top)  # the pilot: the pixel's own sequence
+        shift = dr.select(self.joint_pilot, 0, levels)
+        position = []
+        for d in (0, 1):
+            value = sobol_component(mi, index, d, 0)
+            scrambled = (value & keep) | (_reverse_permute(mi, value, _tagged(key, 1 + d))
+                                         & ~keep)
+            position.append(_unit(mi, scrambled << shift))
+        return mi.Point2f(*position)
+
+    def _lane_point(self, stage):
+        """The lane's point and key in its tile for sampling ``stage``: its path
+        group's when the stage is shared, else its own."""
+        import drjit as dr
+
+        shared = stage < self.correlation_depth
+        return tuple(dr.select(shared, a, b) for a, b in zip(self.joint_path, self.joint_own))
+
+    def joint_decision(self, depth, which: int):
+        """A 2-D decision at surface hit ``depth`` (0-based; int or per lane; ``which``
+        0: the light sample, 1: the BSDF sample) from the tile's joint sets
+        (pixel_sets="joint"): Sobol's (0,2)-sequence at the lane's point shuffled per
+        decision (decisions paired at random, not by index), values Owen-scrambled.
+        The first hit's light sample comes from :meth:`first_hit_2d` instead."""
+        mi = self.mi
+        point, key = self._lane_point(depth + 1)[:2]
+        hop = depth * 2 + which
+        seed_index, seed_x, seed_y = (_mix32(key ^ _hop_tag(mi, hop, k)) for k in range(3))
+        shuffled = _reverse_permute(mi, point, seed_index)
+        return mi.Point2f(_unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
+                          _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
+
+    def _joint_first_light(self):
+        """The first hit's light sample with joint sets: Sobol's dimensions 3 and 4 at
+        the film position's index in the image's net, so that film position and light
+        sample form one 4-D set over the image: a splat weighs a pixel's samples by
+        their film positions, and samples of similar weight then still stratify the
+        light (3.3x less variance with a tent on direct light, docs/benchmarks.md)."""
+        mi = self.mi
+        film_index, film_key = self._lane_point(1)[2:]
+        return mi.Point2f(*(_unit(mi, owen_sobol(mi, film_index, d, _tagged(film_key, 5 + d)))
+                            for d in (3, 4)))
+
+    def joint_point(self, shared, kind_if_shared: str, group, index_in_group):
+        """The tile's point and scramble key for one of the pixel's sets: by the
+        ``kind_if_shared`` group ("path" or "group") where ``shared``, else
+        index-major (:meth:`JointSets.locate`)."""
+        import drjit as dr
+
+        joint, keys = self.joint, self.joint_keys
+        own = joint.locate(self.mi, keys, "sample", group, index_in_group, self.path_group)
+        by_group = joint.locate(self.mi, keys, kind_if_shared, group, index_in_group,
+                                self.path_group)
+        return tuple(dr.select(shared, a, b) for a, b in zip(by_group, own))
 
     def time_sequence(self, index, double: bool):
         """Sobol's third dimension at ``index``, Owen-scrambled per pixel: with the
@@ -299,6 +564,8 @@ class CorrelatedStreams:
         moving across the pixel needs)."""
         mi = self.mi
         seed = self._pixel_seed(3)
+        if isinstance(index, tuple):  # joint sets: the film's index in the image's net
+            index, seed = index[2], _tagged(index[3], 3)
         # Owen scrambling, not a digital shift: a shift keeps the points' fine digits in
         # a fixed pattern, which aliases with a full waveform's 10^4-10^5 periods
         bits = owen_sobol(mi, index, 2, seed)
@@ -316,6 +583,8 @@ class CorrelatedStreams:
         import drjit as dr
 
         mi = self.mi
+        if self.joint is not None:
+            return self._joint_first_light() if dim == 0 else self.joint_decision(0, 1)
         index = dr.select(1 < self.correlation_depth, self.path_group,
                           index_in_group * groups_per_pixel + group)
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
@@ -354,8 +623,11 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
         # sequence, per group for antithetic pairs (the group's film index when the
         # camera ray is shared), else per sample, index-major (the film index when it
         # is not).
-        u = streams.time_sequence(
-            dr.select(is_antithetic, group, index * groups_per_pixel + group), double)
+        if streams.joint is not None:  # the tile's sequence: per group or index-major
+            located = streams.joint_point(is_antithetic, "group", group, index)
+        else:
+            located = dr.select(is_antithetic, group, index * groups_per_pixel + group)
+        u = streams.time_sequence(located, double)
     else:
         u = dr.select(is_antithetic,
                       sample(streams.key_group, DIM_TIME, _NUMBER_ROUNDS),

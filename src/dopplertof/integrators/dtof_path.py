@@ -120,6 +120,11 @@ def _define_class(mi):
             self.groups_per_pixel: int = spp // params.time_correlate_number
             self.path_group_size: int = params.path_group_size  #: Kp, samples on one path stream
             self.stratify: bool = params.use_stratified_sampling_for_each_interval
+            #: the tiles' joint sets (pixel_sets="joint"), else None (each pixel's own)
+            crop_width, crop_height = sensor.film().crop_size()
+            self.joint_sets = (None if params.pixel_sets != "joint" else sampling.JointSets(
+                crop_width, spp, self.group_size, self.path_group_size,
+                pipeline.pilot_samples(spp, self.group_size, params), crop_height))
             self.shutter_open: float = scene.shutter_open
             #: film positions within a pixel: uniform (splat film) or from the filter
             self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())

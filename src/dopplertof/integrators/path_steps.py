@@ -129,7 +129,8 @@ def lane_streams(mi, setup, layout: PassLayout):
     return sampling.CorrelatedStreams(
         mi, layout.pixel, layout.group, layout.sample, setup.seed, setup.correlation_depth,
         path_group=(None if setup.path_group_size == setup.group_size
-                    else layout.sample // setup.path_group_size), seed_high=setup.seed_high)
+                    else layout.sample // setup.path_group_size), seed_high=setup.seed_high,
+        joint=setup.joint_sets)
 
 
 def film_position(mi, setup, layout: PassLayout, streams):
@@ -161,11 +162,15 @@ def vertex_numbers(streams, depth, u_em_first, u_dir_first):
     stage depth + 1): light sample, BSDF lobe and direction, Russian roulette; the
     first hit's light and BSDF samples from the pixel's low-discrepancy set."""
     stage = depth + 1
-    u_em = dr.select(depth == 0, u_em_first,
-                     streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)))
+    dim_em = sampling.bounce_dim(depth, sampling.BOUNCE_EMITTER)
+    dim_dir = sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)
+    if streams.joint is not None:  # every hit's light and BSDF samples from joint sets
+        further_em, further_dir = (streams.joint_decision(depth, k) for k in (0, 1))
+    else:
+        further_em, further_dir = streams.get_2d(stage, dim_em), streams.get_2d(stage, dim_dir)
+    u_em = dr.select(depth == 0, u_em_first, further_em)
+    u_dir = dr.select(depth == 0, u_dir_first, further_dir)
     u_lobe = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_LOBE))
-    u_dir = dr.select(depth == 0, u_dir_first,
-                      streams.get_2d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_BSDF_DIR)))
     u_rr = streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_RR))
     return u_em, u_lobe, u_dir, u_rr
 

@@ -77,6 +77,18 @@ def _resolve(scene, spp, seed, params):
     return mi, p, spp, seed
 
 
+def chunk_samples(spp: int, group_size: int) -> int:
+    """Samples per chunk: GROUPS_PER_CHUNK groups of K (all of them when fewer)."""
+    return min(spp, GROUPS_PER_CHUNK * group_size)
+
+
+def pilot_samples(spp: int, group_size: int, params: RenderParams) -> int:
+    """Samples per pixel in the adaptive pilot (0 without adaptive sampling)."""
+    if not params.adaptive_sampling:
+        return 0
+    return allocation.pilot_samples(spp, chunk_samples(spp, group_size))
+
+
 class PassPlanner:
     """How a render's samples are cut into passes of whole chunks (8 groups of K).
 
@@ -86,10 +98,9 @@ class PassPlanner:
     def __init__(self, spp: int, group_size: int, n_pixels: int, params: RenderParams,
                  max_lanes: int, pass_chunks: int | None):
         self.spp, self.group_size, self.n_pixels = spp, group_size, n_pixels
-        self.chunk = min(spp, GROUPS_PER_CHUNK * group_size)
+        self.chunk = chunk_samples(spp, group_size)
         self.n_chunks = -(-spp // self.chunk)
-        self.pilot_chunks = (allocation.pilot_samples(spp, self.chunk) // self.chunk
-                             if params.adaptive_sampling else 0)
+        self.pilot_chunks = pilot_samples(spp, group_size, params) // self.chunk
         if pass_chunks is None:
             pass_chunks = max(1, max_lanes // (n_pixels * self.chunk))
             if params.samples_per_pass > 0:  # the published pass size, in whole chunks
