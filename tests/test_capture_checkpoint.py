@@ -68,7 +68,8 @@ def test_capture_interrupted_after_a_capture_resumes_bitwise(tmp_path, capsys):
     proc = subprocess.Popen([sys.executable, "-m", "dopplertof.cli",
                              *capture_args(out, "--checkpoint", str(ckpt))],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env)
+                            env=env,  # Ctrl-C's default, whatever this process inherited
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     first = ckpt / "homodyne_0.ckpt"
     deadline = time.monotonic() + 120
     while not first.exists() and proc.poll() is None and time.monotonic() < deadline:

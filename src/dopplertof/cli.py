@@ -471,9 +471,9 @@ class _InterruptWatch:
 
         from .io import INTERRUPT_SEEN
 
+        INTERRUPT_SEEN.clear()  # (an earlier command's, in this process)
         if threading.current_thread() is threading.main_thread() and \
                 signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            INTERRUPT_SEEN.clear()
             self._previous = signal.signal(signal.SIGINT, self._on_sigint)
             self._previous_hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
