@@ -21,9 +21,9 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
-from ..experiments.cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
+from ..experiments.cluster import DEFAULT_RETRIES, run_in_folder
 from .config import DatasetConfig, DatasetError
 from .shards import shard_name, shard_state
 
@@ -197,11 +197,8 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
             pending.append(task)
     summary.skipped_shards = len(tasks) - len(pending)
     if pending:
-        log_file = os.path.join(output, WORKER_LOG) if client is None else None
-        with dask_client(scheduler, workers, client, log_file) as (dask, threads):
-            if threads:
-                pending = [replace(t, threads=threads) for t in pending]
-            outcome = run_tasks(dask, run_shard_task, pending, retries=retries,
+        outcome = run_in_folder(run_shard_task, pending, output, scheduler=scheduler,
+                                workers=workers, client=client, retries=retries,
                                 progress=progress, description="shards",
                                 already_done=summary.skipped_shards)
         summary.rendered = sum(r["rendered"] for r in outcome.done)

@@ -20,11 +20,11 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
+from .cluster import DEFAULT_RETRIES, run_in_folder
 from .config import ConfigError, check_render_settings, load_scene_facts
 from .tasks import (PARAMS_JSON, begin_task, check_unchanged, finish_task, is_complete,
                     package_versions, prepare_worker, remove_partial_files, spec_hash,
@@ -246,11 +246,8 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
     summary = AnimationSummary(frames=len(tasks), skipped=len(tasks) - len(pending), done=0,
                                output=output, warnings=[warning] if warning else [])
     if pending:
-        log_file = os.path.join(output, WORKER_LOG) if client is None else None
-        with dask_client(scheduler, workers, client, log_file) as (dask, threads):
-            if threads:
-                pending = [replace(t, threads=threads) for t in pending]
-            outcome = run_tasks(dask, run_frame_task, pending, retries=retries,
+        outcome = run_in_folder(run_frame_task, pending, output, scheduler=scheduler,
+                                workers=workers, client=client, retries=retries,
                                 progress=progress, description="frames",
                                 already_done=summary.skipped)
         summary.done = len(outcome.done)

@@ -9,7 +9,7 @@ import logging
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 #: fewest Dr.Jit threads a worker is given (its EXR writes need two, and io.write_exr
 #: raises the count for the write in any case: io.MIN_EXR_THREADS)
@@ -159,6 +159,20 @@ def _workers_ignore_ctrl_c():
 
 def show_progress(progress) -> bool:
     return bool(progress) if progress is not None else sys.stderr.isatty()
+
+
+def run_in_folder(function, pending: list, output: str, *, scheduler=None, workers=None,
+                  client=None, retries: int = DEFAULT_RETRIES, progress=None,
+                  description: str = "tasks", already_done: int = 0) -> RunOutcome:
+    """:func:`run_tasks` on the cluster :func:`dask_client` opens (its workers' log in
+    ``output``'s WORKER_LOG unless a ``client`` is given), each task given the threads
+    per worker the cluster chose (its ``threads`` field)."""
+    log_file = os.path.join(output, WORKER_LOG) if client is None else None
+    with dask_client(scheduler, workers, client, log_file) as (dask, threads):
+        if threads:
+            pending = [replace(t, threads=threads) for t in pending]
+        return run_tasks(dask, function, pending, retries=retries, progress=progress,
+                         description=description, already_done=already_done)
 
 
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
