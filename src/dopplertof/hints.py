@@ -23,6 +23,16 @@ def nearest(name, known, count: int = NEAREST_COUNT) -> list:
                                      cutoff=0.0)
 
 
+def unknown_key(table, known, prefix: str = "") -> str | None:
+    """``"unknown key PREFIXx, did you mean 'y'?"`` for the first key of ``table`` (a
+    config file's table) that is not one of ``known``, or None when every key is."""
+    known = list(known)
+    for key in table:
+        if key not in known:
+            return f"unknown key {prefix}{key}{did_you_mean(key, known)}"
+    return None
+
+
 def unknown_name(what: str, name, known) -> str:
     """``"unknown WHAT 'x', did you mean 'y'? (nearest: a, b, c; N in all)"``: the
     message for a name that is not one of ``known``, without listing them all."""

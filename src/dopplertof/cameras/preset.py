@@ -20,7 +20,7 @@ import math
 import os
 from dataclasses import dataclass
 
-from ..hints import did_you_mean
+from ..hints import did_you_mean, unknown_key
 from ..io import read_toml
 from ..modulation import WAVEFORMS
 
@@ -210,10 +210,9 @@ def _section(values: dict, section: str, path: str, extra=(), where: str | None 
     schema = SCHEMA[section]
     label = where or section
     prefix = f"{label}." if label else ""
-    for key in values:
-        if key not in schema and key not in extra:
-            raise PresetError(f"{path}: unknown key {prefix}{key}"
-                              f"{did_you_mean(key, list(schema) + list(extra))}")
+    problem = unknown_key(values, list(schema) + list(extra), prefix)
+    if problem:
+        raise PresetError(f"{path}: {problem}")
     out = {}
     for key, (kind, check, meaning) in schema.items():
         if key not in values:

@@ -14,7 +14,7 @@ import os
 from dataclasses import dataclass
 
 from ..arguments import check_seed
-from ..hints import did_you_mean
+from ..hints import unknown_key
 from ..io import read_toml
 
 #: shapes a configuration may draw ("mesh": a file of [objects] mesh_folder)
@@ -155,10 +155,9 @@ def _section(table: dict, section: str, source: str, extra=()) -> dict:
     """One section's keys checked against :data:`SCHEMA`, defaults filled in."""
     schema = SCHEMA[section]
     prefix = f"{section}." if section else ""
-    for key in table:
-        if key not in schema and key not in extra:
-            raise DatasetError(f"{source}: unknown key {prefix}{key}"
-                               f"{did_you_mean(key, list(schema) + list(extra))}")
+    problem = unknown_key(table, list(schema) + list(extra), prefix)
+    if problem:
+        raise DatasetError(f"{source}: {problem}")
     out = {}
     for key, (kind, check, meaning, default) in schema.items():
         if key not in table:
