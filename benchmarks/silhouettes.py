@@ -4,9 +4,9 @@ Per case (a scene, a body's motion parameter, a path depth), the pixel sums of t
 forward-mode derivative (``render_derivatives``) and of central differences of renders
 with common random numbers (the derivative's seed) at two steps, over each pixel class
 of ``dopplertof.diff.silhouette.pixel_classes`` (the body's interior, its silhouette,
-the other pixels) and over the whole image. The differences' noise is their standard
-error over the seeds (each seed a different set of random numbers); ``bias`` is
-(derivative - difference at the larger step) / |difference|, +- that noise.
+its rim, the other pixels) and over the whole image. The differences' noise is
+their standard error over the seeds (each seed a different set of random numbers);
+``bias`` is derivative / difference at the larger step - 1, +- that noise.
 
 Then, for the fit's residuals (sums over 8x8 blocks of one body's pixels): the
 Gauss-Newton step ratio (J . F) / (J . J) of the derivative's block sums J against the

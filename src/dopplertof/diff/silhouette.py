@@ -12,7 +12,9 @@ it), it measures the whole derivative, the visibility term included.
 Pixels are split into classes (:func:`pixel_classes`): a body's ``interior`` (the fit's
 pixels: :func:`dopplertof.diff.fit.interior`), its ``silhouette`` (footprints that see
 more than one surface, :func:`dopplertof.tof.ground_truth.mixed_footprints`, within the
-filter's reach of the body) and ``other`` (the rest: static surfaces, the body's creases).
+filter's reach of the body), its ``rim`` (the rest of the pixels whose footprint reaches
+the body: the interior's margin by the silhouette, a box's edges, where one face gives
+way to another) and ``other`` (the static surfaces and other bodies beyond that reach).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 from .render import _MOTION_NAME, AXES, DerivativeError, render_derivatives
 
 #: the pixel classes of :func:`pixel_classes`, in the table's order
-PIXEL_CLASSES = ("interior", "silhouette", "other")
+PIXEL_CLASSES = ("interior", "silhouette", "rim", "other")
 
 
 def _near(mask: np.ndarray, reach: int) -> np.ndarray:
@@ -41,8 +43,9 @@ def _near(mask: np.ndarray, reach: int) -> np.ndarray:
 
 def pixel_classes(scene, k: int) -> dict:
     """{class: (H, W) bool} for body k of ``scene``: its interior (the fit's pixels), its
-    silhouette (mixed footprints within the film filter's reach of the body) and the
-    other pixels; and ``footprint``: every pixel whose footprint reaches the body."""
+    silhouette (mixed footprints within the film filter's reach of the body), its rim
+    (the rest of ``footprint``: every pixel whose footprint reaches the body) and the
+    other pixels."""
     from ..integrators.film import _filter_of
     from ..tof.ground_truth import ground_truth, mixed_footprints
     from .fit import interior
@@ -52,7 +55,8 @@ def pixel_classes(scene, k: int) -> dict:
     inner = interior(truth, k, reach)
     footprint = _near(truth.body == k, reach)
     silhouette = mixed_footprints(scene) & footprint & ~inner
-    return {"interior": inner, "silhouette": silhouette, "other": ~(inner | silhouette),
+    return {"interior": inner, "silhouette": silhouette,
+            "rim": footprint & ~(inner | silhouette), "other": ~footprint,
             "footprint": footprint}
 
 
@@ -115,11 +119,18 @@ def measure(ds, name: str, steps, spp: int, seeds) -> BiasMeasurement:
 
 
 def relative_bias(derivative_sums, difference_sums) -> tuple:
-    """(mean derivative - mean difference) / |mean difference| over the seeds, and the
-    difference's own noise in the same unit (its standard error over the seeds)."""
+    """mean derivative / mean difference - 1 over the seeds (+1: the derivative is twice
+    the difference, whatever their sign), and the difference's own noise in the same
+    unit (from its standard error over the seeds; NaN for one seed); NaN, NaN where the
+    difference is exactly 0."""
     reference = float(np.mean(difference_sums))
+    if reference == 0.0:  # nothing there moves (a static surface, direct light only)
+        return math.nan, math.nan
+    ratio = float(np.mean(derivative_sums)) / reference
+    if len(difference_sums) < 2:  # one seed: no noise estimate
+        return ratio - 1.0, math.nan
     noise = float(np.std(difference_sums, ddof=1) / math.sqrt(len(difference_sums)))
-    return (float(np.mean(derivative_sums)) - reference) / abs(reference), noise / abs(reference)
+    return ratio - 1.0, abs(ratio) * noise / abs(reference)
 
 
 def block_sums(values: np.ndarray, mask: np.ndarray, block: int = 8) -> np.ndarray:
