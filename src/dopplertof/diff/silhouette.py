@@ -20,11 +20,13 @@ way to another) and ``other`` (the static surfaces and other bodies beyond that 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .render import _MOTION_NAME, AXES, DerivativeError, render_derivatives
+from .render import (_MOTION_NAME, AXES, DerivativeError, _floats, check_names,
+                     render_derivatives)
 
 #: the pixel classes of :func:`pixel_classes`, in the table's order
 PIXEL_CLASSES = ("interior", "silhouette", "rim", "other")
@@ -46,15 +48,26 @@ def pixel_classes(scene, k: int) -> dict:
     silhouette (mixed footprints within the film filter's reach of the body), its rim
     (the rest of ``footprint``: every pixel whose footprint reaches the body) and the
     other pixels."""
+    return _classes(_geometry(scene), k)
+
+
+def _geometry(scene) -> tuple:
+    """(ground truth, mixed footprints, the film filter's reach in whole pixels)."""
     from ..integrators.film import _filter_of
     from ..tof.ground_truth import ground_truth, mixed_footprints
+
+    reach = max(1, math.ceil(_filter_of(scene.sensor.film())[1]))
+    return ground_truth(scene), mixed_footprints(scene), reach
+
+
+def _classes(geometry, k: int) -> dict:
+    """:func:`pixel_classes` from :func:`_geometry`'s tuple."""
     from .fit import interior
 
-    truth = ground_truth(scene)
-    reach = max(1, math.ceil(_filter_of(scene.sensor.film())[1]))
+    truth, mixed, reach = geometry
     inner = interior(truth, k, reach)
     footprint = _near(truth.body == k, reach)
-    silhouette = mixed_footprints(scene) & footprint & ~inner
+    silhouette = mixed & footprint & ~inner
     return {"interior": inner, "silhouette": silhouette,
             "rim": footprint & ~(inner | silhouette), "other": ~footprint,
             "footprint": footprint}
@@ -70,21 +83,36 @@ def body_parameter(name: str):
     return int(m.group(2)), m.group(3), AXES.index(m.group(4))
 
 
-def central_difference(ds, name: str, step: float, spp: int, seed: int) -> np.ndarray:
-    """(image(x + step) - image(x - step)) / (2 step) for the body motion parameter
-    ``name``, both renders with ``seed`` (common random numbers); the velocities are put
-    back afterwards."""
-    k, kind, axis = body_parameter(name)
-    v, w = ds.body_velocity(k)
-    images = []
+@contextmanager
+def _stepped(ds, name: str, delta: float):
+    """``ds`` with motion parameter ``name`` (a body's velocity or angular velocity,
+    the camera's velocity) moved by ``delta``, put back afterwards."""
+    m = _MOTION_NAME.match(name)
+    motion = ds.camera_motion if m.group(2) is None else ds.motions[int(m.group(2))]
+    attribute = "velocity" if m.group(3) == "v" else "angular_velocity"
+    saved = getattr(motion, attribute)
+    values = _floats(saved)
+    values[AXES.index(m.group(4))] += delta
+    setattr(motion, attribute, values)
     try:
-        for sign in (1.0, -1.0):
-            stepped = [list(v), list(w)]
-            stepped[kind == "w"][axis] += sign * step
-            ds.set_body_velocity(k, *stepped)
-            images.append(render_derivatives(ds, [], spp=spp, seed=seed).image)
+        yield ds
     finally:
-        ds.set_body_velocity(k, v, w)
+        setattr(motion, attribute, saved)
+
+
+def central_difference(ds, name: str, step: float, spp: int, seed: int,
+                       pixels=None) -> np.ndarray:
+    """(image(x + step) - image(x - step)) / (2 step) for the motion parameter ``name``
+    (``body<k>.v*``, ``body<k>.w*``, ``camera.v*``), both renders with ``seed`` (common
+    random numbers); ``pixels``: flat indices to render (others are 0)."""
+    check_names(ds, [name])
+    if _MOTION_NAME.match(name) is None:
+        raise DerivativeError(f"{name}: central differences step a motion parameter "
+                              "(body<k>.v<x|y|z>, body<k>.w<x|y|z>, camera.v<x|y|z>)")
+    images = []
+    for sign in (1.0, -1.0):
+        with _stepped(ds, name, sign * step):
+            images.append(render_derivatives(ds, [], spp=spp, seed=seed, pixels=pixels).image)
     return (images[0] - images[1]) / (2.0 * step)
 
 
@@ -150,3 +178,47 @@ def step_ratio(derivative: np.ndarray, difference: np.ndarray, mask, block: int 
     jacobian = block_sums(derivative, mask, block)
     moved = block_sums(difference, mask, block)
     return float(jacobian @ moved / (jacobian @ jacobian))
+
+
+# ---- Opt-in: central differences where visibility moves --------------------------
+
+#: the default steps of :func:`with_visibility` (m/s for velocities, rad/s for angular
+#: velocities): on the starter scenes (1.5 ms exposures) large enough that samples
+#: switch surface in every silhouette pixel, small enough that the image stays linear
+#: (the interior's difference within 0.1% of the derivative)
+VISIBILITY_STEPS = {"v": 20.0, "w": 10.0}
+
+
+def visibility_pixels(scene) -> np.ndarray:
+    """(H, W) bool: every body's silhouette and rim (:func:`pixel_classes`): the pixels
+    whose footprint reaches a body but that are not its interior."""
+    geometry = _geometry(scene)
+    out = np.zeros(geometry[1].shape, bool)
+    for k in range(len(scene.bodies)):
+        classes = _classes(geometry, k)
+        out |= classes["silhouette"] | classes["rim"]
+    return out
+
+
+def with_visibility(ds, derivatives, pixels=None, steps=None, spp_factor: int = 4):
+    """Opt-in: ``derivatives`` (:func:`render_derivatives` of ``ds``) with each motion
+    parameter's tangent replaced, at ``pixels`` ((H, W) bool; default
+    :func:`visibility_pixels`), by a central difference with common random numbers
+    (``steps``: {name: step}, else :data:`VISIBILITY_STEPS`), which holds the camera
+    rays' visibility term the derivative misses there, at ``spp_factor`` x the
+    derivatives' spp (a difference is noisier than a derivative; the pixels are few).
+    Other parameters (modulation, reflectances: no visibility term) are kept. Interior
+    pixels keep the derivative: with indirect light it misses the bounce rays' visibility
+    there too (docs/differentiable.md, "Silhouette bias (measured)")."""
+    mask = visibility_pixels(ds.scene) if pixels is None else np.asarray(pixels, bool)
+    flat = np.flatnonzero(mask)
+    tangents = dict(derivatives.tangents)
+    for name, tangent in derivatives.tangents.items():
+        m = _MOTION_NAME.match(name)
+        if m is None or not flat.size:
+            continue
+        step = (steps or {}).get(name, VISIBILITY_STEPS[m.group(3)])
+        difference = central_difference(ds, name, step, derivatives.spp * int(spp_factor),
+                                        derivatives.seed, pixels=flat)
+        tangents[name] = np.where(mask[..., None], difference, tangent)
+    return replace(derivatives, tangents=tangents)
