@@ -103,7 +103,9 @@ def test_with_visibility_brings_the_silhouette_derivative_to_the_difference(
     measured against seed 0's difference, the silhouette sum's bias falls from +200%
     to +17% (the two differences' noise: about 6% each, and seed 0's is 10% below the
     table's mean), and the Gauss-Newton step ratio of 8x8 blocks that include the
-    silhouettes from 0.74 to 0.97."""
+    silhouettes from 0.74 to 0.97. Bounds: the corrected bias below 0.35 (4 of its
+    noise's standard deviations above the +10% that seed 0's low difference gives), the
+    ratio within 0.1 of 1; the plain derivative's stay beyond both."""
     import os
 
     import dopplertof
@@ -121,6 +123,6 @@ def test_with_visibility_brings_the_silhouette_derivative_to_the_difference(
     sil, footprint = classes["silhouette"], classes["footprint"]
     assert np.array_equal(after[classes["interior"]], before[classes["interior"]])
     assert before[sil].sum() / reference[sil].sum() - 1 > 1.2
-    assert abs(after[sil].sum() / reference[sil].sum() - 1) < 0.3
+    assert abs(after[sil].sum() / reference[sil].sum() - 1) < 0.35
     assert step_ratio(before, reference, footprint) < 0.85
-    assert abs(step_ratio(after, reference, footprint) - 1) < 0.06
+    assert abs(step_ratio(after, reference, footprint) - 1) < 0.1
