@@ -29,7 +29,7 @@ from .render import (_CHANNEL, _MOTION_NAME, MODULATION_PARAMETERS, DerivativeEr
 
 class Gradient(dict):
     """d loss / d parameter by name: a float, or an array (float64) for a vector
-    parameter (a colour's channels, a texture's texels, in the parameter's layout).
+    parameter (a colour's channels; a texture's texels, in the data's shape).
     Also ``image`` (H, W, C float32, the render), ``loss`` (its value), ``spp``,
     ``seed``."""
 
@@ -74,17 +74,8 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         sums.start()
         passes = plan.uniform(0)
 
-        # ---- Primal: the render, as the pipeline sums it (one pass: kept for the adjoint) ----
-        kept = None
-        for first_chunk, end_chunk in passes:
-            layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, None)
-            with dr.suspend_grad(when=len(passes) > 1):
-                value, film_offset = setup.trace(layout)
-                dr.eval(value, film_offset)
-            sums.add(dr.detach(value), dr.detach(film_offset), chunk_size, threads,
-                     pilot=False)
-            kept = (layout, value, film_offset) if len(passes) == 1 else None
-            del value, film_offset
+        # ---- Primal: the render, as the pipeline sums it ----
+        kept = _primal(mi, setup, plan, sums, passes)
         image = sums.image(np.full(width * height, spp), (height, width))
 
         # ---- The loss and its derivative with respect to the image ----
@@ -92,7 +83,7 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         lane_adjoint = LaneAdjoint(mi, setup, sums, image_adjoint, spp, (height, width))
 
         # ---- Adjoint: the same lanes with the parameters attached, backwards ----
-        for first_chunk, end_chunk in (passes if np.any(image_adjoint) else ()):
+        for first_chunk, end_chunk in (passes if variables and np.any(image_adjoint) else ()):
             if kept is None:
                 layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
                 value, film_offset = setup.trace(layout)
@@ -105,6 +96,23 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         restore()
     out.image, out.loss, out.spp, out.seed = image, loss_value, spp, int(seed)
     return out
+
+
+def _primal(mi, setup, plan, sums, passes):
+    """Trace ``passes`` into ``sums`` (the pipeline's Accumulator); one pass is traced
+    with the parameters attached and returned, (layout, value, film offset), for the
+    adjoint to use (else None: the adjoint traces each pass again)."""
+    import drjit as dr
+
+    kept = None
+    for first_chunk, end_chunk in passes:
+        layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, None)
+        with dr.suspend_grad(when=len(passes) > 1):
+            value, film_offset = setup.trace(layout)
+            dr.eval(value, film_offset)
+        sums.add(dr.detach(value), dr.detach(film_offset), chunk_size, threads, pilot=False)
+        kept = (layout, value, film_offset) if len(passes) == 1 else None
+    return kept
 
 
 def gradient_params(dscene, params=None):
@@ -238,12 +246,16 @@ def _shifted(values, ox: int, oy: int):
 
 def _read_gradient(variables, name):
     """d loss / d ``name`` from its variable's gradient: a float for a scalar (or one
-    channel, ``KEY[c]``), else a float64 array."""
+    channel, ``KEY[c]``), else a float64 array (a tensor's in its shape, e.g. a
+    texture's (H, W, C))."""
     import drjit as dr
 
     m = _CHANNEL.match(name)
     key = name if name in variables else m.group(1)
-    grad = np.asarray(dr.grad(variables[key]), dtype=np.float64).ravel()
+    variable = variables[key]
+    grad = np.asarray(dr.grad(variable), dtype=np.float64)
     if name not in variables:
-        return float(grad[int(m.group(2))])
-    return float(grad[0]) if grad.size == 1 else grad
+        return float(grad.ravel()[int(m.group(2))])
+    if grad.size == 1:
+        return float(grad.ravel()[0])
+    return grad if dr.is_tensor_v(variable) else grad.ravel()  # (a texture: its shape)

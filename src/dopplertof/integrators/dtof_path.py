@@ -229,10 +229,18 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     iteration = mi.UInt32(0)  # loop iterations so far (0: the camera ray's hit may be known)
     bsdf_ctx = mi.BSDFContext()
 
+    # A camera ray origin attached to AD (the camera's velocity differentiated) enters as
+    # an implicit input, the state's origin detached (AttachedOrigin says why)
+    attached = AttachedOrigin.of(ray)
+    if attached is not None:
+        ray = attached.detached_ray(mi, ray)
+
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof"):
         active, fresh = going != 0, iteration == 0
+        if attached is not None:
+            ray.o = dr.select(fresh, attached.origin, ray.o)
         si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
@@ -260,6 +268,31 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
             | v.through, 1, 0))
 
     return _as_colour(mi, measured, wavelengths), start.film_offset
+
+
+class AttachedOrigin:
+    """The camera rays' origins while they are attached to AD, held outside the path
+    loop's state. Every Dr.Jit array the loop body reads directly (not through a plain
+    object such as this one) is loop state, and Dr.Jit 1.5's reverse-mode replay of a
+    loop runs once per attached state variable: the three components of an attached
+    origin cost three replays (measured: 3 kernels of the replay's size), where inputs
+    read through plain objects (the bodies' per-lane transforms, the modulation's
+    variables) share one. The first iteration reads the origin from here."""
+
+    def __init__(self, origin):
+        self.origin = origin  #: the attached origins (Point3f)
+
+    @classmethod
+    def of(cls, ray):
+        """The holder of ``ray``'s origin where it is attached to AD, else None."""
+        return cls(ray.o) if dr.grad_enabled(ray.o) else None
+
+    @staticmethod
+    def detached_ray(mi, ray):
+        """A copy of ``ray`` with its origin detached (the loop's state)."""
+        ray = mi.Ray3f(ray)
+        ray.o = dr.detach(ray.o)
+        return ray
 
 
 # ---- Registration: <integrator type="dopplertof"> (alias "dopplertofpath") ----
