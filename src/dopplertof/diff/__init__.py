@@ -3,9 +3,10 @@
 See docs/differentiable.md.
 """
 
+from .gradient import Gradient, gradient
 from .motion import VelocityMotion
 from .render import (DerivativeError, Derivatives, DifferentiableScene,
                      render_derivatives)
 
 __all__ = ["VelocityMotion", "DerivativeError", "Derivatives", "DifferentiableScene",
-           "render_derivatives"]
+           "render_derivatives", "Gradient", "gradient"]

@@ -40,6 +40,7 @@ AXES = "xyz"
 MODULATION_PARAMETERS = ("w_g", "hetero_offset", "g_1")
 _MOTION_NAME = re.compile(r"^(body(\d+)|camera)\.([vw])([xyz])$")
 _CHANNEL = re.compile(r"^(.*)\[(\d+)\]$")
+_MESH_DATA = re.compile(r"\.(vertex_\w+|faces)$")  # a mesh's vertex attributes
 
 
 class DerivativeError(ValueError):
@@ -240,6 +241,28 @@ def parameter_names(dscene: DifferentiableScene) -> list:
                for kind in "vw" for axis in AXES]
     return (motions + [f"camera.v{axis}" for axis in AXES] + list(MODULATION_PARAMETERS)
             + list(dscene.scene_parameters()))
+
+
+def differentiable_names(dscene: DifferentiableScene) -> list:
+    """The names :func:`dopplertof.diff.gradient` differentiates by default: the bodies'
+    and the camera's velocities, the modulation's, and the mi.traverse keys whose value
+    is a differentiable floating-point array (flags without NonDifferentiable or
+    Discontinuous: reflectances, textures, emitters' radiance; not transforms, sizes,
+    the sensor's settings or meshes' vertex data, which can be named)."""
+    motions = [f"body{k}.{kind}{axis}" for k in range(len(dscene.motions))
+               for kind in "vw" for axis in AXES]
+    keys = [key for key, holders in dscene.scene_parameters().items()
+            if differentiable_key(holders[0], key) and not _MESH_DATA.search(key)]
+    return motions + [f"camera.v{axis}" for axis in AXES] + list(MODULATION_PARAMETERS) + keys
+
+
+def differentiable_key(parameters, key: str) -> bool:
+    """Whether ``key`` of mi.SceneParameters ``parameters`` holds a differentiable
+    floating-point Dr.Jit array."""
+    import drjit as dr
+
+    value, flags = parameters[key], int(parameters.properties[key][3])
+    return flags == 0 and dr.is_array_v(value) and dr.is_float_v(value) and not dr.is_matrix_v(value)
 
 
 class _ModulationVariables:

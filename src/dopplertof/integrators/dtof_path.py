@@ -206,7 +206,7 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     static = setup.scene.static
     modulation = setup.modulation_weight  # w(L, t) of a contribution
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
-    first_hit, active = start.first_hit, start.active
+    first_hit = start.first_hit
 
     # The first hit's light and BSDF samples from the pixel's low-discrepancy set
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
@@ -219,21 +219,32 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     beta = mi.Spectrum(start.ray_weight)  # path throughput
     length = modulation.F(start.camera_offset)  # path length, camera to ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
-    # (active: whether the path goes on; set by the camera rays)
+    going = mi.UInt32(dr.select(start.active, 1, 0))  # whether the path goes on (1) or not
     prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
     prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
-    prev_bsdf_delta = mi.Bool(True)  # whether that sample was a delta lobe
+    prev_bsdf_delta = mi.UInt32(1)  # whether that sample was a delta lobe (1) or not (0)
+    # (No Bool in the loop state: the loop's reverse-mode replay stores its state, and
+    # Dr.Jit 1.5 stores a Bool as i8 and reads it back as i1, an LLVM IR type error.)
     eta = mi.Float(1.0)  # relative index of refraction along the path
-    fresh = mi.Bool(True)  # first iteration: the camera ray's hit may be known already
+    iteration = mi.UInt32(0)  # loop iterations so far (0: the camera ray's hit may be known)
     bsdf_ctx = mi.BSDFContext()
+
+    # A camera ray origin attached to AD (the camera's velocity differentiated) enters as
+    # an implicit input, the state's origin detached (AttachedOrigin says why)
+    attached = AttachedOrigin.of(ray)
+    if attached is not None:
+        ray = attached.detached_ray(mi, ray)
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(active, max_iterations=max_iterations, label="dopplertof"):
+    while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof"):
+        active, fresh = going != 0, iteration == 0
+        if attached is not None:
+            ray.o = dr.select(fresh, attached.origin, ray.o)
         si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                  prev_si, prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth,
+                  prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
                   hide_direct_emitters, modulation.F, bsdf_ctx)
 
         # ---- Modulated contributions: the emitter hit and the light sample ----
@@ -244,17 +255,44 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
 
         # ---- Continue the path ----
         length = v.length_hit
-        ray, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth = advance(
-            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth)
-        fresh = mi.Bool(False)
+        ray, beta, eta, prev_si, prev_bsdf_pdf, delta, depth = advance(
+            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
+        prev_bsdf_delta = mi.UInt32(dr.select(delta, 1, 0))
+        iteration += 1
 
         # ---- Russian roulette ----
         beta_max, rr_prob, rr_active = roulette(beta, eta, depth, rr_depth)
         beta[rr_active] *= dr.rcp(rr_prob)
-        active = ((v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
-                  | v.through)
+        going = mi.UInt32(dr.select(
+            (v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
+            | v.through, 1, 0))
 
     return _as_colour(mi, measured, wavelengths), start.film_offset
+
+
+class AttachedOrigin:
+    """The camera rays' origins while they are attached to AD, held outside the path
+    loop's state. Every Dr.Jit array the loop body reads directly (not through a plain
+    object such as this one) is loop state, and Dr.Jit 1.5's reverse-mode replay of a
+    loop runs once per attached state variable: the three components of an attached
+    origin cost three replays (measured: 3 kernels of the replay's size), where inputs
+    read through plain objects (the bodies' per-lane transforms, the modulation's
+    variables) share one. The first iteration reads the origin from here."""
+
+    def __init__(self, origin):
+        self.origin = origin  #: the attached origins (Point3f)
+
+    @classmethod
+    def of(cls, ray):
+        """The holder of ``ray``'s origin where it is attached to AD, else None."""
+        return cls(ray.o) if dr.grad_enabled(ray.o) else None
+
+    @staticmethod
+    def detached_ray(mi, ray):
+        """A copy of ``ray`` with its origin detached (the loop's state)."""
+        ray = mi.Ray3f(ray)
+        ray.o = dr.detach(ray.o)
+        return ray
 
 
 # ---- Registration: <integrator type="dopplertof"> (alias "dopplertofpath") ----

@@ -260,10 +260,16 @@ def roulette(beta, eta, depth, rr_depth):
 
 def loop_settings(mi, setup):
     """The path loop's plain settings: the depth limit (a UInt32), the iteration hint,
-    the Russian roulette depth and whether directly visible emitters are hidden."""
+    the Russian roulette depth and whether directly visible emitters are hidden.
+
+    The hint bounds the iterations for the loop's reverse-mode replay (its state is
+    recorded on a stack of that many entries): max_depth surface hits, plus camera rays
+    that pass through hidden emitters without a bounce (one iteration each)."""
     params = setup.params
+    through = 2 if setup.hide_emitters else 0  # (passes through emitters, at depth 0)
     return (mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF),
-            params.max_depth, params.rr_depth, setup.hide_emitters)
+            params.max_depth + through if params.max_depth > 0 else -1,
+            params.rr_depth, setup.hide_emitters)
 
 
 class CameraSample:

@@ -1,0 +1,85 @@
+"""Cost of a reverse-mode gradient against a plain render, and against forward mode.
+
+The demo scene (two moving boxes) at the same resolution, spp and seed, the scene's
+own film (splat):
+
+* ``plain``: ``dopplertof.render``;
+* ``gradient``: ``dopplertof.diff.gradient`` of a linear loss with respect to every
+  differentiable name (``differentiable_names``: 2 bodies x 6 motion parameters, the
+  camera's velocity, the modulation's three, every reflectance and the light);
+* ``forward``: ``render_derivatives`` with the same names on the importance film (one
+  derivative pass per parameter), what the gradient replaces.
+
+Times: interleaved medians after a warm-up that compiles every kernel (benchmarks/timing.py).
+Memory: each run once more after the timings, the peak of Dr.Jit's device memory during it
+(``dr.detail.malloc_watermark``: the arrays the kernels read and write, the scene's
+included).
+
+    .venv/bin/python benchmarks/gradient.py [--res 64] [--spp 64] [--repeats 3] [--no-forward]
+"""
+
+from __future__ import annotations
+
+import argparse
+from timing import interleaved_medians  # (benchmarks/timing.py, beside this script)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-forward", action="store_true", help="skip forward mode's row")
+    args = ap.parse_args(argv)
+    runs, names = _runs(args.res, args.spp, not args.no_forward)
+    cold, times = interleaved_medians(runs, args.repeats)
+    plain = times["plain"]
+    print(f"demo scene {args.res}x{args.res}, {args.spp} spp, {len(names)} parameters, "
+          f"median of {args.repeats} (cold: first run, kernels compiled)")
+    for name, m in times.items():
+        print(f"  {name:<10} {m:8.3f} s   {m / plain:6.2f} x plain   (cold {cold[name]:.1f} s)")
+    peaks = {kind: _peak_memory(runs[kind]) for kind in ("plain", "gradient")}
+    print("  peak Dr.Jit memory (MB): " + ", ".join(f"{k} {v:.1f}" for k, v in peaks.items()))
+    print(f"gradient / plain: time {times['gradient'] / plain:.2f}, memory "
+          f"{peaks['gradient'] / peaks['plain']:.2f}")
+
+
+def _runs(res: int, spp: int, forward: bool):
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    import dopplertof
+    from dopplertof.demo import demo_scene_path
+    from dopplertof.diff import DifferentiableScene, gradient, render_derivatives
+    from dopplertof.diff.render import differentiable_names
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    scene = dopplertof.load_file(demo_scene_path(), {"res": res, "spp": spp})
+    ds = DifferentiableScene(scene)
+    names = differentiable_names(ds)
+    weights = mi.TensorXf(np.random.default_rng(1).uniform(0.5, 1.5, (res, res, 3))
+                          .astype(np.float32))
+
+    def loss(image):
+        return dr.sum(weights * image, axis=None)
+
+    runs = {"plain": lambda: dopplertof.render(scene, spp=spp, progress=False),
+            "gradient": lambda: gradient(ds, loss, names=names, spp=spp)}
+    if forward:
+        runs["forward"] = lambda: render_derivatives(ds, names, spp=spp)
+    return runs, names
+
+
+def _peak_memory(run) -> float:
+    """Peak Dr.Jit memory (MB, the LLVM backend) while ``run`` runs."""
+    import drjit as dr
+
+    dr.flush_malloc_cache()
+    dr.detail.malloc_clear_statistics()
+    run()
+    return dr.detail.malloc_watermark(dr.JitBackend.LLVM) / 2**20
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,261 @@
+"""Gradients of a loss of the rendered image: one primal and one adjoint pass, whatever
+the number of parameters (reverse mode; see docs/differentiable.md, "Reverse mode").
+
+The render is the pipeline's own (integrators/pipeline.py: the same passes, sums and
+film, so the image is the one :func:`dopplertof.render` gives at these settings). The
+loss's derivative with respect to the image, dL/dI (H x W x C), becomes each lane's
+adjoint: how much the image's pixels change per unit of the lane's value, weighted by
+dL/dI. For the importance film a lane counts 1/n in its own pixel (n its pixel's
+samples); for the splat film it counts w_o / (n W_{j+o}) in each pixel j + o its
+filter reaches (w_o its filter weight there, W the pixel's normalizing weight, which
+depends on film positions only, not on any parameter): the adjoint gathers with the
+same weights the splat scattered with. The adjoint pass then traces the same lanes
+(same random numbers) with the parameters attached to Dr.Jit's AD graph and
+propagates sum(adjoint x value) back through the path loop: Dr.Jit replays the
+symbolic loop in reverse (the loop's ``max_iterations`` hint sets the stack it
+records its state on), so memory does not grow with the number of parameters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .render import (_CHANNEL, _MOTION_NAME, MODULATION_PARAMETERS, DerivativeError,
+                     _ModulationVariables, _motion_value, check_names, differentiable_key,
+                     differentiable_names)
+
+
+class Gradient(dict):
+    """d loss / d parameter by name: a float, or an array (float64) for a vector
+    parameter (a colour's channels; a texture's texels, in the data's shape).
+    Also ``image`` (H, W, C float32, the render), ``loss`` (its value), ``spp``,
+    ``seed``."""
+
+    image: np.ndarray
+    loss: float
+    spp: int
+    seed: int
+
+
+def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, params=None,
+             max_lanes: int = 1 << 20) -> Gradient:
+    """d loss(image) / d parameter for every name of :func:`parameter_names` (or
+    ``names``), from one primal and one adjoint pass: by default every name of
+    :func:`differentiable_names`.
+
+    ``loss``: a callable taking the image (a Dr.Jit tensor, H x W x C) and returning a
+    scalar (a Dr.Jit Float of width 1 or a Python float). ``params``: render parameters
+    over the scene's (e.g. ``{"film_sampling": "importance"}``: with the same ``spp``
+    and ``seed`` the random numbers of :func:`render_derivatives`). Adaptive sampling is
+    off (the counts would depend on the parameters' render). ``max_depth`` must be
+    finite (the adjoint replays at most that many bounces)."""
+    import drjit as dr
+
+    from ..integrators.dtof_path import integrator_class
+    from ..integrators.pipeline import Accumulator, PassPlanner, _spectrum_channels
+    from ..sampling import check_sample_count
+
+    mi = dscene.mi
+    names = differentiable_names(dscene) if names is None else list(names)
+    check_names(dscene, names)
+    p = gradient_params(dscene, params)
+    spp = dscene.scene.spp if spp is None else int(spp)
+    check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
+    width, height = (int(v) for v in dscene.scene.sensor.film().crop_size())
+    variables, scene, restore = attach(dscene, names)
+    try:
+        setup = integrator_class(mi)().prepared(scene, p, spp, int(seed))
+        variables.update(_ModulationVariables(
+            mi, setup.modulation_weight, setup.modulation, names).variables)
+        plan = PassPlanner(spp, setup.group_size, width * height, p, max_lanes, None)
+        sums = Accumulator(mi, setup, width * height, _spectrum_channels(mi), False)
+        sums.start()
+        passes = plan.uniform(0)
+
+        # ---- Primal: the render, as the pipeline sums it ----
+        kept = _primal(mi, setup, plan, sums, passes)
+        image = sums.image(np.full(width * height, spp), (height, width))
+
+        # ---- The loss and its derivative with respect to the image ----
+        loss_value, image_adjoint = _loss_adjoint(mi, loss, image)
+        lane_adjoint = LaneAdjoint(mi, setup, sums, image_adjoint, spp, (height, width))
+
+        # ---- Adjoint: the same lanes with the parameters attached, backwards ----
+        for first_chunk, end_chunk in (passes if variables and np.any(image_adjoint) else ()):
+            if kept is None:
+                layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
+                value, film_offset = setup.trace(layout)
+            else:
+                (layout, value, film_offset), kept = kept, None
+            dr.backward(lane_adjoint.weighted_sum(layout, value, film_offset))
+            del value, film_offset
+        out = Gradient({name: _read_gradient(variables, name) for name in names})
+    finally:
+        restore()
+    out.image, out.loss, out.spp, out.seed = image, loss_value, spp, int(seed)
+    return out
+
+
+def _primal(mi, setup, plan, sums, passes):
+    """Trace ``passes`` into ``sums`` (the pipeline's Accumulator); one pass is traced
+    with the parameters attached and returned, (layout, value, film offset), for the
+    adjoint to use (else None: the adjoint traces each pass again)."""
+    import drjit as dr
+
+    kept = None
+    for first_chunk, end_chunk in passes:
+        layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, None)
+        with dr.suspend_grad(when=len(passes) > 1):
+            value, film_offset = setup.trace(layout)
+            dr.eval(value, film_offset)
+        sums.add(dr.detach(value), dr.detach(film_offset), chunk_size, threads, pilot=False)
+        kept = (layout, value, film_offset) if len(passes) == 1 else None
+    return kept
+
+
+def gradient_params(dscene, params=None):
+    """The render parameters of :func:`gradient`: the DifferentiableScene's, with the
+    scene's own film (``params`` over them), no adaptive sampling, a finite depth."""
+    from ..params import RenderParams
+
+    base = dscene.scene.params.resolved(dscene.scene.shutter_interval)
+    p = replace(dscene.params, film_sampling=base.film_sampling)
+    if params:
+        p = RenderParams.from_mapping(dict(params), where="gradient params", base=p)
+        p = p.resolved(dscene.scene.shutter_interval)
+        if p.antithetic_mapping == "motion":
+            p = replace(p, antithetic_mapping="replay")
+    if p.max_depth < 1:
+        raise DerivativeError(
+            "gradient: max_depth must be finite (the adjoint pass replays at most max_depth "
+            "bounces); set max_depth in the scene or params")
+    return replace(p, adaptive_sampling=False)
+
+
+def attach(dscene, names):
+    """The AD variables of ``names`` that live outside the integrator (motion: opaque
+    Floats the traced scene's VelocityMotions hold; Mitsuba parameters: a zero of the
+    parameter's type added to it, in every scene that holds the key), the traced scene
+    and a function that puts the scene parameters back. (The modulation's variables are
+    made with the integrator: _ModulationVariables.)"""
+    import drjit as dr
+
+    mi = dscene.mi
+    variables = {}
+    for name in names:
+        if _MOTION_NAME.match(name):
+            x = dr.opaque(mi.Float, _motion_value(dscene, name))
+            dr.enable_grad(x)
+            variables[name] = x
+    scene = dscene._traced(variables)
+    touched = []
+    keys = {(_CHANNEL.match(n).group(1) if _CHANNEL.match(n) else n) for n in names
+            if not _MOTION_NAME.match(n) and n not in MODULATION_PARAMETERS}
+    for key in sorted(keys):
+        holders = dscene.scene_parameters()[key]
+        if not differentiable_key(holders[0], key):
+            raise DerivativeError(
+                f"{key}: not a differentiable parameter (its mi.traverse flags or type: "
+                f"{type(holders[0][key]).__name__}); differentiable_names(ds) lists those that are")
+        x = dr.zeros(type(holders[0][key]), dr.shape(holders[0][key]))
+        dr.enable_grad(x)
+        for tp in holders:
+            base = tp[key]
+            tp[key] = base + x
+            tp.update()
+            touched.append((tp, key))
+        variables[key] = x
+
+    def restore():  # (x = 0: the detached value is the original, exactly)
+        for tp, key in touched:
+            tp[key] = dr.detach(tp[key])
+            tp.update()
+
+    return variables, scene, restore
+
+
+def _loss_adjoint(mi, loss, image):
+    """The loss's value and its derivative with respect to ``image`` (float64 host
+    array of the image's shape; zero where the loss does not depend on it)."""
+    import drjit as dr
+
+    tensor = mi.TensorXf(image)
+    dr.enable_grad(tensor)
+    value = loss(tensor)
+    adjoint = np.zeros(image.shape)
+    if dr.grad_enabled(value):
+        if dr.width(value) != 1:
+            raise DerivativeError(
+                f"gradient: the loss must be a scalar, got {dr.width(value)} values "
+                "(reduce it, e.g. with dr.sum or dr.mean)")
+        dr.backward(value)
+        adjoint = np.asarray(dr.grad(tensor), dtype=np.float64).reshape(image.shape)
+    return float(np.asarray(dr.detach(value)).ravel()[0]), adjoint
+
+
+class LaneAdjoint:
+    """Each lane's adjoint: sum over the pixels its sample reaches of
+    (d pixel / d lane value) x dL/d pixel, per channel."""
+
+    def __init__(self, mi, setup, sums, image_adjoint, spp: int, shape):
+        self.mi, self.splat, self.spp = mi, setup.splat, spp
+        self.channels = image_adjoint.shape[-1]
+        h, w = shape
+        if sums.weighted:  # dL/dI over each pixel's normalizing weight
+            total = sums.host_total() / spp
+            offsets, c = len(self.splat.offsets), self.channels
+            weight = (self.splat.shift_add(total.T[offsets * c:], shape)[..., 0]
+                      if sums.normalization == "weights" else self.splat.expected_weights(shape))
+            scaled = image_adjoint / weight[..., None]
+            self.targets = [_shifted(scaled, ox, oy) for ox, oy in self.splat.offsets]
+        else:  # one pixel, weight 1 (a box splat or the importance film)
+            self.targets = [image_adjoint.reshape(h * w, -1)]
+
+    def weighted_sum(self, layout, value, film_offset):
+        """sum over lanes and channels of adjoint x value (the lanes' finite values),
+        a Float whose backward pass gives the parameters' gradients."""
+        import drjit as dr
+
+        mi = self.mi
+        raw = [value[c] for c in range(self.channels)]
+        finite = dr.isfinite(raw[0])
+        for v in raw[1:]:
+            finite &= dr.isfinite(v)
+        weights = ([mi.Float(1.0)] if len(self.targets) == 1
+                   else self.splat.lane_weights(mi, dr.detach(film_offset)))
+        total = mi.Float(0.0)
+        for c in range(self.channels):
+            adjoint = mi.Float(0.0)
+            for w, target in zip(weights, self.targets):
+                adjoint += w * dr.gather(mi.Float, mi.Float(target[:, c]), layout.pixel)
+            total += dr.select(finite, adjoint * raw[c], 0.0)
+        return dr.sum(total) * (1.0 / self.spp)
+
+
+def _shifted(values, ox: int, oy: int):
+    """(H * W, C): at source pixel (y, x), ``values`` at target (y + oy, x + ox), zero
+    where the target is outside the window."""
+    h, w = values.shape[:2]
+    out = np.zeros_like(values)
+    out[max(0, -oy):min(h, h - oy), max(0, -ox):min(w, w - ox)] = \
+        values[max(0, oy):min(h, h + oy), max(0, ox):min(w, w + ox)]
+    return out.reshape(h * w, -1)
+
+
+def _read_gradient(variables, name):
+    """d loss / d ``name`` from its variable's gradient: a float for a scalar (or one
+    channel, ``KEY[c]``), else a float64 array (a tensor's in its shape, e.g. a
+    texture's (H, W, C))."""
+    import drjit as dr
+
+    m = _CHANNEL.match(name)
+    key = name if name in variables else m.group(1)
+    variable = variables[key]
+    grad = np.asarray(dr.grad(variable), dtype=np.float64)
+    if name not in variables:
+        return float(grad.ravel()[int(m.group(2))])
+    if grad.size == 1:
+        return float(grad.ravel()[0])
+    return grad if dr.is_tensor_v(variable) else grad.ravel()  # (a texture: its shape)
