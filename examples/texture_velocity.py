@@ -96,8 +96,10 @@ def captures_of(scene, spp: int, seed: int = 0) -> dict:
 
 
 def recover(texels: int = 32, res: int = 48, spp: int = 16, capture_spp: int = 256,
-            iterations: int = 80, start_error: float = 0.25, progress=None, folder=None):
-    """Render the captures with the truth, fit from the start, and return a summary:
+            iterations: int = 80, start_error: float = 0.25, progress=None, folder=None,
+            seed: int = 1):
+    """Render the captures with the truth (seed 0), fit from the start (renders of seeds
+    ``seed``, ``seed`` + 1, ...), and return a summary:
     {texture_rmse, start_texture_rmse, velocity, velocity_error, seconds, result}."""
     import dopplertof
     import mitsuba as mi
@@ -119,7 +121,7 @@ def recover(texels: int = 32, res: int = 48, spp: int = 16, capture_spp: int = 2
     set_value(ds, "body0.vz", start_vz)
     started = time.perf_counter()
     result = fit_captures(ds, captures, [TEXTURE_KEY, "body0.vz"], iterations=iterations,
-                          spp=spp, seed=1, progress=progress)
+                          spp=spp, seed=seed, progress=progress)
     seen = visible_texels(texels)
     fitted = result.values[TEXTURE_KEY].reshape(texels, texels)
     rmse = lambda t: float(np.sqrt(np.mean((t - truth[..., 0])[seen] ** 2)))  # noqa: E731
@@ -137,8 +139,13 @@ def main(argv=None) -> int:
     parser.add_argument("--spp", type=int, default=16, help="spp of the fit's renders")
     parser.add_argument("--capture-spp", type=int, default=256, help="spp of the captures")
     parser.add_argument("--iterations", type=int, default=80)
+    parser.add_argument("--seed", type=int, default=1, help="first seed of the fit's renders "
+                        "(the captures': 0)")
     args = parser.parse_args(argv)
-    out = recover(args.texels, args.res, args.spp, args.capture_spp, args.iterations)
+    if args.seed < 1:
+        parser.error("--seed must be at least 1 (seed 0 renders the captures)")
+    out = recover(args.texels, args.res, args.spp, args.capture_spp, args.iterations,
+                  seed=args.seed)
     print(f"texture: {out['visible_texels']} texels in view, RMSE {out['texture_rmse']:.4f} "
           f"(start {out['start_texture_rmse']:.4f}; albedos 0.2 / 0.8)")
     print(f"velocity along the axis: {out['velocity']:.4f} m/s (truth {VELOCITY[2]:g}, start "
