@@ -67,6 +67,29 @@ def test_texel_gradient_matches_a_crn_central_difference(tmp_path):
     set_value(ds, key, texture)
 
 
+def test_fit_captures_prints_a_line_per_iteration_and_refuses_bad_names(tmp_path, capsys):
+    from dopplertof.diff import DerivativeError
+    from dopplertof.diff.inverse import fit_captures
+
+    ds, texture = _textured_plane(tmp_path)
+    key = "albedo.reflectance.data"
+    captures = {"homodyne_0": ({"hetero_frequency": 0.0, "hetero_offset": 0.0},
+                               np.full((8, 8), 0.05))}
+    for names, word in [(["albedo.reflectance.dta"], "albedo.reflectance.dta"),
+                        (["camera.vz"], "camera")]:
+        with pytest.raises(DerivativeError, match=word):
+            fit_captures(ds, captures, names, iterations=1)
+    with pytest.raises(DerivativeError, match="iterations"):
+        fit_captures(ds, captures, [key], iterations=0)
+    result = fit_captures(ds, captures, [key, "body0.vz"], iterations=2, spp=4, seed=5)
+    lines = [l for l in capsys.readouterr().err.splitlines() if l.startswith("inverse iteration")]
+    assert len(lines) == 3 and "body0.vz +5.0000" in lines[0], lines
+    assert [h["iteration"] for h in result.history] == [0, 1, 2]
+    fitted = result.values[key]
+    assert fitted.shape == (texture.size,) and np.all((fitted >= 0) & (fitted <= 1))
+    assert not np.array_equal(fitted, texture.ravel())  # the second iteration stepped
+
+
 @pytest.mark.slow  # 40 iterations of 4 gradients (about 1 min on 2 loaded cores)
 def test_texture_and_velocity_recovered_together_at_a_small_size():
     out = _example()["recover"](texels=8, res=16, spp=16, capture_spp=128, iterations=40,
