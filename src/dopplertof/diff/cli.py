@@ -23,6 +23,9 @@ def add_subcommand(sub) -> None:
     f.add_argument("--iterations", type=positive_int, default=12,
                    help="Gauss-Newton iterations at most (default 12)")
     f.add_argument("--angular", action="store_true", help="fit angular velocities too")
+    f.add_argument("--reflectances", action="store_true", help="fit the scene's uniform "
+                   "reflectances (<bsdf>.reflectance.value) too, from the scene's values, on "
+                   "the homodyne captures beside the heterodyne ones")
     f.add_argument("--start", action="append", metavar="K=VX,VY,VZ",
                    help="start body K's linear velocity (m/s) here instead of the closed "
                    "form (repeatable)")
@@ -58,6 +61,7 @@ def run(args) -> int:
     dopplertof.set_variant(args.variant)
     result = fit(args.capture, start=start or None, spp=args.spp, seed=args.seed,
                  iterations=args.iterations, angular=args.angular,
+                 reflectances=args.reflectances,
                  defines=parse_pairs(args.defines, "-D"), progress=False if args.quiet else None)
     paths = write_fit(result, args.output)
     print(format_fit(result))

@@ -54,6 +54,10 @@ from .motion import VelocityMotion
 #: captures fitted (their Doppler content is what the velocities change)
 FIT_CAPTURES = ("heterodyne_0", "heterodyne_0.25")
 
+#: captures fitted beside them with ``reflectances`` (the heterodyne captures scale
+#: with albedo x velocity: the homodyne ones separate the two)
+REFLECTANCE_CAPTURES = ("homodyne_0", "homodyne_0.25")
+
 #: directions of the (column-scaled) Jacobian below this fraction of its largest
 #: singular value are not constrained by the captures: no step along them
 RCOND = 0.05
@@ -89,10 +93,14 @@ class FitResult:
     loss: float
     history: list = field(default_factory=list)
     settings: dict = field(default_factory=dict)
+    reflectances: dict = field(default_factory=dict)  #: key -> value, uncertainty (fitted)
 
     def as_json(self) -> dict:
-        return {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,
-                "history": self.history, "settings": self.settings}
+        out = {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,
+               "history": self.history, "settings": self.settings}
+        if self.reflectances:
+            out["reflectances"] = self.reflectances
+        return out
 
 
 # ---- Reading a capture folder ------------------------------------------------------
@@ -102,7 +110,7 @@ def _declared_defaults(path: str) -> set:
         return set(re.findall(r"<default\s+name=\"([^\"]+)\"", f.read()))
 
 
-def load_capture(folder, defines=None) -> CaptureData:
+def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
     """The scene, parameters and captures of a capture folder. The scene is loaded with
     its resolution set to the captures' (through the <default> values it declares:
     res, resx/resy, width/height) and ``defines`` (the capture's -D values)."""
@@ -144,11 +152,11 @@ def load_capture(folder, defines=None) -> CaptureData:
     base = RenderParams.from_mapping({k: v for k, v in params.items() if v is not None},
                                      where=f"{summary_path} render_params")
     captures = {}
-    for name in FIT_CAPTURES:
+    for name in fitted:
         path = os.path.join(folder, f"{name}.npy")
         if name not in records or not os.path.isfile(path):
-            raise FitError(f"{folder} has no {name}.npy: the fit needs the heterodyne "
-                           "captures")
+            raise FitError(f"{folder} has no {name}.npy: the fit needs the "
+                           f"{name.split('_')[0]} captures")
         image = np.load(path).astype(np.float64)
         if image.shape != (height, width):
             raise FitError(f"{path} is {image.shape}, not the summary's {height}x{width}")
@@ -234,7 +242,8 @@ def radial_velocity(truth, k: int):
 
 def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         iterations: int = 12, angular: bool = False, defines=None, progress=None,
-        tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU) -> FitResult:
+        tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU,
+        reflectances: bool = False) -> FitResult:
     """Fit every body's velocity to the captures in ``folder`` (see the module
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
@@ -244,8 +253,9 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     velocity field's variation and average the noise); the iterations stop at a step
     below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
     by less than ``plateau`` of itself. ``progress``: a bar (True; None: when stderr is
-    a terminal), else (None) one line per iteration on stderr, or nothing (False)."""
-    data = load_capture(folder, defines)
+    a terminal), else (None) one line per iteration on stderr, or nothing (False).
+    ``reflectances``: fit :func:`reflectance_keys` too, on :data:`REFLECTANCE_CAPTURES`."""
+    data = load_capture(folder, defines, FIT_CAPTURES + REFLECTANCE_CAPTURES * reflectances)
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
@@ -264,7 +274,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     _start_motions(motions, start, closed_form, folder)
 
     # ---- Gauss-Newton with Levenberg-Marquardt damping ----
-    problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block)
+    problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block,
+                          reflectances)
     started = _time.perf_counter()
     theta, state, history, done, stop = _gauss_newton(
         problem, spp, iterations, tolerance, plateau, _Progress(progress, iterations), started)
@@ -274,7 +285,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     cov, sigma = _covariance(state, problem.seen)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
     settings = {
-        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
+        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(problem.fitted),
         "spp": int(spp), "seed": seed, "jacobian_seed": seed + 1,
         "pixels": int(problem.pixels.size), "block": int(block),
         "residuals": "per capture, sums over blocks of interior pixels of one body",
@@ -285,7 +296,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         "unconstrained": [n for n, ok in zip(problem.names, problem.seen) if not ok],
         "seconds": round(_time.perf_counter() - started, 3),
     }
-    return FitResult(bodies, done, loss, history, settings)
+    return FitResult(bodies, done, loss, history, settings,
+                     problem.reflectance_entries(theta, sigma))
 
 
 def _motions_at_mid_exposure(data: CaptureData):
@@ -349,15 +361,17 @@ class _FitProblem:
     ``motions`` that one differentiable scene per fitted capture shares. The residuals:
     per capture, block sums of render - capture over the bodies' interior pixels."""
 
-    def __init__(self, data: CaptureData, motions, masks, seeds, angular: bool, block: int):
+    def __init__(self, data: CaptureData, motions, masks, seeds, angular: bool, block: int,
+                 reflectances: bool = False):
         from .render import DifferentiableScene
 
         self.data, self.motions, self.masks, self.angular = data, motions, masks, angular
         self.seeds = seeds  #: (A, B): the two renders of independent random numbers
         self.per_body = 6 if angular else 3  #: parameters per body
         # ---- One differentiable scene per capture, sharing the motions ----
+        self.fitted = FIT_CAPTURES + (REFLECTANCE_CAPTURES if reflectances else ())
         self.scenes = {}
-        for name in FIT_CAPTURES:
+        for name in self.fitted:
             ds = DifferentiableScene(data.scene, _capture_params(data, name))
             ds.motions = motions
             self.scenes[name] = ds
@@ -366,8 +380,10 @@ class _FitProblem:
         self.n_groups = int(self.groups.max()) + 1
         self.names = [f"body{k}.{kind}{a}" for k in range(len(motions))
                       for kind in ("vw" if angular else "v") for a in "xyz"]
+        self.reflectances = _Reflectances(self.scenes[FIT_CAPTURES[0]], reflectances)
+        self.names += self.reflectances.keys
         self.target = np.concatenate([self.pool(data.captures[c].ravel()[self.pixels])
-                                      for c in FIT_CAPTURES])
+                                      for c in self.fitted])
         #: the parameters the captures see (set from the start's Jacobian); the others
         #: keep their start
         self.seen = np.ones(len(self.names), bool)
@@ -383,7 +399,7 @@ class _FitProblem:
             out += m.velocity
             if self.angular:
                 out += m.angular_velocity
-        return np.array(out, dtype=np.float64)
+        return np.array(out + self.reflectances.values(), dtype=np.float64)
 
     def set_values(self, theta) -> None:
         per = self.per_body
@@ -391,6 +407,7 @@ class _FitProblem:
             m.velocity = theta[k * per:k * per + 3].tolist()
             if self.angular:
                 m.angular_velocity = theta[k * per + 3:k * per + 6].tolist()
+        self.reflectances.set(theta[len(self.motions) * per:])
 
     def evaluate(self, samples: int, jacobian: bool = True):
         """Residuals at the current motions from two renders of independent random
@@ -402,7 +419,7 @@ class _FitProblem:
         residuals, jacobians = [], []
         for seed in self.seeds:
             residual, columns = [], []
-            for c in FIT_CAPTURES:
+            for c in self.fitted:
                 d = render_derivatives(self.scenes[c], names, spp=samples, seed=seed,
                                        pixels=self.pixels)
                 residual.append(self.pool(d.image.mean(-1).ravel()[self.pixels]))
@@ -428,7 +445,7 @@ class _FitProblem:
         """d (each body's radial velocity) / d theta (n_bodies, n_params): central
         differences of the truth (linear in u); leaves the motions at ``theta``."""
         grad_radial = np.zeros((len(self.motions), len(theta)))
-        for j in range(len(theta)):
+        for j in range(len(self.motions) * self.per_body):  # (not the reflectances)
             h = 1e-3 * max(1.0, abs(theta[j]))
             up, down = theta.copy(), theta.copy()
             up[j] += h
@@ -472,6 +489,53 @@ class _FitProblem:
             _add_capture_record(entry, self.data.summary)
             bodies.append(entry)
         return bodies
+
+
+    def reflectance_entries(self, theta, sigma) -> dict:
+        """fit.json's reflectances: per key its fitted value (the channels' mean), the
+        start's and the uncertainty (None: not seen)."""
+        at = len(self.motions) * self.per_body
+        return {key: {"value": float(theta[at + i]), "start": start,
+                      "uncertainty": _or_none(sigma[at + i:at + i + 1])[0],
+                      "channels": self.reflectances.channels(key).tolist()}
+                for i, (key, start) in enumerate(self.reflectances.start.items())}
+
+
+def reflectance_keys(ds) -> list:
+    """The scene's uniform reflectances: the differentiable mi.traverse keys
+    ``<bsdf>.reflectance.value`` of the static scene and the bodies."""
+    from .render import differentiable_names
+
+    return [n for n in differentiable_names(ds) if n.endswith(".reflectance.value")]
+
+
+class _Reflectances:
+    """The fitted reflectances of a fit (none unless ``fitted``): per key one value,
+    the mean of its channels; a new value shifts every channel by the same amount
+    (the captures are the channels' mean), clipped to [0, 1]."""
+
+    def __init__(self, ds, fitted: bool):
+        from .inverse import get_value
+
+        self.ds = ds
+        self.keys = reflectance_keys(ds) if fitted else []
+        self.base = {k: get_value(ds, k) for k in self.keys}
+        self.start = {k: float(v.mean()) for k, v in self.base.items()}
+        self.current = dict(self.start)
+
+    def values(self) -> list:
+        return [self.current[k] for k in self.keys]
+
+    def channels(self, key: str) -> np.ndarray:
+        return np.clip(self.base[key] + (self.current[key] - self.start[key]), 0.0, 1.0)
+
+    def set(self, values) -> None:
+        from .inverse import set_value
+
+        for key, value in zip(self.keys, values):
+            if float(value) != self.current[key]:
+                self.current[key] = float(value)
+                set_value(self.ds, key, self.channels(key))
 
 
 def _add_capture_record(entry: dict, summary: dict) -> None:
@@ -805,4 +869,8 @@ def format_fit(result: FitResult) -> str:
         lines.append(f"    radial velocity {b['radial_velocity_m_s']:+.3f} "
                      f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s (median over the body)"
                      + _error(b["radial_velocity_m_s"], b.get("capture_velocity_gt_median_m_s")))
+    for key, r in result.reflectances.items():
+        spread = "not seen: kept at its start" if r["uncertainty"] is None else \
+            f"+- {r['uncertainty']:.4f}"
+        lines.append(f"  {key}: {r['value']:.4f} {spread} (start {r['start']:.4f})")
     return "\n".join(lines)
