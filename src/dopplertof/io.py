@@ -626,8 +626,7 @@ def wrap_texts(fig, renderer=None) -> bool:
     import textwrap
 
     if renderer is None:
-        fig.canvas.draw()
-        renderer = fig.canvas.get_renderer()
+        renderer = laid_out_renderer(fig)
     width, height = fig.bbox.width, fig.bbox.height
     changed = False
     for text in _figure_texts(fig):
@@ -643,17 +642,28 @@ def wrap_texts(fig, renderer=None) -> bool:
     return changed
 
 
+def laid_out_renderer(fig):
+    """The renderer of ``fig``'s canvas, with the figure's layout engine (if any) run:
+    what measuring its texts and bounding boxes needs, without drawing a pixel (each
+    Axes' tight box places its title, ticks and aspect itself). A layout done once
+    (``fig.tight_layout()``) leaves a placeholder engine that lays out nothing."""
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
+    if not isinstance(fig.get_layout_engine(), (type(None), PlaceHolderLayoutEngine)):
+        fig.draw_without_rendering()
+    return fig.canvas.get_renderer()
+
+
 def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
     """Make the figure the size of what it draws: long texts wrapped (:func:`wrap_texts`),
     then the figure cropped or grown to the tight box of its artists with ``pad`` inches
     around (no title, label, colour bar or legend past an edge, no empty margins); the
     axes and the figure's texts keep their places relative to each other."""
-    fig.canvas.draw()
-    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as drawn)
+    renderer = laid_out_renderer(fig)
+    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as laid out)
         fig.set_layout_engine("none")
-    if wrap_texts(fig, fig.canvas.get_renderer()):
-        fig.canvas.draw()
-    box = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
+    wrap_texts(fig, renderer)
+    box = fig.get_tightbbox(renderer)  # inches
     old_w, old_h = fig.get_size_inches()
     x0, y0 = box.x0 - pad, box.y0 - pad
     new_w, new_h = box.width + 2 * pad, box.height + 2 * pad
@@ -672,8 +682,7 @@ def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
 def add_caption(fig, text: str, fontsize: float = 8) -> None:
     """``text`` centred under everything ``fig`` draws now (lay the figure out first):
     :func:`fit_figure` wraps it to the figure's width and grows the figure to hold it."""
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()
+    renderer = laid_out_renderer(fig)
     bottom = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes) / fig.bbox.height
     fig.text(0.5, bottom - 0.01, text, ha="center", va="top", fontsize=fontsize,
              color="#444444")
