@@ -568,11 +568,6 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
               signed: bool = True) -> None:
     """Signed preview: diverging colormap centred on zero, with a colour bar; with
     ``signed=False`` a colour scale from zero to the maximum (counts, magnitudes)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
     data = preview_scalar(image)
     finite = data[np.isfinite(data)]
     if signed:  # robust: the colour bar's arrows show what saturates
@@ -580,7 +575,7 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     else:
         vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     h, w = data.shape
-    fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / w + 0.6), dpi=120)
+    fig, ax = preview_figure((5.5, 5.5 * h / w + 0.6), 120)
     show_no_signal(ax, data.shape)
     im = ax.imshow(np.ma.masked_invalid(data), cmap=no_signal_colours(cmap),
                    vmin=-vmax if signed else 0.0, vmax=vmax, interpolation="nearest",
@@ -590,7 +585,6 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
                        extend=colorbar_extend(data, -vmax if signed else 0.0, vmax))
     bar.set_label(label)
-    fig.tight_layout()
     save_figure(fig, path, metadata)
 
 
@@ -660,8 +654,9 @@ def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
     around (no title, label, colour bar or legend past an edge, no empty margins); the
     axes and the figure's texts keep their places relative to each other."""
     renderer = laid_out_renderer(fig)
-    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as laid out)
-        fig.set_layout_engine("none")
+    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as laid out;
+        fig.set_layout_engine(None)          # no engine, not even a placeholder, saves a
+                                             # layout pass in savefig)
     wrap_texts(fig, renderer)
     box = fig.get_tightbbox(renderer)  # inches
     old_w, old_h = fig.get_size_inches()
@@ -688,18 +683,32 @@ def add_caption(fig, text: str, fontsize: float = 8) -> None:
              color="#444444")
 
 
+def preview_figure(size_inches, dpi: float):
+    """(figure, axes) of a one-panel preview, on an Agg canvas of its own (no pyplot):
+    the axes fill the figure, and :func:`save_figure` fits the figure to what it draws
+    (growing it for the title, colour bar and caption), so no layout pass is needed."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size_inches, dpi=dpi)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.0, right=0.88, bottom=0.05, top=0.94)  # (room for the texts)
+    return fig, fig.add_subplot()
+
+
 def save_figure(fig, path, metadata: dict | None = None) -> None:
     """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description,
-    fitted to what it draws (:func:`fit_figure`)."""
-    import matplotlib.pyplot as plt
-
+    fitted to what it draws (:func:`fit_figure`); closed if pyplot made it."""
     fit_figure(fig)
     info = {"Software": "dopplertof"}
     if metadata:
         info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", metadata=info)
-    plt.close(fig)
+    if fig.canvas.manager is not None:  # (a pyplot figure)
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
 
 
 def write_image(path, image: np.ndarray, metadata: dict | None = None, **png_kwargs) -> None:
