@@ -12,10 +12,13 @@ the child; on a loaded machine the wall time stretches, the CPU time much less):
   folder) with a warm kernel cache and with a cold one (a fresh ``HOME``: Dr.Jit
   keeps its compiled kernels in ``~/.drjit``): its time outside the renders is the
   total minus the ``seconds.render`` of its summary.json;
+- the CPU time of writing that capture's folder (arrays, the 14 PNG previews,
+  summary.json) in one process: the first write, Matplotlib's import included, and
+  the next ones;
 - the kernels a second capture with other offsets and frequencies compiles (Dr.Jit's
   kernel history; in this tree only).
 
-    .venv/bin/python benchmarks/startup.py [--baseline afb2c4e] [--repeat 5]
+    .venv/bin/python benchmarks/startup.py [--baseline 084448f] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -96,6 +99,31 @@ print(len(first), len(second - first))
     return f"{first} kernels for the first capture, {new} new for the second"
 
 
+def folder_writing_seconds(src: str) -> str:
+    """CPU seconds of writing a small capture's folder (its arrays, 14 PNG previews and
+    summary.json: CaptureResult.write), in a fresh interpreter: the first write (with
+    Matplotlib's import) and the median of three more."""
+    code = f"""
+import os, statistics, tempfile, time, dopplertof
+dopplertof.set_variant()
+scene = dopplertof.load_file({SCENE!r}, res=16)
+result = dopplertof.capture(scene, spp=16, progress=False)
+seconds = []
+with tempfile.TemporaryDirectory() as tmp:
+    for k in range(4):
+        start = time.process_time()
+        result.write(os.path.join(tmp, str(k)))
+        seconds.append(time.process_time() - start)
+print(seconds[0], statistics.median(seconds[1:]))
+"""
+    out = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=src),
+                         cwd=ROOT, capture_output=True, text=True)
+    if out.returncode != 0:
+        return "failed: " + out.stderr.strip().splitlines()[-1]
+    first, then = (float(v) for v in out.stdout.split()[-2:])
+    return f"first {first:.2f}, then {then:.2f}"
+
+
 def baseline_sources(commit: str, folder: str) -> str:
     """The ``src`` folder of ``commit``, extracted into ``folder``."""
     archive = subprocess.run(["git", "-C", ROOT, "archive", commit, "src"],
@@ -128,6 +156,8 @@ def main() -> None:
                   f"{new_t[0]:11.2f}{new_t[1]:11.2f} {old_t[0]:11.2f}{old_t[1]:11.2f}")
             print(f"{'  of which outside the renders':34} {new_t[2]:11.2f}{'':11} "
                   f"{old_t[2]:11.2f}")
+        print(f"{'writing the folder, CPU s':34} {folder_writing_seconds(here):>22} "
+              f"{folder_writing_seconds(old):>22}")
         print("second capture, other offsets and frequencies: "
               + kernels_compiled_by_second_capture(here))
 

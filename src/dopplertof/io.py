@@ -568,11 +568,6 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
               signed: bool = True) -> None:
     """Signed preview: diverging colormap centred on zero, with a colour bar; with
     ``signed=False`` a colour scale from zero to the maximum (counts, magnitudes)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
     data = preview_scalar(image)
     finite = data[np.isfinite(data)]
     if signed:  # robust: the colour bar's arrows show what saturates
@@ -580,7 +575,7 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     else:
         vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     h, w = data.shape
-    fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / w + 0.6), dpi=120)
+    fig, ax = preview_figure((5.5, 5.5 * h / w + 0.6), 120)
     show_no_signal(ax, data.shape)
     im = ax.imshow(np.ma.masked_invalid(data), cmap=no_signal_colours(cmap),
                    vmin=-vmax if signed else 0.0, vmax=vmax, interpolation="nearest",
@@ -590,7 +585,6 @@ def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
                        extend=colorbar_extend(data, -vmax if signed else 0.0, vmax))
     bar.set_label(label)
-    fig.tight_layout()
     save_figure(fig, path, metadata)
 
 
@@ -626,8 +620,7 @@ def wrap_texts(fig, renderer=None) -> bool:
     import textwrap
 
     if renderer is None:
-        fig.canvas.draw()
-        renderer = fig.canvas.get_renderer()
+        renderer = laid_out_renderer(fig)
     width, height = fig.bbox.width, fig.bbox.height
     changed = False
     for text in _figure_texts(fig):
@@ -643,17 +636,29 @@ def wrap_texts(fig, renderer=None) -> bool:
     return changed
 
 
+def laid_out_renderer(fig):
+    """The renderer of ``fig``'s canvas, with the figure's layout engine (if any) run:
+    what measuring its texts and bounding boxes needs, without drawing a pixel (each
+    Axes' tight box places its title, ticks and aspect itself). A layout done once
+    (``fig.tight_layout()``) leaves a placeholder engine that lays out nothing."""
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
+    if not isinstance(fig.get_layout_engine(), (type(None), PlaceHolderLayoutEngine)):
+        fig.draw_without_rendering()
+    return fig.canvas.get_renderer()
+
+
 def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
     """Make the figure the size of what it draws: long texts wrapped (:func:`wrap_texts`),
     then the figure cropped or grown to the tight box of its artists with ``pad`` inches
     around (no title, label, colour bar or legend past an edge, no empty margins); the
     axes and the figure's texts keep their places relative to each other."""
-    fig.canvas.draw()
-    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as drawn)
-        fig.set_layout_engine("none")
-    if wrap_texts(fig, fig.canvas.get_renderer()):
-        fig.canvas.draw()
-    box = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
+    renderer = laid_out_renderer(fig)
+    if fig.get_layout_engine() is not None:  # (the layout is done: keep it as laid out;
+        fig.set_layout_engine(None)          # no engine, not even a placeholder, saves a
+                                             # layout pass in savefig)
+    wrap_texts(fig, renderer)
+    box = fig.get_tightbbox(renderer)  # inches
     old_w, old_h = fig.get_size_inches()
     x0, y0 = box.x0 - pad, box.y0 - pad
     new_w, new_h = box.width + 2 * pad, box.height + 2 * pad
@@ -672,25 +677,38 @@ def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
 def add_caption(fig, text: str, fontsize: float = 8) -> None:
     """``text`` centred under everything ``fig`` draws now (lay the figure out first):
     :func:`fit_figure` wraps it to the figure's width and grows the figure to hold it."""
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()
+    renderer = laid_out_renderer(fig)
     bottom = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes) / fig.bbox.height
     fig.text(0.5, bottom - 0.01, text, ha="center", va="top", fontsize=fontsize,
              color="#444444")
 
 
+def preview_figure(size_inches, dpi: float):
+    """(figure, axes) of a one-panel preview, on an Agg canvas of its own (no pyplot):
+    the axes fill the figure, and :func:`save_figure` fits the figure to what it draws
+    (growing it for the title, colour bar and caption), so no layout pass is needed."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size_inches, dpi=dpi)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.0, right=0.88, bottom=0.05, top=0.94)  # (room for the texts)
+    return fig, fig.add_subplot()
+
+
 def save_figure(fig, path, metadata: dict | None = None) -> None:
     """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description,
-    fitted to what it draws (:func:`fit_figure`)."""
-    import matplotlib.pyplot as plt
-
+    fitted to what it draws (:func:`fit_figure`); closed if pyplot made it."""
     fit_figure(fig)
     info = {"Software": "dopplertof"}
     if metadata:
         info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", metadata=info)
-    plt.close(fig)
+    if fig.canvas.manager is not None:  # (a pyplot figure)
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
 
 
 def write_image(path, image: np.ndarray, metadata: dict | None = None, **png_kwargs) -> None:

@@ -6,7 +6,9 @@ keyframed motion puts things where they are then), at the frame's modulation fre
 and sensor phase step; one radiance render over the whole sequence gives the
 unmodulated light. The sensor (:mod:`.sensor`) turns them into integer DN; the camera's
 reconstruction (:mod:`.demodulate`, :mod:`.unwrap`) gives radial range, z depth,
-amplitude and its masks; presets with heterodyne frames also give velocity through
+amplitude and its masks (the footprints that mix surfaces during the sequence among them,
+:func:`dopplertof.tof.ground_truth.mixed_footprints`, unless kept); presets with
+heterodyne frames also give velocity through
 :func:`dopplertof.tof.reconstruct.reconstruct_velocity`. The truth is taken at the
 middle of the sequence.
 """
@@ -22,7 +24,7 @@ import numpy as np
 from ..params import RenderParams
 from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
                            error_stats)
-from ..tof.ground_truth import camera_forward, ground_truth
+from ..tof.ground_truth import camera_forward, ground_truth, mixed_footprints
 from . import sensor as camera_sensor
 from .preset import CameraPreset, load_preset
 from .reconstruct import CameraReconstruction, reconstruct
@@ -41,6 +43,8 @@ class CameraResult:
     depth_gt_z: np.ndarray  #: (H, W) z depth at mid-sequence (m)
     velocity_gt: np.ndarray  #: (H, W) radial velocity at mid-sequence (m/s)
     summary: dict = field(default_factory=dict)
+    #: (H, W) bool: the footprints that mix surfaces during the sequence (masked unless kept)
+    mixed_footprints: np.ndarray | None = None
 
     @property
     def raw(self):
@@ -85,7 +89,8 @@ def _base_params(scene, preset: CameraPreset, params) -> RenderParams:
 
 def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, params=None,
                    noise: bool = True, noise_seed: int = 0, progress: bool | None = None,
-                   on_frame=None, checkpoint=None) -> CameraResult:
+                   on_frame=None, checkpoint=None,
+                   keep_mixed_pixels: bool = False) -> CameraResult:
     """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
     .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
     resolution; :func:`load_scene_for_camera` gives a scene file the preset's).
@@ -94,8 +99,12 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     (numpy PCG64 seeded ``noise_seed``); without it the sensor runs on mean electrons.
     on_frame(spec, seconds) is called after each render. checkpoint: a folder keeping
     every render (:mod:`dopplertof.tof.checkpoint`): run again, only the missing ones
-    render, bitwise as uninterrupted."""
+    render, bitwise as uninterrupted. keep_mixed_pixels: the pixels whose footprint
+    mixes surfaces during the sequence are reconstructed, not NaN (as
+    :func:`dopplertof.capture`'s)."""
     started = _time.perf_counter()
+    if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
+        raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
     base = _base_params(scene, preset, params)
     spp = scene.spp if spp is None else spp
@@ -108,16 +117,17 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     readout = camera_sensor.read_frames(rendered, unmodulated,
                                         [f.integration_s for f in preset.frames],
                                         preset.sensor, preset.contrast, rng)
-    recon = reconstruct(readout, preset)
+    mixed = mixed_footprints(truth_scene, truth_params)
+    recon = reconstruct(readout, preset, None if keep_mixed_pixels else mixed)
     # ---- Truth at mid-sequence, and z from the radial range ----
     truth = ground_truth(truth_scene, truth_params)
     forward = camera_forward(truth_scene, truth_scene.sensor_motion, truth.time)
     cosine = truth.direction @ forward
     result = CameraResult(preset, rendered, radiance, readout, recon, truth.depth,
-                          truth.depth * cosine, truth.velocity)
+                          truth.depth * cosine, truth.velocity, mixed_footprints=mixed)
     recon.depth_z = recon.depth * cosine
     result.summary = _summary(scene, preset, result, records, spp, seed, noise, noise_seed,
-                              _time.perf_counter() - started)
+                              _time.perf_counter() - started, keep_mixed_pixels)
     return result
 
 
@@ -173,7 +183,7 @@ def _render_frames(scene, preset: CameraPreset, base: RenderParams, spp: int, se
 
 
 def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, seed, noise,
-             noise_seed, seconds) -> dict:
+             noise_seed, seconds, keep_mixed_pixels: bool = False) -> dict:
     """summary.json of one camera frame."""
     from ..backend import require_variant
 
@@ -191,6 +201,8 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
         "sequence_s": [scene.shutter_open + first, scene.shutter_open + last],
         "ground_truth_time_s": scene.shutter_open + 0.5 * (first + last),
         "depth": recon.describe(),
+        "mixed_pixels": "kept" if keep_mixed_pixels else "NaN",
+        "mixed_footprints": int(result.mixed_footprints.sum()),
         "errors": {"depth_m": error_stats(recon.depth, result.depth_gt),
                    "depth_z_m": error_stats(recon.depth_z, result.depth_gt_z)},
         "seconds": {"render": round(sum(r["render_seconds"] for r in records), 3),

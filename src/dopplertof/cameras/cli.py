@@ -158,7 +158,8 @@ def run_camera_capture(args, load_defines) -> int:
                             noise=not args.noiseless,
                             noise_seed=args.noise_seed if args.noise_seed is not None else 0,
                             progress=False if args.quiet else None, on_frame=report,
-                            checkpoint=args.checkpoint)
+                            checkpoint=args.checkpoint,
+                            keep_mixed_pixels=args.keep_mixed_pixels)
     result.write(args.output)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         from ..tof.checkpoint import remove_checkpoint

@@ -16,7 +16,9 @@ from ..tof.output import prepare_folder
 #: the masks written, file stem -> (attribute of the reconstruction, what it means)
 MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
          "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn"),
-         "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree")}
+         "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree"),
+         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces (all False when "
+                                  "kept: --keep-mixed-pixels)")}
 
 
 def write_camera_result(result, folder) -> list:
@@ -52,8 +54,8 @@ def masked_caption(recon, truth=None) -> str:
     needs it) the others where the truth's ray hits nothing."""
     counts = dict(recon.describe()["masked_pixels"])
     if truth is not None:
-        masked = recon.saturated | recon.low_confidence | recon.unwrap_failed
-        counts["nothing hit"] = int(np.sum(~np.isfinite(truth) & ~masked))
+        # (the depth is NaN where a mask is: those are counted by their masks)
+        counts["nothing hit"] = int(np.sum(~np.isfinite(truth) & np.isfinite(recon.depth)))
     return io.masked_note(counts)
 
 

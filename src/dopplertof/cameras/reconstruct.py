@@ -5,7 +5,10 @@ frames of unequal integration times scaled to the group's longest) gives a phase
 amplitude (DN) and a wrapped depth, calibrated for wiggling when the preset says the
 camera does; two frequencies or more are unwrapped (:mod:`.unwrap`). Masks: saturated
 (any frame of the pixel), low confidence (the smallest amplitude below the preset's
-``min_amplitude_dn``), unwrapping failed; the depth is NaN under any of them. Heterodyne
+``min_amplitude_dn``), unwrapping failed, and the footprints that mix surfaces (given by
+the capture: :func:`dopplertof.tof.ground_truth.mixed_footprints`, the reason
+``tof.reconstruct.MIXED_FOOTPRINT`` of dopplertof's capture); the depth is NaN under any
+of them. Heterodyne
 frames give velocity as dopplertof's capture does (:mod:`dopplertof.tof.reconstruct`).
 
 The predicted depth variance (first order, from the sensor's predicted variance of each
@@ -52,14 +55,24 @@ class CameraReconstruction:
     unwrap_tolerance_m: float | None = None
     velocity: np.ndarray | None = None  #: (H, W) m/s with heterodyne frames
     depth_z: np.ndarray | None = field(default=None)  #: (H, W), set by the capture
+    #: (H, W) bool: footprints that mix surfaces, masked (all False when kept)
+    mixed: np.ndarray | None = None
+
+    @property
+    def masked(self) -> np.ndarray:
+        """(H, W) bool: the pixels under any mask (NaN in depth and velocity)."""
+        masked = self.saturated | self.low_confidence | self.unwrap_failed
+        return masked if self.mixed is None else masked | self.mixed
 
     def describe(self) -> dict:
+        mixed = 0 if self.mixed is None else int(self.mixed.sum())
         return {"file": "depth.npy", "method": self.method, "range_m": self.range_m,
                 "unwrap_tolerance_m": self.unwrap_tolerance_m,
                 "frequencies_MHz": [g.frequency_mhz for g in self.frequencies],
                 "masked_pixels": {"saturated": int(self.saturated.sum()),
                                   "low confidence": int(self.low_confidence.sum()),
-                                  "unwrapping failed": int(self.unwrap_failed.sum())},
+                                  "unwrapping failed": int(self.unwrap_failed.sum()),
+                                  tof_rec.reason_name(tof_rec.MIXED_FOOTPRINT): mixed},
                 "units": "radial range in m from the camera centre (depth_z.npy: along the "
                          "optical axis); amplitude in DN"}
 
@@ -86,8 +99,9 @@ def frequency_phase(readout, preset, frequency_mhz: float) -> FrequencyPhase:
                           per_radian**2 * phase_variance)
 
 
-def reconstruct(readout, preset) -> CameraReconstruction:
-    """The camera's depth (and velocity with heterodyne frames) from its readout."""
+def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
+    """The camera's depth (and velocity with heterodyne frames) from its readout;
+    ``mixed`` ((H, W) bool or None): the footprints that mix surfaces, masked too."""
     groups = [frequency_phase(readout, preset, f) for f in preset.frequencies_mhz]
     max_range = preset.reconstruction["max_range_m"]
     saturated = readout.saturated.any(axis=0)
@@ -111,10 +125,12 @@ def reconstruct(readout, preset) -> CameraReconstruction:
         method = "N-phase least-squares fit, one frequency (wraps at the range)"
     if preset.reconstruction["wiggling_calibration"] and preset.waveform != "sinusoidal":
         method += "; wiggling calibration table applied"
-    masked = saturated | low_confidence | failed
-    result = CameraReconstruction(np.where(masked, np.nan, depth), amplitude, saturated,
-                                  low_confidence, failed, variance, groups, float(range_m),
-                                  method, tolerance)
+    mixed = np.zeros(saturated.shape, bool) if mixed is None else np.asarray(mixed, bool)
+    result = CameraReconstruction(depth, amplitude, saturated, low_confidence, failed,
+                                  variance, groups, float(range_m), method, tolerance,
+                                  mixed=mixed)
+    masked = result.masked
+    result.depth = np.where(masked, np.nan, depth)
     if preset.heterodyne:
         result.velocity = np.where(masked, np.nan, heterodyne_velocity(readout, preset, result))
     return result

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, no_signal_colours, save_figure,
-                  show_no_signal)
+from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, no_signal_colours,
+                  preview_figure, save_figure, show_no_signal)
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
 RADIANCE_GAMMA = 2.2
@@ -97,7 +97,6 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
               metadata: dict | None = None, marked=None) -> None:
     """One scalar map with a colour bar; ``symmetric`` centres the range on zero;
     ``marked`` (H, W bool): pixels cross-hatched in white (:func:`mark_pixels`)."""
-    plt = _pyplot()
     data = np.asarray(data, np.float64)
     if symmetric:
         limit = symmetric_limit(data) if vmax is None else vmax
@@ -107,11 +106,10 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
         vmin = float(np.percentile(finite, 0.5)) if vmin is None and finite.size else vmin
         vmax = float(np.percentile(finite, 99.5)) if vmax is None and finite.size else vmax
     h, w = data.shape
-    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
+    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
     _draw(ax, fig, data, title, label, cmap, vmin, vmax)
     if marked is not None:
         mark_pixels(ax, marked)
-    fig.tight_layout()
     if note:
         add_caption(fig, note)
     save_figure(fig, path, metadata)
@@ -148,8 +146,6 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     99.5th percentile over the finite positive values; +inf shows as the top colour,
     NaN and zero as no signal."""
     import matplotlib.colors as colors
-
-    plt = _pyplot()
     data = np.asarray(data, np.float64)
     shown = np.where(np.isfinite(data) & (data > 0), data, np.nan)
     finite = shown[np.isfinite(shown)]
@@ -158,23 +154,20 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     hi = hi if hi > lo else lo * 10
     shown = np.where(np.isposinf(data), hi, shown)
     h, w = data.shape
-    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.9), dpi=120)
+    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
     _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
-    fig.tight_layout()
     if note:
         add_caption(fig, note)
     save_figure(fig, path, metadata)
 
 
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
-    plt = _pyplot()
     data = radiance_scalar(radiance)
     h, w = data.shape
-    fig, ax = plt.subplots(figsize=(6.0, 4.8 * h / w + 0.8), dpi=120)
+    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.8), 120)
     _draw(ax, fig, data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
           "gray",
           norm=_radiance_norm(data))
-    fig.tight_layout()
     save_figure(fig, path, metadata)
 
 
