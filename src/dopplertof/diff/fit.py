@@ -27,7 +27,8 @@ user gives.
 
 The Jacobian is rendered at the start and held while steps lower the loss (the captures
 are nearly linear in the velocities, so a step needs only the residuals' renders), again
-when no step does, and at the end. The iterations stop on a plateau (a step lowering the
+when no step does, and at the end where the fit ended elsewhere; with a quarter of the
+residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pixels. The iterations stop on a plateau (a step lowering the
 loss by less than :data:`PLATEAU` of itself) or a step below ``tolerance``.
 
 The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
@@ -60,6 +61,11 @@ RCOND = 0.05
 
 #: default samples per pixel of the fit's renders
 FIT_SPP = 256
+
+#: the Jacobian's renders take this fraction of the residuals' samples (default):
+#: Gauss-Newton needs the Jacobian only approximately, and the metric of two
+#: independent Jacobians (:func:`_metric`) is unbiased at any sample count
+JACOBIAN_SHARE = 0.25
 
 #: the fit stops on a plateau: a step that lowers the loss by less than this fraction
 PLATEAU = 0.01
@@ -234,7 +240,8 @@ def radial_velocity(truth, k: int):
 
 def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         iterations: int = 12, angular: bool = False, defines=None, progress=None,
-        tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU) -> FitResult:
+        tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU,
+        jacobian_spp: int | None = None) -> FitResult:
     """Fit every body's velocity to the captures in ``folder`` (see the module
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
@@ -243,11 +250,13 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     Carlo noise would inflate J^T J and shorten every step; block sums keep the
     velocity field's variation and average the noise); the iterations stop at a step
     below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
-    by less than ``plateau`` of itself. ``progress``: a bar (True; None: when stderr is
+    by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
+    Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar (True; None: when stderr is
     a terminal), else (None) one line per iteration on stderr, or nothing (False)."""
     data = load_capture(folder, defines)
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
+    jacobian_spp = _jacobian_samples(spp, jacobian_spp, data.base)
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
     # (its renders use seed and seed + 1: both below 2^64)
     seed = check_seed(seed, "seed", FitError)
@@ -264,18 +273,19 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     _start_motions(motions, start, closed_form, folder)
 
     # ---- Gauss-Newton with Levenberg-Marquardt damping ----
-    problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block)
+    problem = _FitProblem(data, motions, masks, (seed, seed + 1), angular, block,
+                          jacobian_spp)
     started = _time.perf_counter()
     theta, state, history, done, stop = _gauss_newton(
         problem, spp, iterations, tolerance, plateau, _Progress(progress, iterations), started)
     loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian ----
-    cov, sigma = _covariance(state, problem.seen)
+    cov, sigma = _covariance(state, problem.seen, jacobian_spp / spp)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
-        "spp": int(spp), "seed": seed, "jacobian_seed": seed + 1,
+        "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed, "jacobian_seed": seed + 1,
         "pixels": int(problem.pixels.size), "block": int(block),
         "residuals": "per capture, sums over blocks of interior pixels of one body",
         "parameters": problem.names, "angular": bool(angular),
@@ -286,6 +296,32 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         "seconds": round(_time.perf_counter() - started, 3),
     }
     return FitResult(bodies, done, loss, history, settings)
+
+
+def _jacobian_samples(spp: int, jacobian_spp, base) -> int:
+    """The Jacobian's samples per pixel: ``jacobian_spp`` (checked), else the largest
+    count at most :data:`JACOBIAN_SHARE` of ``spp`` (at least its share's divisor of
+    it) that the capture's sample groups allow, else ``spp``."""
+    from ..sampling import check_sample_count
+
+    def usable(n) -> bool:
+        try:
+            check_sample_count(base.time_correlate_number, n, base.path_group_size,
+                               base.samples_per_pass)
+        except ValueError:
+            return False
+        return True
+
+    if jacobian_spp is not None:
+        if not isinstance(jacobian_spp, (int, np.integer)) or jacobian_spp < 1:
+            raise FitError(f"jacobian_spp must be a positive integer, got {jacobian_spp!r}")
+        if not usable(jacobian_spp):
+            raise FitError(f"jacobian_spp {jacobian_spp} is not a multiple of the "
+                           "capture's sample groups (time_correlate_number "
+                           f"{base.time_correlate_number})")
+        return int(jacobian_spp)
+    wanted = max(1, int(spp * JACOBIAN_SHARE))
+    return next((n for n in range(wanted, 0, -1) if spp % n == 0 and usable(n)), int(spp))
 
 
 def _motions_at_mid_exposure(data: CaptureData):
@@ -349,7 +385,8 @@ class _FitProblem:
     ``motions`` that one differentiable scene per fitted capture shares. The residuals:
     per capture, block sums of render - capture over the bodies' interior pixels."""
 
-    def __init__(self, data: CaptureData, motions, masks, seeds, angular: bool, block: int):
+    def __init__(self, data: CaptureData, motions, masks, seeds, angular: bool, block: int,
+                 jacobian_spp: int):
         from .render import DifferentiableScene
 
         self.data, self.motions, self.masks, self.angular = data, motions, masks, angular
@@ -362,6 +399,8 @@ class _FitProblem:
             ds.motions = motions
             self.scenes[name] = ds
         self.pixels = np.flatnonzero(np.logical_or.reduce(masks))
+        self.body_pixels = [np.flatnonzero(mask) for mask in masks]
+        self.jacobian_spp = jacobian_spp  #: spp of the Jacobian's renders
         self.groups = _blocks(masks, block)  # per rendered pixel, its block
         self.n_groups = int(self.groups.max()) + 1
         self.names = [f"body{k}.{kind}{a}" for k in range(len(motions))
@@ -393,25 +432,44 @@ class _FitProblem:
                 m.angular_velocity = theta[k * per + 3:k * per + 6].tolist()
 
     def evaluate(self, samples: int, jacobian: bool = True):
-        """Residuals at the current motions from two renders of independent random
-        numbers (A, B), and (``jacobian``) their Jacobians: ((r_A, r_B), (J_A, J_B)),
-        the Jacobians None without."""
+        """Residuals at the current motions from two renders of ``samples`` spp of
+        independent random numbers (A, B), and (``jacobian``) their Jacobians
+        (:meth:`jacobians`): ((r_A, r_B), (J_A, J_B)), the Jacobians None without."""
         from .render import render_derivatives
 
-        names = self.names if jacobian else []
-        residuals, jacobians = [], []
+        residuals = []
         for seed in self.seeds:
-            residual, columns = [], []
-            for c in FIT_CAPTURES:
-                d = render_derivatives(self.scenes[c], names, spp=samples, seed=seed,
-                                       pixels=self.pixels)
-                residual.append(self.pool(d.image.mean(-1).ravel()[self.pixels]))
-                if jacobian:
-                    columns.append(np.stack([self.pool(d.tangents[n].mean(-1).ravel()
-                                                       [self.pixels]) for n in names], -1))
+            residual = [self.pool(render_derivatives(self.scenes[c], [], spp=samples,
+                                                     seed=seed, pixels=self.pixels)
+                                  .image.mean(-1).ravel()[self.pixels])
+                        for c in FIT_CAPTURES]
             residuals.append(np.concatenate(residual) - self.target)
-            jacobians.append(np.concatenate(columns) if jacobian else None)
-        return tuple(residuals), tuple(jacobians)
+        return tuple(residuals), (self.jacobians() if jacobian else (None, None))
+
+    def jacobians(self):
+        """(J_A, J_B): the residuals' derivatives from renders of seeds A and B at
+        ``jacobian_spp``, each body's columns rendered over its own pixels only (its
+        motion moves them; on the other bodies' blocks its derivative is left zero: the
+        interreflected light it changes there is a small part of a Jacobian that
+        Gauss-Newton needs only approximately), half the derivative passes of all the
+        parameters over all the pixels."""
+        from .render import render_derivatives
+
+        jacobians = []
+        for seed in self.seeds:
+            columns = []
+            for c in FIT_CAPTURES:
+                block = np.zeros((self.n_groups, len(self.names)))
+                for k, pixels in enumerate(self.body_pixels):
+                    names = self.names[k * self.per_body:(k + 1) * self.per_body]
+                    d = render_derivatives(self.scenes[c], names, spp=self.jacobian_spp,
+                                           seed=seed, pixels=pixels)
+                    for j, n in enumerate(names):
+                        block[:, k * self.per_body + j] = self.pool(
+                            d.tangents[n].mean(-1).ravel()[self.pixels])
+                columns.append(block)
+            jacobians.append(np.concatenate(columns))
+        return tuple(jacobians)
 
     def radial(self) -> list:
         """Each body's median radial velocity at the current motions (the truth's)."""
@@ -491,11 +549,11 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
     done, why they stopped). The Jacobian is rendered at the start, held while steps
     lower the loss (the captures are nearly linear in the velocities: a step needs
     only the residuals' renders) and rendered again when none does, and at the end
-    for the uncertainties. Parameters the start's Jacobian does not see (a column far
+    for the uncertainties (unless it was rendered there). Parameters the start's Jacobian does not see (a column far
     below its noise: a velocity along no visible face's normal) keep their start."""
     theta = problem.values()
     residuals, jacobians = problem.evaluate(spp)
-    problem.seen = _metric(jacobians)[1]
+    problem.seen = _metric(jacobians, noise_share=problem.jacobian_spp / spp)[1]
     loss, fresh = _cross_loss(residuals), True
     history = [problem.record(0, loss, spp, theta, started)]
     progress.update(history[-1])
@@ -509,7 +567,7 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
                 if fresh:
                     stop = "no damped step lowers the loss"
                     break
-                _, jacobians = problem.evaluate(spp)  # a held Jacobian gone stale
+                jacobians = problem.jacobians()  # a held Jacobian gone stale
                 fresh = True
                 continue
             theta, residuals, previous, loss, fresh = (theta + step, new_residuals, loss,
@@ -525,7 +583,9 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
                 break
     finally:
         progress.close()
-    return theta, problem.evaluate(spp), history, done, stop
+    # the uncertainties' state: the residuals at theta (its step's renders), the
+    # Jacobian at theta (rendered again unless it was rendered there)
+    return theta, (residuals, jacobians if fresh else problem.jacobians()), history, done, stop
 
 
 def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, theta,
@@ -544,14 +604,14 @@ def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, thet
         damping *= 10.0
 
 
-def _covariance(state, seen):
+def _covariance(state, seen, noise_share=1.0):
     """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the final
     renders' mean squared residual over its degrees of freedom (the render and capture
     noise that the residual shows; positive, as the cross loss need not be), over the
     parameters ``seen`` (that the final Jacobian sees too); and the standard deviations
     (inf for a parameter not seen: unconstrained)."""
     (r_a, r_b), jacobians = state
-    G, seen_now = _metric(jacobians)
+    G, seen_now = _metric(jacobians, noise_share=noise_share)
     seen = seen & seen_now
     n = G.shape[0]
     dof = max(len(r_a) - int(seen.sum()), 1)
@@ -573,7 +633,8 @@ def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
         "method": "Gauss-Newton with Levenberg-Marquardt damping on the cross loss "
                   "(R_A - C).(R_B - C) of two renders of independent seeds, forward-mode "
                   "Jacobians (rendered at the start, held while steps lower the loss, "
-                  "rendered again when none does and at the end), the same seeds every "
+                  "rendered again when none does and at the end; jacobian_spp samples, "
+                  "each body's columns over its own pixels), the same seeds every "
                   "iteration (correlated sampling)",
         "motion": "constant linear (and angular) velocity about the pose at mid-exposure, "
                   "t_ref = %.9g s" % t_mid,
@@ -642,17 +703,20 @@ def _cross_loss(residuals) -> float:
     return float(r_a @ r_b)
 
 
-def _metric(jacobians, snr=0.5):
+def _metric(jacobians, snr=0.5, noise_share=1.0):
     """The Gauss-Newton metric from two Jacobians of independent noise: G = (J_A^T J_B +
     J_B^T J_A) / 2, whose expectation is J^T J of the expected Jacobian (J_A^T J_A would
     add the noise's energy, and shorten every step by it). The mask of the parameters
     the captures see: those whose column's signal (G's diagonal) is at least ``snr`` of
-    its energy (the mean of J_A^T J_A and J_B^T J_B)."""
+    its energy (signal and noise: the mean of J_A^T J_A and J_B^T J_B), the noise scaled
+    by ``noise_share`` (the Jacobian's samples over the residuals': the test of a
+    Jacobian of the residuals' samples, whatever the Jacobian's own)."""
     J_a, J_b = jacobians
     G = 0.5 * (J_a.T @ J_b + J_b.T @ J_a)
     energy = 0.5 * (np.sum(J_a * J_a, 0) + np.sum(J_b * J_b, 0))
     d = np.diag(G)
-    seen = (d > 0) & (d >= snr * energy) & (energy > 0)
+    noise = (energy - d) * noise_share
+    seen = (d > 0) & (d >= snr * (d + noise)) & (energy > 0)
     return G, seen
 
 
