@@ -28,8 +28,9 @@ user gives.
 The Jacobian is rendered at the start and held while steps lower the loss (the captures
 are nearly linear in the velocities, so a step needs only the residuals' renders), again
 when no step does, and at the end where the fit ended elsewhere; with a quarter of the
-residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pixels. The iterations stop on a plateau (a step lowering the
-loss by less than :data:`PLATEAU` of itself) or a step below ``tolerance``.
+residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pixels.
+The iterations stop on a plateau (a step lowering the loss by less than :data:`PLATEAU`
+of itself) or a step below ``tolerance``.
 
 The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
 final renders' mean squared residual over its degrees of freedom (the render and capture
@@ -251,8 +252,9 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     velocity field's variation and average the noise); the iterations stop at a step
     below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
     by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
-    Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar (True; None: when stderr is
-    a terminal), else (None) one line per iteration on stderr, or nothing (False)."""
+    Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
+    (True; None: when stderr is a terminal), else (None) one line per iteration on
+    stderr, or nothing (False)."""
     data = load_capture(folder, defines)
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise FitError(f"spp must be a positive integer, got {spp!r}")
@@ -285,7 +287,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(FIT_CAPTURES),
-        "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed, "jacobian_seed": seed + 1,
+        "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed,
+        "jacobian_seed": seed + 1,
         "pixels": int(problem.pixels.size), "block": int(block),
         "residuals": "per capture, sums over blocks of interior pixels of one body",
         "parameters": problem.names, "angular": bool(angular),
@@ -299,9 +302,9 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
 
 
 def _jacobian_samples(spp: int, jacobian_spp, base) -> int:
-    """The Jacobian's samples per pixel: ``jacobian_spp`` (checked), else the largest
-    count at most :data:`JACOBIAN_SHARE` of ``spp`` (at least its share's divisor of
-    it) that the capture's sample groups allow, else ``spp``."""
+    """The Jacobian's samples per pixel: ``jacobian_spp`` (checked against the
+    capture's sample groups), else the largest divisor of ``spp`` at most
+    :data:`JACOBIAN_SHARE` of it that the sample groups allow, else ``spp``."""
     from ..sampling import check_sample_count
 
     def usable(n) -> bool:
@@ -549,8 +552,9 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
     done, why they stopped). The Jacobian is rendered at the start, held while steps
     lower the loss (the captures are nearly linear in the velocities: a step needs
     only the residuals' renders) and rendered again when none does, and at the end
-    for the uncertainties (unless it was rendered there). Parameters the start's Jacobian does not see (a column far
-    below its noise: a velocity along no visible face's normal) keep their start."""
+    for the uncertainties (unless it was rendered there). Parameters the start's
+    Jacobian does not see (a column far below its noise: a velocity along no visible
+    face's normal) keep their start."""
     theta = problem.values()
     residuals, jacobians = problem.evaluate(spp)
     problem.seen = _metric(jacobians, noise_share=problem.jacobian_spp / spp)[1]
@@ -585,7 +589,8 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
         progress.close()
     # the uncertainties' state: the residuals at theta (its step's renders), the
     # Jacobian at theta (rendered again unless it was rendered there)
-    return theta, (residuals, jacobians if fresh else problem.jacobians()), history, done, stop
+    final = (residuals, jacobians if fresh else problem.jacobians())
+    return theta, final, history, done, stop
 
 
 def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, theta,
