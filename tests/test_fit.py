@@ -7,8 +7,8 @@ renders take fixed seeds); what a legitimate change of seed does was measured on
 captures of 10 other seeds (seeds 2-11): the fitted radial velocities were off by 2.9%
 RMS (at most 6.6%), and their errors in units of the fit's reported uncertainty
 scattered with a standard deviation of 0.92 (at most 2.1) at 084448f; with the Jacobian
-at a quarter of the samples, per body (2026-12-02): 2.1% RMS (at most 4.4%), a standard
-deviation of 0.72 (at most 1.3). The bounds are 15% (5.2 of those standard deviations)
+at a quarter of the samples, per body, and s^2 from the two renders' mean (2026-12-02):
+2.1% RMS (at most 4.4%), a standard deviation of 0.90 (at most 1.65). The bounds are 15% (5.2 of those standard deviations)
 and 5 reported uncertainties: together a false-failure rate of about 1e-5 for the test. A fit that stops a third of the way from its start (a 17%
 error) fails them, and so does one whose uncertainty is 3x too small for its error.
 (At the fast capture's 64 spp with 32-spp renders and 4 iterations the error was 6.4%
@@ -339,6 +339,38 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     # and the end reuses the last step's (afb2c4e's end rendered them again)
     assert problem.jacobian_renders == 2
     assert problem.renders == done + 1
+
+
+class _NoisyCaptureProblem(_LinearProblem):
+    """A linear problem whose capture has its own noise (shared by both seeds' residuals)
+    and whose two renders have independent noise of twice its variance (a 128-spp fit
+    of a 256-spp capture)."""
+
+    def __init__(self, rng):
+        super().__init__([0.5, -1.5, 0.0])
+        self.J = np.zeros((200, 3))
+        self.J[:, :2] = rng.normal(size=(200, 2))
+        capture = 0.01 * rng.normal(size=200)
+        self.noise = [capture + 0.01 * np.sqrt(2) * rng.normal(size=200) for _ in range(2)]
+        self.column_noise = [np.zeros(200)] * 2  # a third parameter the captures miss
+
+
+def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
+    """The predicted standard deviation matches the spread of fits over independent
+    captures and renders within 10% (the fit averages the two seeds' renders, so half
+    their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
+    from dopplertof.diff.fit import _covariance, _gauss_newton, _Progress
+
+    rng = np.random.default_rng(11)
+    fitted, predicted = [], []
+    for _ in range(300):
+        problem = _NoisyCaptureProblem(rng)
+        theta, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, _Progress(False, 20),
+                                         0.0)
+        fitted.append(theta[:2] - problem.truth[:2])
+        predicted.append(_covariance(state, problem.seen)[1][:2])
+    ratio = np.std(fitted, 0) / np.sqrt(np.mean(np.square(predicted), 0))
+    assert np.all(np.abs(ratio - 1) < 0.1), ratio
 
 
 def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():

@@ -33,8 +33,8 @@ The iterations stop on a plateau (a step lowering the loss by less than :data:`P
 of itself) or a step below ``tolerance``.
 
 The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
-final renders' mean squared residual over its degrees of freedom (the render and capture
-noise that the residual shows); a radial velocity's follows from it through its
+squared residual of the two final renders' mean over its degrees of freedom (the capture's
+noise and the part of the renders' noise that reaches the fitted velocities); a radial velocity's follows from it through its
 derivative. A parameter the captures do not see keeps its start; its uncertainty is
 infinite (null in fit.json).
 """
@@ -610,17 +610,19 @@ def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, thet
 
 
 def _covariance(state, seen):
-    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the final
-    renders' mean squared residual over its degrees of freedom (the render and capture
-    noise that the residual shows; positive, as the cross loss need not be), over the
-    parameters ``seen`` (that the final Jacobian sees too); and the standard deviations
-    (inf for a parameter not seen: unconstrained)."""
+    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the squared
+    residual of the two final renders' mean over its degrees of freedom (the capture's
+    noise and half of one render's, as in the fitted velocities, whose steps average the
+    two seeds' residuals; positive, as the cross loss need not be), over the parameters
+    ``seen`` (that the final Jacobian sees too); and the standard deviations (inf for a
+    parameter not seen: unconstrained)."""
     (r_a, r_b), jacobians = state
     G, seen_now = _metric(jacobians)
     seen = seen & seen_now
     n = G.shape[0]
     dof = max(len(r_a) - int(seen.sum()), 1)
-    energy = 0.5 * float(r_a @ r_a + r_b @ r_b)
+    mean_residual = 0.5 * (r_a + r_b)
+    energy = float(mean_residual @ mean_residual)
     cov = np.zeros((n, n))
     if seen.any():
         scale = np.sqrt(np.diag(G)[seen])
@@ -646,8 +648,8 @@ def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
         "stopping": "after a step below %g of the velocities' norm, or on a plateau: a "
                     "step that lowers the loss by less than %g of itself, or when no "
                     "damped step lowers it" % (tolerance, plateau),
-        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = the final renders' mean squared "
-                       "residual / (residuals - parameters), "
+        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = the squared residual of the "
+                       "two final renders' mean / (residuals - parameters), "
                        "^+: the pseudo-inverse over the directions the captures constrain "
                        "(singular values >= %g of the largest, columns scaled); null: a "
                        "parameter the captures do not see (kept at its start, "
