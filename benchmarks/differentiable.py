@@ -19,6 +19,7 @@ the truth. The demo itself is 128x128 at 512 spp (`--res 128 --spp 512`).
 
     .venv/bin/python benchmarks/differentiable.py [--res 64] [--spp 64] [--repeats 3]
     .venv/bin/python benchmarks/differentiable.py --fit [--res 48] [--spp 256] [--fit-spp 256]
+        [--keep DIR]
 """
 
 from __future__ import annotations
@@ -39,9 +40,12 @@ def main(argv=None) -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--fit", action="store_true", help="the capture and its fit side by side")
     ap.add_argument("--fit-spp", type=int, default=None, help="the fit's spp (default its own)")
+    ap.add_argument("--keep", metavar="DIR", default=None,
+                    help="with --fit: write the capture into DIR (kept) instead of a "
+                    "temporary folder")
     args = ap.parse_args(argv)
     if args.fit:
-        return fit_against_capture(args.res, args.spp, args.fit_spp)
+        return fit_against_capture(args.res, args.spp, args.fit_spp, args.keep)
 
     import dopplertof
     from dopplertof.demo import demo_scene_path
@@ -63,9 +67,11 @@ def main(argv=None) -> None:
     print(f"worst derivative / plain (splat): {worst / plain:.2f}")
 
 
-def fit_against_capture(res: int, spp: int, fit_spp: int | None) -> None:
+def fit_against_capture(res: int, spp: int, fit_spp: int | None, keep=None) -> None:
     """The demo captured at ``res`` and ``spp`` and fitted from the closed form: times
-    side by side and the fit's errors."""
+    side by side and the fit's errors; the capture kept in ``keep`` when given. The fit
+    prints one line per iteration on stderr."""
+    import contextlib
     import tempfile
 
     import dopplertof
@@ -73,13 +79,15 @@ def fit_against_capture(res: int, spp: int, fit_spp: int | None) -> None:
     from dopplertof.diff.fit import FIT_SPP, fit, format_fit
 
     dopplertof.set_variant("llvm_ad_rgb")
-    with tempfile.TemporaryDirectory() as folder:
+    kept = contextlib.nullcontext(keep) if keep else tempfile.TemporaryDirectory()
+    with kept as folder:
         started = time.perf_counter()
         scene = dopplertof.load_file(demo_scene_path(), {"res": res, "spp": spp})
         dopplertof.capture(scene, spp=spp, seed=0, progress=False).write(folder)
         captured = time.perf_counter() - started
         started = time.perf_counter()
-        result = fit(folder, spp=fit_spp or FIT_SPP, progress=False)
+        print(f"capture {captured:.1f} s", flush=True)
+        result = fit(folder, spp=fit_spp or FIT_SPP, progress=None)
         fitted = time.perf_counter() - started
     print(format_fit(result))
     print(f"demo scene {res}x{res}: capture {spp} spp {captured:.1f} s, fit "

@@ -6,9 +6,10 @@ renders and 6 iterations from a start 50% wrong. The fit is deterministic for a 
 renders take fixed seeds); what a legitimate change of seed does was measured on the
 captures of 10 other seeds (seeds 2-11): the fitted radial velocities were off by 2.9%
 RMS (at most 6.6%), and their errors in units of the fit's reported uncertainty
-scattered with a standard deviation of 0.92 (at most 2.1). The bounds are 15% (5.2 of
-those standard deviations) and 5 reported uncertainties: together a false-failure rate
-of about 1e-5 for the test. A fit that stops a third of the way from its start (a 17%
+scattered with a standard deviation of 0.92 (at most 2.1) at 084448f; with the Jacobian
+at a quarter of the samples, per body, and s^2 from the two renders' mean (2026-12-02):
+2.1% RMS (at most 4.4%), a standard deviation of 0.90 (at most 1.65). The bounds are 15% (5.2 of those standard deviations)
+and 5 reported uncertainties: together a false-failure rate of about 1e-5 for the test. A fit that stops a third of the way from its start (a 17%
 error) fails them, and so does one whose uncertainty is 3x too small for its error.
 (At the fast capture's 64 spp with 32-spp renders and 4 iterations the error was 6.4%
 RMS over 15 seeds and the uncertainty 1.5x too small: too noisy to test accuracy.)
@@ -141,7 +142,42 @@ def test_cli_fit_writes_fit_json(capture_dir, tmp_path, capsys):
     assert len(lines) == len(saved["history"]) >= 2
 
 
-@pytest.mark.parametrize("case", ["missing", "not_a_capture", "bad_start", "output_file"])
+def test_jacobian_is_rendered_per_body_over_its_own_pixels_at_fewer_samples(
+        capture_dir, monkeypatch):
+    """The Jacobian's renders take a quarter of the residuals' samples and render each
+    body's parameters over that body's pixels only (afb2c4e: every parameter over every
+    pixel at the residuals' samples, its cost 5.4x the demo capture's at 128x128); a
+    Jacobian rendered where the fit ends is not rendered again for the uncertainties."""
+    from types import SimpleNamespace
+
+    from dopplertof.diff import render
+    from dopplertof.diff.fit import fit
+
+    calls = []
+
+    def blank_render(dscene, names=(), spp=None, seed=0, max_lanes=0, pixels=None):
+        calls.append((list(names), spp, np.asarray(pixels).copy()))
+        size = int(np.prod(dscene.scene.sensor.film().crop_size()))
+        return SimpleNamespace(image=np.zeros((size, 3)),
+                               tangents={n: np.zeros((size, 3)) for n in names})
+
+    monkeypatch.setattr(render, "render_derivatives", blank_render)
+    result = fit(capture_dir, spp=16, iterations=2, progress=False)
+    assert result.settings["jacobian_spp"] == 4
+    jacobian_calls = [c for c in calls if c[0]]
+    # two seeds x two captures x two bodies, once: a blank Jacobian sees nothing, so
+    # no step lowers the loss and the start's Jacobian serves the uncertainties
+    assert len(jacobian_calls) == 8
+    for names, spp, pixels in jacobian_calls:
+        body = {n.split(".")[0] for n in names}
+        assert spp == 4 and len(body) == 1 and len(names) == 3
+        k = int(body.pop()[len("body"):])
+        assert len(pixels) == result.bodies[k]["interior_pixels"]
+    assert all(spp == 16 for names, spp, _ in calls if not names)
+
+
+@pytest.mark.parametrize("case", ["missing", "not_a_capture", "bad_start", "output_file",
+                                  "bad_jacobian_spp"])
 def test_cli_fit_bad_input_is_one_line_exit_2_and_writes_nothing(case, capture_dir,
                                                                  tmp_path, capsys):
     from dopplertof.cli import main
@@ -154,6 +190,8 @@ def test_cli_fit_bad_input_is_one_line_exit_2_and_writes_nothing(case, capture_d
         capture = str(tmp_path)
     elif case == "bad_start":
         extra = ["--start", "0=1,2"]
+    elif case == "bad_jacobian_spp":  # not a multiple of the capture's sample groups (2)
+        extra = ["--jacobian-spp", "3"]
     else:
         out = tmp_path / "taken"
         out.write_text("keep")
@@ -260,7 +298,8 @@ class _LinearProblem:
         self.truth = np.array([1.0, -2.0, 0.0])
         self.theta = np.array(start, float)
         self.seen = np.ones(3, bool)
-        self.renders = 0
+        self.renders = self.jacobian_renders = 0
+        self.jacobian_spp = 1
 
     def values(self):
         return self.theta.copy()
@@ -271,8 +310,11 @@ class _LinearProblem:
     def evaluate(self, samples, jacobian=True):
         self.renders += 1
         residuals = tuple(self.J @ (self.theta - self.truth) + n for n in self.noise)
-        jacobians = tuple(np.column_stack([self.J[:, :2], c]) for c in self.column_noise)
-        return residuals, (jacobians if jacobian else (None, None))
+        return residuals, (self.jacobians() if jacobian else (None, None))
+
+    def jacobians(self):
+        self.jacobian_renders += 1
+        return tuple(np.column_stack([self.J[:, :2], c]) for c in self.column_noise)
 
     def record(self, iteration, loss, samples, theta, started):
         return {"iteration": iteration, "loss": loss, "parameters": list(theta),
@@ -293,8 +335,42 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     assert done < 10 and "plateau" in stop
     _, sigma = _covariance(state, problem.seen)
     assert np.isinf(sigma[2]) and np.all(np.isfinite(sigma[:2])) and np.all(sigma[:2] > 0)
-    # the Jacobian is rendered at the start and the end only; steps render residuals
-    assert problem.renders == done + 2 + sum(h["iteration"] == 0 for h in history) - 1
+    # the Jacobian is rendered at the start and the end only; steps render residuals,
+    # and the end reuses the last step's (afb2c4e's end rendered them again)
+    assert problem.jacobian_renders == 2
+    assert problem.renders == done + 1
+
+
+class _NoisyCaptureProblem(_LinearProblem):
+    """A linear problem whose capture has its own noise (shared by both seeds' residuals)
+    and whose two renders have independent noise of twice its variance (a 128-spp fit
+    of a 256-spp capture)."""
+
+    def __init__(self, rng):
+        super().__init__([0.5, -1.5, 0.0])
+        self.J = np.zeros((200, 3))
+        self.J[:, :2] = rng.normal(size=(200, 2))
+        capture = 0.01 * rng.normal(size=200)
+        self.noise = [capture + 0.01 * np.sqrt(2) * rng.normal(size=200) for _ in range(2)]
+        self.column_noise = [np.zeros(200)] * 2  # a third parameter the captures miss
+
+
+def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
+    """The predicted standard deviation matches the spread of fits over independent
+    captures and renders within 10% (the fit averages the two seeds' renders, so half
+    their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
+    from dopplertof.diff.fit import _covariance, _gauss_newton, _Progress
+
+    rng = np.random.default_rng(11)
+    fitted, predicted = [], []
+    for _ in range(300):
+        problem = _NoisyCaptureProblem(rng)
+        theta, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, _Progress(False, 20),
+                                         0.0)
+        fitted.append(theta[:2] - problem.truth[:2])
+        predicted.append(_covariance(state, problem.seen)[1][:2])
+    ratio = np.std(fitted, 0) / np.sqrt(np.mean(np.square(predicted), 0))
+    assert np.all(np.abs(ratio - 1) < 0.1), ratio
 
 
 def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():

@@ -10,7 +10,7 @@ from ..cli_options import add_defines_option, parse_pairs, positive_int
 
 
 def add_subcommand(sub) -> None:
-    from .fit import FIT_SPP
+    from .fit import FIT_SPP, JACOBIAN_SHARE
 
     f = sub.add_parser("fit", help="fit the moving bodies' velocities to a capture folder "
                        "through the renderer (fit.json, convergence.png)")
@@ -18,6 +18,9 @@ def add_subcommand(sub) -> None:
     f.add_argument("-o", "--output", required=True, help="output folder (created if missing)")
     f.add_argument("--spp", type=positive_int, default=FIT_SPP,
                    help=f"samples per pixel of the fit's renders (default {FIT_SPP})")
+    f.add_argument("--jacobian-spp", type=positive_int, default=None,
+                   help="samples per pixel of the Jacobian's renders (default "
+                   f"{JACOBIAN_SHARE:g} of --spp)")
     f.add_argument("--seed", type=int, help="seed of the fit's renders (default: the "
                    "capture's + 1)")
     f.add_argument("--iterations", type=positive_int, default=12,
@@ -61,7 +64,7 @@ def run(args) -> int:
     dopplertof.set_variant(args.variant)
     result = fit(args.capture, start=start or None, spp=args.spp, seed=args.seed,
                  iterations=args.iterations, angular=args.angular,
-                 reflectances=args.reflectances,
+                 reflectances=args.reflectances, jacobian_spp=args.jacobian_spp,
                  defines=parse_pairs(args.defines, "-D"), progress=False if args.quiet else None)
     paths = write_fit(result, args.output)
     print(format_fit(result))
