@@ -15,7 +15,9 @@ few samples: the loss is estimated by the cross product (R_A - C) . (R_B - C) of
 renders of independent seeds A and B (its expectation has no variance term, which
 depends on the velocities), with the metric (J_A^T J_B + J_B^T J_A) / 2 (J_A^T J_A
 would add the Jacobian's noise energy and shorten every step); and the residuals are
-sums over blocks of interior pixels. Every iteration renders with the same two seeds
+sums over blocks of interior pixels (a per-pixel Jacobian's Monte Carlo noise would
+inflate J^T J and shorten every step; block sums keep the velocity field's variation and
+average the noise). Every iteration renders with the same two seeds
 (correlated sampling): the loss is a smooth function of theta, not a new noisy sample
 each time.
 
@@ -255,9 +257,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
     the capture's + 1, independent of its noise); ``block``: the residuals are sums over
-    blocks of block x block interior pixels of one body (a per-pixel Jacobian's Monte
-    Carlo noise would inflate J^T J and shorten every step; block sums keep the
-    velocity field's variation and average the noise); the iterations stop at a step
+    blocks of block x block interior pixels of one body (the module docstring says
+    why); the iterations stop at a step
     below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
     by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
     Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
@@ -269,8 +270,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         raise FitError(f"spp must be a positive integer, got {spp!r}")
     jacobian_spp = _jacobian_samples(spp, jacobian_spp, data.base)
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
-    # (its renders use seed and seed + 1: both below 2^64)
-    seed = check_seed(seed, "seed", FitError)
+    seed = check_seed(seed, "seed", FitError)  # (renders of seed and seed + 1: < 2^64)
     check_seed(seed + 1, "seed + 1 (the Jacobian's renders)", FitError)
     # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
     motions, t_mid = _motions_at_mid_exposure(data)

@@ -200,6 +200,9 @@ def _define_class(mi):
     return DopplerToFPath
 
 
+# The loop state holds no Bool besides the loop's condition: the loop's reverse-mode
+# replay stores its state, and Dr.Jit 1.5 stores a Bool as i8 and reads it back as i1
+# (an LLVM IR type error that aborted every dr.backward through the loop).
 @dr.syntax
 def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     """The path loop: from each lane's camera ray to its measurement."""
@@ -211,7 +214,6 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     # The first hit's light and BSDF samples from the pixel's low-discrepancy set
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
-
     wavelengths = ray.wavelengths  # of the camera ray, for the colour conversion
 
     # ---- Loop state ----
@@ -223,17 +225,11 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
     prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
     prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
     prev_bsdf_delta = mi.UInt32(1)  # whether that sample was a delta lobe (1) or not (0)
-    # (No Bool in the loop state: the loop's reverse-mode replay stores its state, and
-    # Dr.Jit 1.5 stores a Bool as i8 and reads it back as i1, an LLVM IR type error.)
     eta = mi.Float(1.0)  # relative index of refraction along the path
     iteration = mi.UInt32(0)  # loop iterations so far (0: the camera ray's hit may be known)
     bsdf_ctx = mi.BSDFContext()
 
-    # A camera ray origin attached to AD (the camera's velocity differentiated) enters as
-    # an implicit input, the state's origin detached (AttachedOrigin says why)
-    attached = AttachedOrigin.of(ray)
-    if attached is not None:
-        ray = attached.detached_ray(mi, ray)
+    ray, attached = AttachedOrigin.split(mi, ray)  # (an attached origin: not loop state)
 
     # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
@@ -283,16 +279,16 @@ class AttachedOrigin:
         self.origin = origin  #: the attached origins (Point3f)
 
     @classmethod
-    def of(cls, ray):
-        """The holder of ``ray``'s origin where it is attached to AD, else None."""
-        return cls(ray.o) if dr.grad_enabled(ray.o) else None
-
-    @staticmethod
-    def detached_ray(mi, ray):
-        """A copy of ``ray`` with its origin detached (the loop's state)."""
+    def split(cls, mi, ray):
+        """(ray, holder): where ``ray``'s origin is attached to AD, a copy of the ray with
+        its origin detached (the loop's state) and the holder of the attached origin;
+        else the ray and None."""
+        if not dr.grad_enabled(ray.o):
+            return ray, None
+        holder = cls(ray.o)
         ray = mi.Ray3f(ray)
         ray.o = dr.detach(ray.o)
-        return ray
+        return ray, holder
 
 
 # ---- Registration: <integrator type="dopplertof"> (alias "dopplertofpath") ----
