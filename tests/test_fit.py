@@ -325,11 +325,11 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     """A parameter the captures do not see stays at its start with an infinite
     uncertainty (afb2c4e moved such parameters: 27.5 +- 1132 m/s); the fit stops once a
     step no longer lowers the loss by 1%, well before its iteration limit."""
-    from dopplertof.diff.fit import _covariance, _gauss_newton, _Progress
+    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
 
     problem = _LinearProblem([0.5, -1.0, 3.0])
-    theta, state, history, done, stop = _gauss_newton(problem, 1, 50, 1e-9, 0.01,
-                                                      _Progress(False, 50), 0.0)
+    silent = _fit_progress(False, 50)
+    theta, state, history, done, stop = _gauss_newton(problem, 1, 50, 1e-9, 0.01, silent, 0.0)
     assert theta[2] == 3.0 and not problem.seen[2] and problem.seen[:2].all()
     assert np.allclose(theta[:2], problem.truth[:2], atol=1e-3)
     assert done < 10 and "plateau" in stop
@@ -359,14 +359,14 @@ def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
     """The predicted standard deviation matches the spread of fits over independent
     captures and renders within 10% (the fit averages the two seeds' renders, so half
     their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
-    from dopplertof.diff.fit import _covariance, _gauss_newton, _Progress
+    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(11)
     fitted, predicted = [], []
     for _ in range(300):
         problem = _NoisyCaptureProblem(rng)
-        theta, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, _Progress(False, 20),
-                                         0.0)
+        silent = _fit_progress(False, 20)
+        theta, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, silent, 0.0)
         fitted.append(theta[:2] - problem.truth[:2])
         predicted.append(_covariance(state, problem.seen)[1][:2])
     ratio = np.std(fitted, 0) / np.sqrt(np.mean(np.square(predicted), 0))

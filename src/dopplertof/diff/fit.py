@@ -54,6 +54,7 @@ import numpy as np
 
 from ..arguments import check_seed
 from .motion import VelocityMotion
+from .progress import IterationProgress
 
 #: captures fitted (their Doppler content is what the velocities change)
 FIT_CAPTURES = ("heterodyne_0", "heterodyne_0.25")
@@ -288,7 +289,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
                           reflectances, jacobian_spp)
     started = _time.perf_counter()
     theta, state, history, done, stop = _gauss_newton(
-        problem, spp, iterations, tolerance, plateau, _Progress(progress, iterations), started)
+        problem, spp, iterations, tolerance, plateau, _fit_progress(progress, iterations), started)
     loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian ----
@@ -723,34 +724,16 @@ def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
     }
 
 
-class _Progress:
-    """The fit's progress: a bar on a terminal (``progress`` True, or None with stderr
-    a terminal), one line per iteration on stderr otherwise (None), nothing (False)."""
+def _fit_progress(progress, iterations: int) -> IterationProgress:
+    """The fit's progress: a bar "fitting", or a line per iteration (_fit_line)."""
+    return IterationProgress(progress, iterations, "fitting", _fit_line)
 
-    def __init__(self, progress, iterations: int):
-        import sys
 
-        self.bar, self.lines = None, progress is None and not sys.stderr.isatty()
-        if progress or (progress is None and sys.stderr.isatty()):
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=iterations, desc="fitting", unit="it", leave=False)
-
-    def update(self, entry: dict) -> None:
-        import sys
-
-        if self.bar is not None and entry["iteration"] > 0:
-            self.bar.update(1)
-        if self.lines:
-            radial = ", ".join("n/a" if r is None else f"{r:+.4f}"
-                               for r in entry["radial_velocity_m_s"])
-            print(f"fit iteration {entry['iteration']}: loss {entry['loss']:.6g}, radial "
-                  f"velocity {radial} m/s, {entry['seconds']:.1f} s", file=sys.stderr,
-                  flush=True)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+def _fit_line(entry: dict) -> str:
+    """The fit's progress line of one iteration."""
+    radial = ", ".join("n/a" if r is None else f"{r:+.4f}" for r in entry["radial_velocity_m_s"])
+    return (f"fit iteration {entry['iteration']}: loss {entry['loss']:.6g}, radial "
+            f"velocity {radial} m/s, {entry['seconds']:.1f} s")
 
 
 def _blocks(masks, block: int) -> np.ndarray:

@@ -27,12 +27,12 @@ iterations average the renders' noise).
 
 from __future__ import annotations
 
-import sys
 import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .progress import IterationProgress
 from .render import _MOTION_NAME, DerivativeError, check_names
 
 #: default Adam step sizes per group: m/s, rad/s, albedo
@@ -180,7 +180,8 @@ def fit_captures(ds, captures, names, iterations: int = 60, spp: int = 32, seed:
     weight = None if mask is None else np.asarray(mask, np.float64)
     adam, theta = Adam(params.step_sizes, params.lower, params.upper), params.values()
     residuals, history, started = {}, [], _time.perf_counter()
-    report = _Progress(progress, iterations)
+    report = IterationProgress(progress, iterations, "inverse", _inverse_line,
+                               lambda entry: {"loss": f"{entry['loss']:.4g}"})
     try:
         for i in range(iterations + 1):
             grad, loss = _iteration(ds, captures, targets, residuals, names, spp,
@@ -242,28 +243,11 @@ def _weighted_sum(mi, residual):
     return loss
 
 
-class _Progress:
-    """A tqdm bar (``progress`` True, or None on a terminal), one line per iteration
-    on stderr (None, not a terminal), or nothing (False)."""
+def _inverse_line(entry: dict) -> str:
+    """fit_captures' progress line of one iteration: the loss and the scalar values."""
+    scalars = ", ".join(f"{k} {v:+.4f}" for k, v in entry.items()
+                        if k not in ("iteration", "loss", "seconds"))
+    return (f"inverse iteration {entry['iteration']}: loss {entry['loss']:.6g}"
+            + (f", {scalars}" if scalars else "") + f", {entry['seconds']:.1f} s")
 
-    def __init__(self, progress, iterations: int):
-        self.bar, self.lines = None, progress is None and not sys.stderr.isatty()
-        if progress or (progress is None and sys.stderr.isatty()):
-            from tqdm import tqdm
 
-            self.bar = tqdm(total=iterations, desc="inverse", unit="it", leave=False)
-
-    def update(self, entry: dict) -> None:
-        if self.bar is not None and entry["iteration"] > 0:
-            self.bar.update(1)
-            self.bar.set_postfix(loss=f"{entry['loss']:.4g}")
-        if self.lines:
-            scalars = ", ".join(f"{k} {v:+.4f}" for k, v in entry.items()
-                                if k not in ("iteration", "loss", "seconds"))
-            print(f"inverse iteration {entry['iteration']}: loss {entry['loss']:.6g}"
-                  + (f", {scalars}" if scalars else "") + f", {entry['seconds']:.1f} s",
-                  file=sys.stderr, flush=True)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
