@@ -44,6 +44,22 @@ class BackendError(RuntimeError):
     """No usable JIT backend: the message says what to install."""
 
 
+def aligned_host_array(values, dtype):
+    """``values`` as a NumPy array of ``dtype`` in a 64-byte-aligned buffer, to become a
+    Dr.Jit array. Dr.Jit maps a NumPy array of its own dtype without copying and compiles
+    the loads of the kernels that read it for the buffer's alignment: an array placed
+    wherever the allocator puts it compiles those kernels anew (``align 1`` against
+    ``align 32``) from one call to the next (tests/test_startup.py)."""
+    import numpy as np
+
+    values = np.asarray(values, dtype=dtype).ravel()
+    raw = np.empty(values.size + 64 // values.itemsize, dtype=dtype)
+    start = (-raw.ctypes.data % 64) // values.itemsize
+    out = raw[start:start + values.size]
+    out[:] = values
+    return out
+
+
 def llvm_major_version(path: str) -> int | None:
     """Major LLVM version of a libLLVM file, read from its name (libLLVM-19.so, libLLVM.so.19.1)."""
     name = os.path.basename(os.path.realpath(path))

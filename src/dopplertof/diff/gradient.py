@@ -204,14 +204,13 @@ class LaneAdjoint:
         self.channels = image_adjoint.shape[-1]
         h, w = shape
         if sums.weighted:  # dL/dI over each pixel's normalizing weight
-            total = sums.host_total() / spp
-            offsets, c = len(self.splat.offsets), self.channels
-            weight = (self.splat.shift_add(total.T[offsets * c:], shape)[..., 0]
-                      if sums.normalization == "weights" else self.splat.expected_weights(shape))
+            weight = sums.splat_weight(np.full(h * w, spp), shape)
             scaled = image_adjoint / weight[..., None]
-            self.targets = [_shifted(scaled, ox, oy) for ox, oy in self.splat.offsets]
+            targets = [_shifted(scaled, ox, oy) for ox, oy in self.splat.offsets]
         else:  # one pixel, weight 1 (a box splat or the importance film)
-            self.targets = [image_adjoint.reshape(h * w, -1)]
+            targets = [image_adjoint.reshape(h * w, -1)]
+        #: per offset, per channel: dL/dI of the pixel a source pixel's samples reach there
+        self.targets = [[mi.Float(t[:, c]) for c in range(self.channels)] for t in targets]
 
     def weighted_sum(self, layout, value, film_offset):
         """sum over lanes and channels of adjoint x value (the lanes' finite values),
@@ -229,7 +228,7 @@ class LaneAdjoint:
         for c in range(self.channels):
             adjoint = mi.Float(0.0)
             for w, target in zip(weights, self.targets):
-                adjoint += w * dr.gather(mi.Float, mi.Float(target[:, c]), layout.pixel)
+                adjoint += w * dr.gather(mi.Float, target[c], layout.pixel)
             total += dr.select(finite, adjoint * raw[c], 0.0)
         return dr.sum(total) * (1.0 / self.spp)
 

@@ -189,12 +189,14 @@ class Accumulator:
     def restore(self, total, nonfinite, pilot_sums, squares, fresh=False):
         import drjit as dr
 
+        from ..backend import aligned_host_array
+
         self.total, self.nonfinite = total, nonfinite
         self.pilot_sums, self.squares = pilot_sums, squares
         self.device_total = None  # one Float64 array over the pixels per column
         if self.weighted:
             self.device_total = [dr.zeros(self.mi.Float64, self.n_pixels) if fresh
-                                 else self.mi.Float64(np.ascontiguousarray(column))
+                                 else self.mi.Float64(aligned_host_array(column, np.float64))
                                  for column in total.T]
 
     def host_total(self):
@@ -248,6 +250,11 @@ class Accumulator:
             if pilot:
                 self.pilot_sums[pixels_j] += parts[rows, :c]
                 self.squares[pixels_j] += parts[rows, -c:]
+
+    def splat_weight(self, per_pixel, shape) -> np.ndarray:
+        """(H, W): the splat film's normalizing weight of every pixel (weighted sums)."""
+        mean = self.host_total().T / per_pixel[None, :]
+        return splat_weight(self.splat, mean, self.channels, shape, self.normalization)
 
     def image(self, per_pixel, shape) -> np.ndarray:
         """float32 (H, W, C): the sums divided by ``per_pixel`` samples (and, splat
@@ -504,11 +511,16 @@ def _develop_splat(splat, total, per_pixel, channels: int, shape, normalization:
     offsets = len(splat.offsets)
     mean = total.T / per_pixel[None, :]  # columns x pixels
     values = splat.shift_add(mean[:offsets * channels], shape)
+    return values / splat_weight(splat, mean, channels, shape, normalization)[..., None]
+
+
+def splat_weight(splat, mean, channels: int, shape, normalization: str):
+    """(H, W): each pixel's normalizing weight, the sampled weights' sum shifted into it
+    (``mean``: the splat sums by source pixel over their sample counts, columns x
+    pixels), or, ``"expected"``, its exact expectation."""
     if normalization == "weights":
-        weight = splat.shift_add(mean[offsets * channels:], shape)[..., 0]
-    else:
-        weight = splat.expected_weights(shape)
-    return values / weight[..., None]
+        return splat.shift_add(mean[len(splat.offsets) * channels:], shape)[..., 0]
+    return splat.expected_weights(shape)
 
 
 class _TimedOut(Exception):

@@ -200,7 +200,7 @@ def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, o
     the footprint samples at ``offsets`` (pixels) from the pixel centre in x and y."""
     import drjit as dr
 
-    from ..backend import require_variant
+    from ..backend import aligned_host_array, require_variant
 
     mi = require_variant()
     samples = len(offsets)
@@ -209,7 +209,8 @@ def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, o
     py, px = (a.ravel() for a in np.mgrid[first:last, 0:width] + 0.5)
     x = ((px[:, None] + sx[None, :]) / width).ravel()
     y = ((py[:, None] + sy[None, :]) / height).ravel()
-    position = mi.Point2f(mi.Float(_aligned_float32(x)), mi.Float(_aligned_float32(y)))
+    position = mi.Point2f(mi.Float(aligned_host_array(x, np.float32)),
+                          mi.Float(aligned_host_array(y, np.float32)))
     # ---- Traced at the exposure's start, middle and end ----
     mixed = np.zeros(px.size, bool)
     start, _, end = mid_exposure(scene, params)
@@ -222,19 +223,6 @@ def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, o
         depth = np.where(body > -2, np.asarray(si.t, np.float64).reshape(body.shape), np.nan)
         mixed |= _depth_jump(depth.reshape(-1, samples, samples))
     return mixed.reshape(last - first, width)
-
-
-def _aligned_float32(values) -> np.ndarray:
-    """``values`` as float32 in a buffer 64-byte aligned. Dr.Jit maps a float32 NumPy
-    array without copying and compiles its loads for the buffer's alignment: an array
-    converted on the fly lands wherever the allocator puts it, and a second capture's
-    footprint kernels compiled anew about half the time (tests/test_startup.py)."""
-    values = np.asarray(values, dtype=np.float32).ravel()
-    raw = np.empty(values.size + 16, dtype=np.float32)
-    start = (-raw.ctypes.data % 64) // 4
-    out = raw[start:start + values.size]
-    out[:] = values
-    return out
 
 
 def _depth_jump(depth) -> np.ndarray:
