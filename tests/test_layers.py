@@ -24,7 +24,7 @@ def imports(module: str, path: str, known) -> set:
     is a module, not as the package whose attribute it would be)."""
     package = module if path.endswith("__init__.py") else module.rsplit(".", 1)[0]
     found = set()
-    for node in ast.walk(ast.parse(open(path).read())):
+    for node in _import_statements(ast.parse(open(path).read())):
         if isinstance(node, ast.Import):
             targets = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -36,14 +36,27 @@ def imports(module: str, path: str, known) -> set:
             targets = [t for t in subs if t in known]
             if len(targets) < len(subs):
                 targets.append(base)
-        else:
-            continue
         for t in targets:
             while t not in known and "." in t:
                 t = t.rsplit(".", 1)[0]
             if t in known and t != module:
                 found.add(t)
     return found
+
+
+def _import_statements(tree):
+    """The import statements of ``tree``, at module level or inside functions, with
+    each ``lazy_exports(__name__, {".module": names, ...})`` table (dopplertof/lazy.py)
+    as the ``from .module import names`` statements it stands for."""
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            yield node
+        elif (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "lazy_exports"
+              and len(node.args) == 2 and isinstance(node.args[1], ast.Dict)):
+            for key, names in zip(node.args[1].keys, node.args[1].values):
+                module = key.value.lstrip(".")
+                yield ast.ImportFrom(module=module or None, level=len(key.value) - len(module),
+                                     names=[ast.alias(name=n.value) for n in names.elts])
 
 
 def test_no_import_circle():

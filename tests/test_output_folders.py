@@ -9,6 +9,7 @@ import pytest
 
 from dopplertof import io
 from dopplertof.cli import _parser, main
+from dopplertof.cli_options import FOLDER_HELP
 from dopplertof.demo import demo_scene_path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -26,7 +27,7 @@ def _subparsers():
                                      "report", "animate"])
 def test_every_command_help_states_the_folder_rule(command):
     text = " ".join(_subparsers()[command].format_help().split())
-    assert io.FOLDER_HELP in text
+    assert FOLDER_HELP in text
 
 
 def test_render_creates_missing_folders(tmp_path, capsys):

@@ -8,8 +8,8 @@
 
 from __future__ import annotations
 
-from . import arguments as _arguments
 from . import backend as _backend
+from .lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -21,10 +21,14 @@ except _backend.BackendError:
     pass
 
 from .backend import BackendError  # noqa: E402
-from .params import ParameterError, RenderParams  # noqa: E402
-from .render import RenderResult, render, render_result  # noqa: E402
-from . import scene  # noqa: E402
-from .scene import Animation, DopplerScene, SceneError  # noqa: E402
+from .render import render, render_result  # noqa: E402  (light: the pipeline on first use)
+
+# ---- The rest on first use (NumPy and Mitsuba too): `import dopplertof` stays cheap ----
+__getattr__, __dir__, _LAZY_NAMES = lazy_exports(__name__, {
+    ".params": ("ParameterError", "RenderParams"),
+    ".integrators.pipeline": ("RenderResult",),
+    ".scene": ("scene", "Animation", "DopplerScene", "SceneError"),
+})
 
 
 def _adopt_mitsuba(mi):
@@ -42,7 +46,9 @@ def set_variant(variant: str | None = None) -> str:
     """Choose the Mitsuba variant (LLVM RGB by default; checks libLLVM and the GPU) and
     register the D-ToF integrator plugins for it (``<integrator type="dopplertof">``)."""
     if variant is not None:
-        _arguments.check_text(variant, "variant")
+        from . import arguments
+
+        arguments.check_text(variant, "variant")
     variant = _backend.set_variant(variant)
     from . import integrators
 
@@ -65,23 +71,29 @@ def _ensure_variant():
 def load_file(path, overrides=None, **kwargs):
     """Load a Mitsuba 3 XML scene (with <animation> keyframes); sets LLVM RGB if no
     JIT variant is set. ``overrides`` (or keyword arguments) set <default> values."""
-    path = _arguments.check_path(path, "path")
-    _arguments.check_mapping(overrides, "overrides")
+    from . import arguments, scene
+
+    path = arguments.check_path(path, "path")
+    arguments.check_mapping(overrides, "overrides")
     _ensure_variant()
     return scene.load_file(path, {**(overrides or {}), **kwargs})
 
 
 def load_string(text: str, overrides=None, **kwargs):
     """Load a scene from XML text; see load_file."""
-    _arguments.check_text(text, "text")
-    _arguments.check_mapping(overrides, "overrides")
+    from . import arguments, scene
+
+    arguments.check_text(text, "text")
+    arguments.check_mapping(overrides, "overrides")
     _ensure_variant()
     return scene.load_string(text, {**(overrides or {}), **kwargs})
 
 
 def load_dict(scene_dict: dict):
     """Load a dict scene (Mitsuba's load_dict format, with dopplertof.Animation)."""
-    _arguments.check_mapping(scene_dict, "scene_dict", optional=False)
+    from . import arguments, scene
+
+    arguments.check_mapping(scene_dict, "scene_dict", optional=False)
     _ensure_variant()
     return scene.load_dict(scene_dict)
 
@@ -94,15 +106,16 @@ def capture(scene, spp=None, seed=0, **kwargs):
     ``.summary``, ``.write(folder)``)."""
     import os
 
+    from . import arguments
     from .tof import capture as _capture
 
     if isinstance(scene, (str, os.PathLike)):
         scene = load_file(scene)
     else:
-        scene = _arguments.check_scene(scene, "scene")
+        scene = arguments.check_scene(scene, "scene")
         _ensure_variant()
     return _capture(scene, spp, seed, **kwargs)
 
 
-__all__ = ["load_file", "load_string", "load_dict", "capture", "DopplerScene", "render", "render_result", "RenderResult", "set_variant",
-           "RenderParams", "ParameterError", "BackendError", "Animation", "SceneError"]
+__all__ = ["load_file", "load_string", "load_dict", "capture", "set_variant", "BackendError",
+           "render", "render_result", *_LAZY_NAMES]

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import glob
-import importlib.abc
 import importlib.util
 import os
 import re
@@ -160,6 +159,13 @@ def _set_mitsuba_variant(variant: str) -> str:
     return variant
 
 
+# A Ctrl-C that Python dropped: a KeyboardInterrupt raised inside a weakref callback or a
+# __del__ (matplotlib's transforms have such callbacks) is printed and ignored, and the
+# command goes on. The CLI's SIGINT handler sets this; no output set commits after it
+# (io.output_folder).
+INTERRUPT_SEEN = threading.Event()
+
+
 @contextlib.contextmanager
 def interrupts_deferred():
     """Hold a Ctrl-C (SIGINT) back until the block ends, then deliver it to the handler
@@ -235,8 +241,9 @@ def when_imported(name: str, callback) -> None:
     sys.meta_path.insert(0, _ImportHook(name, callback))
 
 
-class _ImportHook(importlib.abc.MetaPathFinder):
-    """Finds ``name`` with the other finders and runs ``callback`` after it loads."""
+class _ImportHook:
+    """A meta path finder (importlib's protocol; no base class, whose module costs an
+    import of importlib.resources at start-up): finds ``name`` with the other finders and runs ``callback`` after it loads."""
 
     def __init__(self, name: str, callback):
         self.name, self.callback = name, callback
@@ -251,8 +258,8 @@ class _ImportHook(importlib.abc.MetaPathFinder):
         return spec
 
 
-class _ThenCall(importlib.abc.Loader):
-    """A module's own loader, then ``callback`` on what sys.modules holds (Mitsuba puts
+class _ThenCall:
+    """A loader (importlib's protocol): a module's own loader, then ``callback`` on what sys.modules holds (Mitsuba puts
     its variant-dispatching alias module there)."""
 
     def __init__(self, loader, callback):

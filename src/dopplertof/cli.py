@@ -7,8 +7,7 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
-from .cli_options import add_defines_option, add_params_option, parse_pairs
-from .io import FOLDER_HELP
+from .cli_options import FOLDER_HELP, add_defines_option, add_params_option, parse_pairs
 
 
 class UsageError(Exception):
@@ -459,7 +458,7 @@ class _InterruptWatch:
         self._previous = None
 
     def _on_sigint(self, signum, frame):
-        from .io import INTERRUPT_SEEN
+        from .backend import INTERRUPT_SEEN
 
         self.seen = True
         INTERRUPT_SEEN.set()  # (outputs are not committed after it, if this raise is lost)
@@ -469,7 +468,7 @@ class _InterruptWatch:
         import signal
         import threading
 
-        from .io import INTERRUPT_SEEN
+        from .backend import INTERRUPT_SEEN
 
         INTERRUPT_SEEN.clear()  # (an earlier command's, in this process)
         if threading.current_thread() is threading.main_thread() and \

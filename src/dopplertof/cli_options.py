@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import argparse
 
+#: what every command's --help says about its output folder (io.make_output_folder)
+FOLDER_HELP = "created, with missing parents, if missing"
+
 
 def int_at_least(minimum: int, wording: str):
     """An argparse type: an integer >= ``minimum``."""

@@ -9,7 +9,6 @@ summary.json, and prints the summary.
 
 from __future__ import annotations
 
-from importlib import resources
 
 #: default settings: about a minute on 2 cores
 DEMO_SPP = 512
@@ -17,6 +16,9 @@ DEMO_RES = 128
 
 
 def demo_scene_path() -> str:
+    """The packaged demo scene's XML file."""
+    from importlib import resources  # (not at import: the command line's --help)
+
     return str(resources.files("dopplertof") / "data" / "cornell_demo.xml")
 
 

@@ -34,6 +34,8 @@ import threading
 
 import numpy as np
 
+from .backend import INTERRUPT_SEEN
+
 FORMATS = (".exr", ".npy", ".png")
 
 
@@ -73,10 +75,6 @@ def is_disk_full(exc: BaseException) -> bool:
     if isinstance(exc, WriteError):
         return exc.reason in (_WRITE_REASONS[errno.ENOSPC], _WRITE_REASONS[errno.EDQUOT])
     return getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT)
-
-
-#: what every command's --help says about its output folder
-FOLDER_HELP = "created, with missing parents, if missing"
 
 
 def check_output_folder(folder) -> str:
@@ -215,12 +213,6 @@ class StagedFolder:
 def _plain_name(name) -> bool:
     return (isinstance(name, str) and name not in ("", ".", "..") and not name.startswith(".")
             and os.sep not in name and (os.altsep is None or os.altsep not in name))
-
-
-# A Ctrl-C that Python dropped: a KeyboardInterrupt raised inside a weakref callback or a
-# __del__ (matplotlib's transforms have such callbacks) is printed and ignored, and the
-# command goes on. The CLI's SIGINT handler sets this; no output set commits after it.
-INTERRUPT_SEEN = threading.Event()
 
 
 @contextlib.contextmanager

@@ -7,10 +7,20 @@ class of :mod:`dopplertof.integrators.dtof_path` (``DopplerToFPath``).
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
-from .integrators.pipeline import (  # noqa: F401  (the pipeline's public names)
-    Checkpoint, CheckpointError, RenderResult)
+from .lazy import lazy_exports
+
+if TYPE_CHECKING:  # (the annotations' names)
+    import numpy
+
+    from .integrators.pipeline import RenderResult
+
+# the pipeline's public names, imported on first use (with NumPy and the pipeline)
+__getattr__, __dir__, _PIPELINE_NAMES = lazy_exports(__name__, {
+    ".integrators.pipeline": ("Checkpoint", "CheckpointError", "RenderResult"),
+})
+__all__ = ["render", "render_result", *_PIPELINE_NAMES]
 
 
 def render_result(scene, spp: int | None = None, seed: int = 0, params=None,
@@ -30,7 +40,7 @@ def render_result(scene, spp: int | None = None, seed: int = 0, params=None,
     return integrator.render_result(as_doppler_scene(scene), spp, seed, params, **options)
 
 
-def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> np.ndarray:
+def render(scene, spp: int | None = None, seed: int = 0, params=None, **kwargs) -> "numpy.ndarray":
     """Render a D-ToF image: float32 (H, W, C), the time-averaged measurement.
 
     ``spp`` defaults to the scene's sampler count; ``params`` (a dict or RenderParams)

@@ -13,8 +13,11 @@ after the other, so a moving object is elsewhere in each), then the camera's sen
 See docs/cameras.md. Nothing below this package imports it.
 """
 
-from .preset import (CameraPreset, PresetError, RawFrame, format_preset, load_preset,
-                     preset_names)
+from ..lazy import lazy_exports
 
-__all__ = ["CameraPreset", "PresetError", "RawFrame", "format_preset", "load_preset",
-           "preset_names"]
+# imported on first use: `dopplertof --help` builds this package's command cheaply
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    ".preset": ("CameraPreset", "PresetError", "RawFrame", "format_preset", "load_preset",
+                "preset_names"),
+    ".capture": ("capture_camera",),
+})

@@ -2,7 +2,10 @@
 (``dopplertof dataset CONFIG.toml -o DIR``), and their reader :class:`Dataset`.
 docs/dataset.md describes the configuration, the layout and every convention."""
 
-from .config import DatasetConfig, DatasetError, load_config
-from .reader import Dataset
+from ..lazy import lazy_exports
 
-__all__ = ["Dataset", "DatasetConfig", "DatasetError", "load_config"]
+# imported on first use (with NumPy, h5py and Dask): `dopplertof --help` stays cheap
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    ".config": ("DatasetConfig", "DatasetError", "load_config"),
+    ".reader": ("Dataset",),
+})

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..io import FOLDER_HELP
+from ..cli_options import FOLDER_HELP
 
 
 def add_subcommand(subparsers) -> None:

@@ -3,10 +3,11 @@
 See docs/differentiable.md.
 """
 
-from .gradient import Gradient, gradient
-from .motion import VelocityMotion
-from .render import (DerivativeError, Derivatives, DifferentiableScene,
-                     render_derivatives)
+from ..lazy import lazy_exports
 
-__all__ = ["VelocityMotion", "DerivativeError", "Derivatives", "DifferentiableScene",
-           "render_derivatives", "Gradient", "gradient"]
+# imported on first use (with NumPy and the renderer): `dopplertof --help` stays cheap
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    ".motion": ("VelocityMotion",),
+    ".render": ("DerivativeError", "Derivatives", "DifferentiableScene", "render_derivatives"),
+    ".adjoint": ("Gradient", "gradient"),
+})

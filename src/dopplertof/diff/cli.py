@@ -10,7 +10,7 @@ from ..cli_options import add_defines_option, parse_pairs, positive_int
 
 
 def add_subcommand(sub) -> None:
-    from .fit import FIT_SPP, JACOBIAN_SHARE
+    from .settings import FIT_SPP, JACOBIAN_SHARE
 
     f = sub.add_parser("fit", help="fit the moving bodies' velocities to a capture folder "
                        "through the renderer (fit.json, convergence.png)")

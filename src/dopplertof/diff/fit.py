@@ -55,6 +55,7 @@ import numpy as np
 from ..arguments import check_seed
 from .motion import VelocityMotion
 from .progress import IterationProgress
+from .settings import FIT_SPP, JACOBIAN_SHARE
 
 #: captures fitted (their Doppler content is what the velocities change)
 FIT_CAPTURES = ("heterodyne_0", "heterodyne_0.25")
@@ -66,14 +67,6 @@ REFLECTANCE_CAPTURES = ("homodyne_0", "homodyne_0.25")
 #: directions of the (column-scaled) Jacobian below this fraction of its largest
 #: singular value are not constrained by the captures: no step along them
 RCOND = 0.05
-
-#: default samples per pixel of the fit's renders
-FIT_SPP = 256
-
-#: the Jacobian's renders take this fraction of the residuals' samples (default):
-#: Gauss-Newton needs the Jacobian only approximately, and the metric of two
-#: independent Jacobians (:func:`_metric`) is unbiased at any sample count
-JACOBIAN_SHARE = 0.25
 
 #: the fit stops on a plateau: a step that lowers the loss by less than this fraction
 PLATEAU = 0.01

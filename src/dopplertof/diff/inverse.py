@@ -210,7 +210,7 @@ def _iteration(ds, captures, targets, residuals, names, spp, seed, weight):
     """One gradient call per capture at ``seed``: the summed gradient of the cross
     loss against ``residuals`` (the previous renders' residuals; None when there are
     none yet) and the current renders' squared loss; ``residuals`` is updated."""
-    from .gradient import gradient
+    from .adjoint import gradient
 
     total, loss = None, 0.0
     for c, (render_params, _) in captures.items():

@@ -8,15 +8,15 @@
 See docs/experiments.md.
 """
 
-from .animate import AnimationSummary, run_animation
-from .cluster import ClusterError
-from .config import ConfigError, ReferenceConfig, SweepConfig, config_from_mapping, load_config
-from .presets import PRESETS, preset_config
-from .report import ReportError, write_report
-from .sweep import SweepSummary, plan_sweep, run_sweep
+from ..lazy import lazy_exports
 
-__all__ = [
-    "AnimationSummary", "ClusterError", "ConfigError", "PRESETS", "ReferenceConfig",
-    "ReportError", "SweepConfig", "SweepSummary", "config_from_mapping", "load_config",
-    "plan_sweep", "preset_config", "run_animation", "run_sweep", "write_report",
-]
+# imported on first use (with NumPy and Dask): `dopplertof --help` stays cheap
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    ".animate": ("AnimationSummary", "run_animation"),
+    ".cluster": ("ClusterError",),
+    ".config": ("ConfigError", "ReferenceConfig", "SweepConfig", "config_from_mapping",
+                "load_config"),
+    ".presets": ("PRESETS", "preset_config"),
+    ".report": ("ReportError", "write_report"),
+    ".sweep": ("SweepSummary", "plan_sweep", "run_sweep"),
+})

@@ -11,9 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli_options import (add_defines_option, add_params_option, non_negative_int,
-                           parse_pairs, positive_int)
-from ..io import FOLDER_HELP
+from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
+                           non_negative_int, parse_pairs, positive_int)
 from ..sampling import SEED_LIMIT
 
 

@@ -20,8 +20,12 @@ from __future__ import annotations
 
 import os
 
+from typing import TYPE_CHECKING
+
 from ..sampling import FULL_CORRELATION, METHODS
-from .config import ConfigError, ReferenceConfig, SweepConfig, typed_value
+
+if TYPE_CHECKING:  # (the annotations' names; the config, NumPy with it, on first use)
+    from .config import SweepConfig
 
 PRESETS = ("reference", "time-sampling", "no-further-stratification", "antithetic-shift")
 
@@ -47,6 +51,8 @@ def preset_config(preset: str, scene, *, spp: int | None = None,
                   reference_spp: int | None = None, defines: dict | None = None,
                   seeds=(0,), quick: bool = False, variant: str | None = None) -> SweepConfig:
     """The sweep configuration of a named preset on ``scene`` (a scene file path)."""
+    from .config import ConfigError, ReferenceConfig, SweepConfig, typed_value
+
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r}: expected one of {', '.join(PRESETS)}")
     if scene is None:
