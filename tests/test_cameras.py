@@ -2,7 +2,6 @@
 windows, the sensor pipeline, N-phase depth, unwrapping over N frequencies, wiggling."""
 
 import math
-import os
 import subprocess
 import sys
 
