@@ -93,3 +93,21 @@ def test_rotating_body_renders_like_its_pose_at_fixed_time():
         got = np.array([[np.asarray(A[r][c])[k] for c in range(3)] for r in range(3)])
         np.testing.assert_allclose(got, ref[:3, :3], atol=1e-5)
         np.testing.assert_allclose([np.asarray(x)[k] for x in b], ref[:3, 3], atol=1e-5)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.3, 2.0, np.pi - 1e-9, np.pi])
+@pytest.mark.parametrize("axis", [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 2, -2)])
+def test_matrix_to_quaternion_is_the_rotation_about_its_axis(angle, axis):
+    """The keyframes' quaternions (written out, not SciPy's: its import cost every scene
+    load 0.5 s): a rotation by ``angle`` about ``axis`` is (cos a/2, sin a/2 axis), up to
+    sign, also at a half turn, where the trace branch cannot be used; and SciPy agrees."""
+    from dopplertof.scene.motion import _matrix_to_quat
+
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    R = Rotation.from_rotvec(angle * axis).as_matrix()
+    q = _matrix_to_quat(R)
+    expected = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+    q = q if np.dot(q, expected) >= 0 else -q
+    assert np.allclose(q, expected, atol=1e-12)
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    assert abs(abs(np.dot(q, [w, x, y, z])) - 1.0) < 1e-12

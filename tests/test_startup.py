@@ -60,6 +60,18 @@ def test_import_dopplertof_imports_nothing_heavy():
     assert result.returncode == 0 and result.stdout.split() == [], result.stdout + result.stderr
 
 
+def test_loading_and_capturing_import_no_scipy_or_matplotlib():
+    """A scene with a rotating body (rigid keyframes: quaternions) loads without SciPy
+    (0.5 s of import), and its capture, before it writes, without Matplotlib."""
+    scene = os.path.join(ROOT, "examples", "rotating_cube.xml")
+    result = in_fresh_python(
+        f"import sys, dopplertof\nscene = dopplertof.load_file({scene!r}, res=8)\n"
+        f"dopplertof.capture(scene, spp=4, progress=False)\n"
+        f"print(*[m for m in ('scipy', 'matplotlib') if m in sys.modules])")
+    assert result.returncode == 0 and result.stdout.split() == [], \
+        result.stdout + result.stderr[-2000:]
+
+
 def test_lazy_names_are_what_they_name_after_every_module_is_imported():
     """Importing a submodule sets its package's attribute of that name to the module:
     a lazy name that is also a submodule's name (a function ``gradient`` in
