@@ -209,3 +209,71 @@ def test_several_passes_give_the_one_pass_gradient(published_small):
     for name in names:
         a, b = np.asarray(one[name]), np.asarray(several[name])
         assert np.all(np.abs(a - b) <= 1e-5 * np.abs(a)), (name, a, b)
+
+
+# ---- Path replay (method="path"): the same gradients where no later vertex moves -------
+
+#: what no vertex after the first bounce carries into the derivative: both methods
+#: differentiate the same terms at the same random numbers (float32 rounding apart)
+NOT_MOVING = ["w_g", "hetero_offset", "g_1", "ShortBoxBSDF.brdf_0.reflectance.value",
+              "FloorBSDF.brdf_0.reflectance.value[0]"]
+
+
+def test_path_replay_equals_the_trajectory_for_what_no_vertex_carries(published_small):
+    """Indirect light (max_depth 3), the splat film: the modulation, reflectances and
+    the light's radiance, whose derivatives no vertex position enters."""
+    from dopplertof.diff import gradient
+    from dopplertof.diff.render import differentiable_names
+
+    _, ds = published_small
+    names = NOT_MOVING + [n for n in differentiable_names(ds) if n.endswith("radiance.value")]
+    loss = _linear_loss(_weights((12, 12, 3), positive=True))
+    trajectory = gradient(ds, loss, names=names, spp=16)
+    path = gradient(ds, loss, names=names, spp=16, method="path")
+    assert np.array_equal(trajectory.image, path.image) and trajectory.loss == path.loss
+    for name in names:
+        a, b = np.asarray(trajectory[name]), np.asarray(path[name])
+        assert np.all(a != 0.0), name
+        assert np.all(np.abs(a - b) <= RELATIVE * np.abs(a)), (name, a, b)
+
+
+def test_path_replay_equals_the_trajectory_for_motion_in_direct_light():
+    """Direct light from a point light (the demo scene at max_depth 2): every path is a
+    camera-ray vertex and a point on the light, which both methods move alike, so each
+    body's and the camera's velocity derivatives agree too (with the rest)."""
+    import dopplertof
+    from dopplertof.demo import demo_scene_path
+    from dopplertof.diff import DifferentiableScene, gradient
+    from dopplertof.diff.render import differentiable_names
+
+    scene = dopplertof.load_file(demo_scene_path(), {"res": 12, "spp": 16, "max_depth": 2})
+    ds = DifferentiableScene(scene)
+    names = differentiable_names(ds)
+    loss = _linear_loss(_weights((12, 12, 3), positive=True))
+    trajectory = gradient(ds, loss, names=names, spp=16)
+    path = gradient(ds, loss, names=names, spp=16, method="path")
+    for name in names:
+        a, b = np.asarray(trajectory[name]), np.asarray(path[name])
+        scale = max(np.abs(a).max(), 1e-30)
+        if name.startswith("body"):  # (some angular terms nearly cancel: 1e-4 of the
+            scale = max(abs(trajectory[f"{name[:6]}v{ax}"]) for ax in "xyz")  # body's)
+        assert np.all(np.abs(a - b) <= RELATIVE * scale), (name, a, b)
+
+
+def test_path_replay_refuses_what_it_cannot_differentiate(published_small):
+    import drjit as dr
+
+    import dopplertof
+    from dopplertof.diff import DerivativeError, DifferentiableScene, gradient
+
+    _, ds = published_small
+    loss = lambda image: dr.sum(image, axis=None)  # noqa: E731
+    with pytest.raises(DerivativeError, match="unknown method 'paths'"):
+        gradient(ds, loss, names=["g_1"], spp=4, method="paths")
+    d = plane_scene(2.0, 10.0, spp=4, integrator={"hetero_frequency": 1.0}, res=2)
+    d["mirror"] = {"type": "conductor"}
+    d["ball"] = {"type": "sphere", "center": [0, 0, -3], "radius": 0.5,
+                 "bsdf": {"type": "ref", "id": "mirror"}}
+    mirrored = DifferentiableScene(dopplertof.load_dict(d))
+    with pytest.raises(DerivativeError, match="no BSDF with a delta lobe"):
+        gradient(mirrored, loss, names=["g_1"], spp=4, method="path")

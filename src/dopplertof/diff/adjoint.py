@@ -39,8 +39,18 @@ class Gradient(dict):
     seed: int
 
 
+#: how the adjoint pass runs: ``trajectory``, Dr.Jit's reverse replay of the path
+#: loop (every vertex follows its ray: forward mode's tangents exactly, 18x a render's
+#: memory); ``path``, path replay (integrators/path_adjoint.py: each vertex's local
+#: terms, about 2x a render's memory; the same gradients where no vertex after the
+#: first bounce moves, else another estimator of them, unbiased but far noisier for
+#: motion in indirect light); ``auto``, path replay where it gives the same gradients
+#: and can run, else the trajectory
+METHODS = ("auto", "trajectory", "path")
+
+
 def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, params=None,
-             max_lanes: int = 1 << 20) -> Gradient:
+             max_lanes: int = 1 << 20, method: str = "auto") -> Gradient:
     """d loss(image) / d parameter for every name of :func:`parameter_names` (or
     ``names``), from one primal and one adjoint pass: by default every name of
     :func:`differentiable_names`.
@@ -50,9 +60,8 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
     over the scene's (e.g. ``{"film_sampling": "importance"}``: with the same ``spp``
     and ``seed`` the random numbers of :func:`render_derivatives`). Adaptive sampling is
     off (the counts would depend on the parameters' render). ``max_depth`` must be
-    finite (the adjoint replays at most that many bounces)."""
-    import drjit as dr
-
+    finite (the adjoint replays at most that many bounces). ``method``: one of
+    :data:`METHODS`."""
     from ..integrators.dtof_path import integrator_class
     from ..integrators.pipeline import Accumulator, PassPlanner, _spectrum_channels
     from ..sampling import check_sample_count
@@ -63,6 +72,9 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
     p = gradient_params(dscene, params)
     spp = dscene.scene.spp if spp is None else int(spp)
     check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
+    if method not in METHODS:
+        raise DerivativeError(f"gradient: unknown method {method!r}: expected one of "
+                              f"{', '.join(METHODS)}")
     width, height = (int(v) for v in dscene.scene.sensor.film().crop_size())
     variables, scene, restore = attach(dscene, names)
     try:
@@ -74,23 +86,20 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         sums.start()
         passes = plan.uniform(0)
 
+        method = _method(mi, setup, names, method)
+
         # ---- Primal: the render, as the pipeline sums it ----
-        kept = _primal(mi, setup, plan, sums, passes)
+        kept = _primal(mi, setup, plan, sums, passes, method == "path")
         image = sums.image(np.full(width * height, spp), (height, width))
 
         # ---- The loss and its derivative with respect to the image ----
         loss_value, image_adjoint = _loss_adjoint(mi, loss, image)
         lane_adjoint = LaneAdjoint(mi, setup, sums, image_adjoint, spp, (height, width))
 
-        # ---- Adjoint: the same lanes with the parameters attached, backwards ----
-        for first_chunk, end_chunk in (passes if variables and np.any(image_adjoint) else ()):
-            if kept is None:
-                layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
-                value, film_offset = setup.trace(layout)
-            else:
-                (layout, value, film_offset), kept = kept, None
-            dr.backward(lane_adjoint.weighted_sum(layout, value, film_offset))
-            del value, film_offset
+        # ---- Adjoint: the same lanes, backwards ----
+        if variables and np.any(image_adjoint):
+            adjoint = _path_adjoint if method == "path" else _trajectory_adjoint
+            adjoint(mi, setup, plan, passes, kept, lane_adjoint)
         out = Gradient({name: _read_gradient(variables, name) for name in names})
     finally:
         restore()
@@ -98,21 +107,92 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
     return out
 
 
-def _primal(mi, setup, plan, sums, passes):
-    """Trace ``passes`` into ``sums`` (the pipeline's Accumulator); one pass is traced
-    with the parameters attached and returned, (layout, value, film offset), for the
-    adjoint to use (else None: the adjoint traces each pass again)."""
+def _primal(mi, setup, plan, sums, passes, path: bool):
+    """Trace ``passes`` into ``sums`` (the pipeline's Accumulator); one pass is kept for
+    the adjoint and returned (else None: the adjoint traces each pass again): for the
+    trajectory method traced with the parameters attached, (layout, value, film
+    offset); for path replay detached, with the values' path-length derivatives too."""
     import drjit as dr
 
     kept = None
     for first_chunk, end_chunk in passes:
         layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, None)
-        with dr.suspend_grad(when=len(passes) > 1):
-            value, film_offset = setup.trace(layout)
-            dr.eval(value, film_offset)
-        sums.add(dr.detach(value), dr.detach(film_offset), chunk_size, threads, pilot=False)
-        kept = (layout, value, film_offset) if len(passes) == 1 else None
+        with dr.suspend_grad(when=len(passes) > 1 or path):
+            traced = setup.trace(layout, length_derivative=path)
+            dr.eval(*traced)
+        sums.add(dr.detach(traced[0]), dr.detach(traced[1]), chunk_size, threads, pilot=False)
+        kept = (layout, *traced) if len(passes) == 1 else None
     return kept
+
+
+def _trajectory_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
+    """Each pass's lanes traced with the parameters attached, and Dr.Jit's reverse-mode
+    replay of the path loop from their adjoint-weighted sum."""
+    import drjit as dr
+
+    for first_chunk, end_chunk in passes:
+        if kept is None:
+            layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
+            value, film_offset = setup.trace(layout)
+        else:
+            (layout, value, film_offset), kept = kept, None
+        dr.backward(lane_adjoint.weighted_sum(layout, value, film_offset))
+        del value, film_offset
+
+
+def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
+    """Each pass's paths traced again by the path-replay adjoint
+    (integrators/path_adjoint.py), with each lane's adjoint and primal sums."""
+    import drjit as dr
+
+    for first_chunk, end_chunk in passes:
+        if kept is None:
+            layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
+            with dr.suspend_grad():
+                value, film_offset, value_dl = setup.trace(layout, length_derivative=True)
+        else:
+            (layout, value, film_offset, value_dl), kept = kept, None
+        delta = mi.Spectrum(*lane_adjoint.lane_adjoints(layout, value, film_offset))
+        setup.adjoint(layout, delta, value, value_dl)
+        dr.eval()  # (the gradients the loop scatters; its values are not needed)
+
+
+def _method(mi, setup, names, method: str) -> str:
+    """The method ``method`` stands for: ``auto`` is path replay when it gives the
+    trajectory's gradients (no motion among ``names``, or direct light from lights no
+    path can hit: every vertex lies on the camera ray or on a light) and can run."""
+    if method == "path":
+        check_path_replay(mi, setup)
+    if method != "auto":
+        return method
+    from ..integrators.path_adjoint import emitters_hit
+
+    moving = any(_MOTION_NAME.match(name) for name in names)
+    direct = setup.params.max_depth <= 2 and not emitters_hit(mi, setup.scene.static)
+    try:
+        check_path_replay(mi, setup)
+    except DerivativeError:
+        return "trajectory"
+    return "path" if not moving or direct else "trajectory"
+
+
+def check_path_replay(mi, setup) -> None:
+    """What path replay needs, or a DerivativeError naming what is missing: an RGB
+    variant, sampled time, no delta BSDF lobes (a vertex after one is not free on its
+    surface)."""
+    problems = []
+    if mi.is_spectral or mi.is_polarized:
+        problems.append(f"an RGB variant (not {mi.variant()})")
+    if setup.analytic:
+        problems.append("sampled time (not time_sampling_method='analytic')")
+    shapes = list(setup.scene.static.shapes()) + [
+        shape for body in setup.scene.bodies for shape in body.scene.shapes()]
+    if any(mi.has_flag(shape.bsdf().flags(), mi.BSDFFlags.Delta) for shape in shapes
+           if shape.bsdf() is not None):
+        problems.append("no BSDF with a delta lobe (mirror, glass)")
+    if problems:
+        raise DerivativeError("gradient(method='path') needs " + " and ".join(problems)
+                              + "; method='trajectory' has no such limits")
 
 
 def gradient_params(dscene, params=None):
@@ -212,25 +292,35 @@ class LaneAdjoint:
         #: per offset, per channel: dL/dI of the pixel a source pixel's samples reach there
         self.targets = [[mi.Float(t[:, c]) for c in range(self.channels)] for t in targets]
 
+    def lane_adjoints(self, layout, value, film_offset) -> list:
+        """Per channel, each lane's d loss / d its value (a Float; zero where the lane's
+        value is not finite, as the film leaves such samples out), detached."""
+        import drjit as dr
+
+        mi = self.mi
+        finite = dr.isfinite(dr.detach(value[0]))
+        for c in range(1, self.channels):
+            finite &= dr.isfinite(dr.detach(value[c]))
+        weights = ([mi.Float(1.0)] if len(self.targets) == 1
+                   else self.splat.lane_weights(mi, dr.detach(film_offset)))
+        out = []
+        for c in range(self.channels):
+            adjoint = mi.Float(0.0)
+            for w, target in zip(weights, self.targets):
+                adjoint += w * dr.gather(mi.Float, target[c], layout.pixel)
+            out.append(dr.select(finite, adjoint * (1.0 / self.spp), 0.0))
+        return out
+
     def weighted_sum(self, layout, value, film_offset):
         """sum over lanes and channels of adjoint x value (the lanes' finite values),
         a Float whose backward pass gives the parameters' gradients."""
         import drjit as dr
 
-        mi = self.mi
-        raw = [value[c] for c in range(self.channels)]
-        finite = dr.isfinite(raw[0])
-        for v in raw[1:]:
-            finite &= dr.isfinite(v)
-        weights = ([mi.Float(1.0)] if len(self.targets) == 1
-                   else self.splat.lane_weights(mi, dr.detach(film_offset)))
-        total = mi.Float(0.0)
-        for c in range(self.channels):
-            adjoint = mi.Float(0.0)
-            for w, target in zip(weights, self.targets):
-                adjoint += w * dr.gather(mi.Float, target[c], layout.pixel)
-            total += dr.select(finite, adjoint * raw[c], 0.0)
-        return dr.sum(total) * (1.0 / self.spp)
+        adjoints = self.lane_adjoints(layout, value, film_offset)
+        total = self.mi.Float(0.0)
+        for c, adjoint in enumerate(adjoints):
+            total += dr.select(adjoint != 0.0, adjoint * value[c], 0.0)
+        return dr.sum(total)
 
 
 def _shifted(values, ox: int, oy: int):

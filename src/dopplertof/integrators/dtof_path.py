@@ -29,8 +29,9 @@ from .analytic import trace_analytic_pass
 from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
 from .film import FilmSampler, SplatFilter
 from .path_steps import (CameraSample, ModulationWeight, PassLayout, _as_colour,
-                         _camera_rays, _intersect, advance, film_position, lane_streams,
-                         loop_settings, roulette, shade, vertex_numbers)
+                         _camera_rays, _intersect, advance, contributions, film_position,
+                         lane_streams, length_derivatives, loop_settings, shade, survive,
+                         vertex_numbers)
 
 _classes: dict = {}  # variant name -> its DopplerToFPath class
 
@@ -184,17 +185,34 @@ def _define_class(mi):
                                  self.shutter_open + mod.exposure) if scene.bodies else None)
             return CameraSample(t_rel=t_rel, ray=ray, ray_weight=ray_weight,
                                 camera_offset=camera_offset, first_hit=first_hit, active=active,
-                                film_offset=film_offset, light_frames=light_frames, frames=frames)
+                                film_offset=film_offset, light_frames=light_frames, frames=frames,
+                                time=time, film_position=pos, lens=lens)
 
-        def trace(self, layout: PassLayout):
+        def trace(self, layout: PassLayout, length_derivative: bool = False):
             """Render one pass; returns each lane's time-averaged measurement (the
             variant's Spectrum; RGB in spectral variants) and its film position's offset
             from its pixel's centre, in pixels (Vector2f; the splat film weighs the lane
-            with it)."""
+            with it). With ``length_derivative`` also each lane's sum of its
+            contributions' derivatives with respect to their path lengths (the
+            sampled loop only: what the path-replay adjoint needs)."""
             if self.analytic:
                 return trace_analytic_pass(mi, self, layout)
             streams = lane_streams(mi, self, layout)
-            return _trace_paths(mi, self, layout, streams, self.sample_camera(layout, streams))
+            return _trace_paths(mi, self, layout, streams, self.sample_camera(layout, streams),
+                                length_derivative)
+
+        def adjoint(self, layout: PassLayout, delta, total, total_dl):
+            """The path-replay adjoint pass of ``trace(layout, length_derivative=True)``
+            (its ``total`` and ``total_dl``): back-propagates each lane's ``delta``
+            (d loss / d lane value) into the attached parameters; returns the lanes'
+            values as traced again (integrators/path_adjoint.py)."""
+            from .path_adjoint import adjoint_paths
+
+            with dr.suspend_grad():
+                streams = lane_streams(mi, self, layout)
+                return adjoint_paths(mi, self, layout, streams,
+                                     self.sample_camera(layout, streams), delta, total,
+                                     total_dl)
 
     DopplerToFPath.__qualname__ = "DopplerToFPath"  # (not _define_class.<locals>...)
     return DopplerToFPath
@@ -204,8 +222,10 @@ def _define_class(mi):
 # replay stores its state, and Dr.Jit 1.5 stores a Bool as i8 and reads it back as i1
 # (an LLVM IR type error that aborted every dr.backward through the loop).
 @dr.syntax
-def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
-    """The path loop: from each lane's camera ray to its measurement."""
+def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,
+                 length_derivative: bool = False):
+    """The path loop: from each lane's camera ray to its measurement (and, with
+    ``length_derivative``, the sum of d contribution / d its path length)."""
     static = setup.scene.static
     modulation = setup.modulation_weight  # w(L, t) of a contribution
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
@@ -218,6 +238,7 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
 
     # ---- Loop state ----
     measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
+    measured_dl = mi.Spectrum(0.0) if length_derivative else None  # d/d their lengths
     beta = mi.Spectrum(start.ray_weight)  # path throughput
     length = modulation.F(start.camera_offset)  # path length, camera to ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
@@ -244,10 +265,11 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
                   hide_direct_emitters, modulation.F, bsdf_ctx)
 
         # ---- Modulated contributions: the emitter hit and the light sample ----
-        measured += dr.select(v.hit_emitter,
-                              v.emitted * v.mis_hit * modulation(v.length_hit, t_rel), 0.0)
-        measured += dr.select(v.active_em,
-                              v.em_value * v.mis_em * modulation(v.length_em, t_rel), 0.0)
+        hit_contribution, light_contribution = contributions(modulation, v, t_rel)
+        measured += hit_contribution
+        measured += light_contribution
+        if dr.hint(length_derivative, mode="scalar"):  # (the plain render has none of it)
+            measured_dl += length_derivatives(modulation, v, t_rel)
 
         # ---- Continue the path ----
         length = v.length_hit
@@ -255,15 +277,11 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample):
             mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
         prev_bsdf_delta = mi.UInt32(dr.select(delta, 1, 0))
         iteration += 1
+        beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])  # (roulette)
 
-        # ---- Russian roulette ----
-        beta_max, rr_prob, rr_active = roulette(beta, eta, depth, rr_depth)
-        beta[rr_active] *= dr.rcp(rr_prob)
-        going = mi.UInt32(dr.select(
-            (v.active_next & (~rr_active | (numbers[3] < rr_prob)) & (beta_max != 0.0))
-            | v.through, 1, 0))
-
-    return _as_colour(mi, measured, wavelengths), start.film_offset
+    value = _as_colour(mi, measured, wavelengths)
+    return ((value, start.film_offset, _as_colour(mi, measured_dl, wavelengths))
+            if length_derivative else (value, start.film_offset))
 
 
 class AttachedOrigin:

@@ -85,6 +85,40 @@ class ModulationWeight:
         return self.to_float32(sensor * light)
 
 
+def length_derivative(weight: ModulationWeight, path_length, t):
+    """d w(L, t) / d L at the path length ``path_length``, by forward-mode AD of the
+    weight itself (so that each waveform's derivative is the one the renderer's
+    forward-mode derivatives take); the result is detached."""
+    import drjit as dr
+
+    with dr.resume_grad():  # (the rest of the pass runs with gradients suspended)
+        length = weight.F(dr.detach(path_length))
+        dr.enable_grad(length)
+        value = weight(length, dr.detach(t))
+        dr.forward_from(length, flags=dr.ADFlag.ClearEdges)
+        return dr.detach(dr.grad(value))
+
+
+def contributions(weight: ModulationWeight, v, t):
+    """Vertex ``v``'s two modulated contributions to the measurement: its emitter hit
+    and its light sample (each zero where it has none)."""
+    import drjit as dr
+
+    return (dr.select(v.hit_emitter, v.emitted * v.mis_hit * weight(v.length_hit, t), 0.0),
+            dr.select(v.active_em, v.em_value * v.mis_em * weight(v.length_em, t), 0.0))
+
+
+def length_derivatives(weight: ModulationWeight, v, t):
+    """The derivatives of vertex ``v``'s two contributions (its emitter hit and its
+    light sample) with respect to their path lengths, summed."""
+    import drjit as dr
+
+    return (dr.select(v.hit_emitter, v.emitted * v.mis_hit
+                      * length_derivative(weight, v.length_hit, t), 0.0)
+            + dr.select(v.active_em, v.em_value * v.mis_em
+                        * length_derivative(weight, v.length_em, t), 0.0))
+
+
 def _as_colour(mi, value, wavelengths):
     """A sample's value for the film: spectral variants convert the sampled wavelengths'
     values to linear sRGB, as Mitsuba's film does; others keep their Spectrum."""
@@ -256,6 +290,19 @@ def roulette(beta, eta, depth, rr_depth):
     survival probability, and whether it plays at ``depth``."""
     beta_max = dr.max(beta)
     return beta_max, dr.minimum(beta_max * dr.square(eta), 0.95), depth >= rr_depth
+
+
+def survive(mi, v, beta, eta, depth, rr_depth, u_rr):
+    """Russian roulette after vertex ``v``: the throughput (divided by the survival
+    probability where the roulette plays) and whether the path goes on (UInt32 1 or
+    0): it has a next ray, survives the roulette and carries light, or passes through
+    a hidden emitter."""
+    beta_max, rr_prob, rr_active = roulette(beta, eta, depth, rr_depth)
+    beta = dr.select(rr_active, beta * dr.rcp(rr_prob), beta)
+    going = mi.UInt32(dr.select(
+        (v.active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)) | v.through,
+        1, 0))
+    return beta, going
 
 
 def loop_settings(mi, setup):
