@@ -4,9 +4,11 @@ The demo scene (two moving boxes) at the same resolution, spp and seed, the scen
 own film (splat):
 
 * ``plain``: ``dopplertof.render``;
-* ``gradient``: ``dopplertof.diff.gradient`` of a linear loss with respect to every
-  differentiable name (``differentiable_names``: 2 bodies x 6 motion parameters, the
-  camera's velocity, the modulation's three, every reflectance and the light);
+* ``trajectory`` and ``path``: ``dopplertof.diff.gradient`` of a linear loss with
+  respect to every differentiable name (``differentiable_names``: 2 bodies x 6 motion
+  parameters, the camera's velocity, the modulation's three, every reflectance and the
+  light), with each adjoint method (``method=``; the demo's ``auto`` is the
+  trajectory: it has motion and indirect light);
 * ``forward``: ``render_derivatives`` with the same names on the importance film (one
   derivative pass per parameter), what the gradient replaces.
 
@@ -38,10 +40,11 @@ def main(argv=None) -> None:
           f"median of {args.repeats} (cold: first run, kernels compiled)")
     for name, m in times.items():
         print(f"  {name:<10} {m:8.3f} s   {m / plain:6.2f} x plain   (cold {cold[name]:.1f} s)")
-    peaks = {kind: _peak_memory(runs[kind]) for kind in ("plain", "gradient")}
+    peaks = {kind: _peak_memory(runs[kind]) for kind in ("plain", "trajectory", "path")}
     print("  peak Dr.Jit memory (MB): " + ", ".join(f"{k} {v:.1f}" for k, v in peaks.items()))
-    print(f"gradient / plain: time {times['gradient'] / plain:.2f}, memory "
-          f"{peaks['gradient'] / peaks['plain']:.2f}")
+    for method in ("trajectory", "path"):
+        print(f"gradient ({method}) / plain: time {times[method] / plain:.2f}, memory "
+              f"{peaks[method] / peaks['plain']:.2f}")
 
 
 def _runs(res: int, spp: int, forward: bool):
@@ -64,8 +67,10 @@ def _runs(res: int, spp: int, forward: bool):
     def loss(image):
         return dr.sum(weights * image, axis=None)
 
-    runs = {"plain": lambda: dopplertof.render(scene, spp=spp, progress=False),
-            "gradient": lambda: gradient(ds, loss, names=names, spp=spp)}
+    runs = {"plain": lambda: dopplertof.render(scene, spp=spp, progress=False)}
+    for method in ("trajectory", "path"):
+        runs[method] = (lambda method=method:
+                        gradient(ds, loss, names=names, spp=spp, method=method))
     if forward:
         runs["forward"] = lambda: render_derivatives(ds, names, spp=spp)
     return runs, names

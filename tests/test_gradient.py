@@ -228,9 +228,11 @@ def test_path_replay_equals_the_trajectory_for_what_no_vertex_carries(published_
     _, ds = published_small
     names = NOT_MOVING + [n for n in differentiable_names(ds) if n.endswith("radiance.value")]
     loss = _linear_loss(_weights((12, 12, 3), positive=True))
-    trajectory = gradient(ds, loss, names=names, spp=16)
+    trajectory = gradient(ds, loss, names=names, spp=16, method="trajectory")
     path = gradient(ds, loss, names=names, spp=16, method="path")
     assert np.array_equal(trajectory.image, path.image) and trajectory.loss == path.loss
+    assert gradient(ds, loss, names=names, spp=4).method == "path"  # (auto: the same)
+    assert gradient(ds, loss, names=names + ["body0.vz"], spp=4).method == "trajectory"
     for name in names:
         a, b = np.asarray(trajectory[name]), np.asarray(path[name])
         assert np.all(a != 0.0), name
@@ -250,8 +252,9 @@ def test_path_replay_equals_the_trajectory_for_motion_in_direct_light():
     ds = DifferentiableScene(scene)
     names = differentiable_names(ds)
     loss = _linear_loss(_weights((12, 12, 3), positive=True))
-    trajectory = gradient(ds, loss, names=names, spp=16)
-    path = gradient(ds, loss, names=names, spp=16, method="path")
+    trajectory = gradient(ds, loss, names=names, spp=16, method="trajectory")
+    path = gradient(ds, loss, names=names, spp=16)
+    assert path.method == "path"  # (auto: every vertex on the camera ray or on a light)
     for name in names:
         a, b = np.asarray(trajectory[name]), np.asarray(path[name])
         scale = max(np.abs(a).max(), 1e-30)
@@ -277,3 +280,4 @@ def test_path_replay_refuses_what_it_cannot_differentiate(published_small):
     mirrored = DifferentiableScene(dopplertof.load_dict(d))
     with pytest.raises(DerivativeError, match="no BSDF with a delta lobe"):
         gradient(mirrored, loss, names=["g_1"], spp=4, method="path")
+    assert gradient(mirrored, loss, names=["g_1"], spp=4).method == "trajectory"

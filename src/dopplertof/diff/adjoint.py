@@ -31,12 +31,13 @@ class Gradient(dict):
     """d loss / d parameter by name: a float, or an array (float64) for a vector
     parameter (a colour's channels; a texture's texels, in the data's shape).
     Also ``image`` (H, W, C float32, the render), ``loss`` (its value), ``spp``,
-    ``seed``."""
+    ``seed`` and ``method`` (the adjoint's: ``trajectory`` or ``path``)."""
 
     image: np.ndarray
     loss: float
     spp: int
     seed: int
+    method: str
 
 
 #: how the adjoint pass runs: ``trajectory``, Dr.Jit's reverse replay of the path
@@ -103,7 +104,7 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         out = Gradient({name: _read_gradient(variables, name) for name in names})
     finally:
         restore()
-    out.image, out.loss, out.spp, out.seed = image, loss_value, spp, int(seed)
+    out.image, out.loss, out.spp, out.seed, out.method = image, loss_value, spp, int(seed), method
     return out
 
 
