@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, no_signal_colours,
-                  preview_figure, save_figure, show_no_signal)
+from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, hide_axes,
+                  no_signal_colours, save_figure, show_no_signal, show_preview)
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
 RADIANCE_GAMMA = 2.2
@@ -53,7 +53,12 @@ def radiance_scalar(radiance: np.ndarray) -> np.ndarray:
     return r.mean(axis=-1) if r.ndim == 3 else r
 
 
+#: the colour bar's label and tick label sizes (points) of every capture preview
+BAR_TEXT = (9, 8)
+
+
 def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
+    """One panel of the comparison figure: like :func:`_preview`'s."""
     colours = no_signal_colours(cmap)
     masked = np.ma.masked_invalid(np.asarray(data, np.float64))
     show_no_signal(ax, masked.shape)
@@ -63,14 +68,22 @@ def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
         im = ax.imshow(masked, cmap=colours, vmin=vmin, vmax=vmax, interpolation="nearest",
                        zorder=1)
     ax.set_title(title, fontsize=10)
-    ax.set_axis_off()
+    hide_axes(ax)
     im.autoscale_None()
     shown = im.norm  # (an arrow at each end that the data passes)
     bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
                        extend=colorbar_extend(data, shown.vmin, shown.vmax))
-    bar.set_label(label, fontsize=9)
-    bar.ax.tick_params(labelsize=8)
+    bar.set_label(label, fontsize=BAR_TEXT[0])
+    bar.ax.tick_params(labelsize=BAR_TEXT[1])
     return im
+
+
+def _preview(data, title, label, cmap, norm, extra_height: float = 0.9):
+    """(figure, axes) of a capture's one-panel preview of ``data`` (H, W): 6 inches
+    wide at 120 dpi (:func:`dopplertof.io.show_preview`)."""
+    h, w = data.shape
+    return show_preview((6.0, 4.8 * h / w + extra_height), 120, data, title, label, cmap,
+                        norm, BAR_TEXT)
 
 
 def radiance_top(*images) -> float:
@@ -97,6 +110,8 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
               metadata: dict | None = None, marked=None) -> None:
     """One scalar map with a colour bar; ``symmetric`` centres the range on zero;
     ``marked`` (H, W bool): pixels cross-hatched in white (:func:`mark_pixels`)."""
+    import matplotlib.colors as colors
+
     data = np.asarray(data, np.float64)
     if symmetric:
         limit = symmetric_limit(data) if vmax is None else vmax
@@ -105,9 +120,7 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
         finite = data[np.isfinite(data)]
         vmin = float(np.percentile(finite, 0.5)) if vmin is None and finite.size else vmin
         vmax = float(np.percentile(finite, 99.5)) if vmax is None and finite.size else vmax
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
-    _draw(ax, fig, data, title, label, cmap, vmin, vmax)
+    fig, ax = _preview(data, title, label, cmap, colors.Normalize(vmin, vmax))
     if marked is not None:
         mark_pixels(ax, marked)
     if note:
@@ -153,9 +166,7 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     hi = float(np.percentile(finite, 99.5)) if finite.size else 1.0
     hi = hi if hi > lo else lo * 10
     shown = np.where(np.isposinf(data), hi, shown)
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
-    _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
+    fig, _ = _preview(shown, title, label, cmap, colors.LogNorm(vmin=lo, vmax=hi))
     if note:
         add_caption(fig, note)
     save_figure(fig, path, metadata)
@@ -163,11 +174,8 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
 
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
     data = radiance_scalar(radiance)
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.8), 120)
-    _draw(ax, fig, data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
-          "gray",
-          norm=_radiance_norm(data))
+    fig, _ = _preview(data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
+                      "gray", _radiance_norm(data), extra_height=0.8)
     save_figure(fig, path, metadata)
 
 
