@@ -106,3 +106,80 @@ def test_depth_preview_marks_the_pixels_beyond_the_wrap(tmp_path, monkeypatch):
             covered[int(round(y0 + 0.5)):int(round(y1 + 0.5)),
                     int(round(x0 + 0.5)):int(round(x1 + 0.5))] = True
         assert np.array_equal(covered, beyond)
+
+
+def _preview_specs(size):
+    """(file name, writer) pairs covering each kind of one-panel preview: signed and
+    unsigned captures, maps with captions, marks, arrows and NaN, a log map, radiance."""
+    rng = np.random.default_rng(size)
+    data = rng.normal(0.0, 10.0, (size, size + 3))
+    data[1:4, 2:6] = np.nan
+    data[0, 0] = 900.0
+    return [
+        ("capture.png", lambda p, k: io.write_png(p, data * (k + 1), title=f"capture {k}")),
+        ("counts.png", lambda p, k: io.write_png(p, np.abs(data) + k, title="counts",
+                                                 signed=False)),
+        ("error.png", lambda p, k: figures.write_map(
+            p, data + k, f"error {k}", "m/s", cmap="PuOr_r", symmetric=True, vmax=33.0,
+            note=f"caption {k}: " + "long " * 20 * k)),
+        ("depth.png", lambda p, k: figures.write_map(
+            p, np.abs(data) + k, "depth", "m", vmin=-1.0, vmax=20.0 + k, note="wrapped",
+            marked=np.abs(data) > 12 + k)),
+        ("std.png", lambda p, k: figures.write_log_map(p, np.abs(data) * (k + 1), "std",
+                                                       "m/s (log scale)", note="x")),
+        ("radiance.png", lambda p, k: figures.write_radiance(p, np.abs(data) * (k + 1),
+                                                             f"radiance {k}")),
+    ]
+
+
+def test_reused_previews_are_the_pictures_of_fresh_ones(tmp_path, monkeypatch):
+    """A preview drawn in a figure that showed another one before (io.show_preview's
+    pool) has the pixels of the same preview drawn in a new figure: nothing of the
+    earlier data, texts, caption, marks or fitted size is left."""
+    made = []
+    original_init = io.ImagePreview.__init__
+
+    def counting_init(self, key):
+        made.append(key)
+        original_init(self, key)
+
+    monkeypatch.setattr(io.ImagePreview, "__init__", counting_init)
+    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
+    specs = _preview_specs(12)
+    for name, write in specs:  # each in a new figure (the pool emptied before each)
+        io._PREVIEW_POOL.clear()
+        write(tmp_path / f"fresh_{name}", 1)
+    fresh_figures = len(made)
+    for name, write in specs:  # each after another of its kind, in that one's figure
+        io._PREVIEW_POOL.clear()
+        write(tmp_path / f"before_{name}", 0)
+        write(tmp_path / f"reused_{name}", 1)
+    assert len(made) == 2 * fresh_figures  # (the second of each pair reused the first)
+    for name, _ in specs:
+        fresh, reused = _rgb(tmp_path / f"fresh_{name}"), _rgb(tmp_path / f"reused_{name}")
+        assert fresh.shape == reused.shape, name
+        assert np.array_equal(fresh, reused), name
+        assert not np.array_equal(_rgb(tmp_path / f"before_{name}"), reused), name
+
+
+def test_reused_previews_have_the_arrows_of_their_own_data(tmp_path, monkeypatch):
+    """The colour bar's arrows follow each preview's data when figures are reused: within
+    the range none, past both ends both, past the top only max, and none again."""
+    from matplotlib.figure import Figure
+
+    extends = []
+    original = Figure.savefig
+
+    def record(fig, path, *args, **kwargs):
+        extends.append([ax._colorbar.extend for ax in fig.axes
+                        if getattr(ax, "_colorbar", None) is not None])
+        return original(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", record)
+    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
+    data = np.linspace(-1.0, 1.0, 64).reshape(8, 8)
+    for k, scale in enumerate((1.0, 50.0, 1.0, 50.0, 1.0)):
+        shown = data * scale if k != 3 else np.abs(data) * scale
+        figures.write_map(tmp_path / f"{k}.png", shown, "v", "m/s", cmap="RdBu_r",
+                          vmin=-33.0 if k != 3 else 0.0, vmax=33.0)
+    assert extends == [["neither"], ["both"], ["neither"], ["max"], ["neither"]]

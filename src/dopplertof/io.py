@@ -687,15 +687,21 @@ def add_caption(fig, text: str, fontsize: float = 8) -> None:
              color="#444444")
 
 
-def preview_figure(size_inches, dpi: float):
-    """(figure, axes) of a one-panel preview, on an Agg canvas of its own (no pyplot):
-    the axes fill the figure, and :func:`save_figure` fits the figure to what it draws
-    (growing it for the title, colour bar and caption), so no layout pass is needed."""
+def agg_figure(size_inches, dpi: float):
+    """A Matplotlib figure on an Agg canvas of its own: no pyplot (nothing to close)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=size_inches, dpi=dpi)
     FigureCanvasAgg(fig)
+    return fig
+
+
+def preview_figure(size_inches, dpi: float):
+    """(figure, axes) of a one-panel preview, on an Agg canvas of its own (no pyplot):
+    the axes fill the figure, and :func:`save_figure` fits the figure to what it draws
+    (growing it for the title, colour bar and caption), so no layout pass is needed."""
+    fig = agg_figure(size_inches, dpi)
     fig.subplots_adjust(left=0.0, right=0.88, bottom=0.05, top=0.94)  # (room for the texts)
     return fig, fig.add_subplot()
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, hide_axes,
+from ..io import (NO_SIGNAL_NOTE, add_caption, agg_figure, colorbar_extend, hide_axes,
                   no_signal_colours, save_figure, show_no_signal, show_preview)
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
@@ -183,13 +183,13 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
                      metadata: dict | None = None, note: str = NO_SIGNAL_NOTE) -> None:
     """Side by side: radiance | reconstructed velocity | ground truth | error; ``note``
     captions the NaN pixels (by their reasons, tof.output.masked_caption)."""
-    plt = _pyplot()
     rad = radiance_scalar(radiance)
     velocity = np.asarray(velocity, np.float64)
     truth = np.asarray(velocity_gt, np.float64)
     error = velocity - truth
     h, w = rad.shape
-    fig, axes = plt.subplots(1, 4, figsize=(20, 3.9 * h / w + 1.0), dpi=110)
+    fig = agg_figure((20, 3.9 * h / w + 1.0), 110)
+    axes = fig.subplots(1, 4)
     limit = truth_limit(truth, velocity)
     err_limit = symmetric_limit(error)
     _draw(axes[0], fig, rad, "radiance", f"scene units, mean of RGB ({RADIANCE_GAMMA_LABEL})",
