@@ -139,9 +139,9 @@ def test_reused_previews_are_the_pictures_of_fresh_ones(tmp_path, monkeypatch):
     made = []
     original_init = io.ImagePreview.__init__
 
-    def counting_init(self, key):
+    def counting_init(self, key, settings):
         made.append(key)
-        original_init(self, key)
+        original_init(self, key, settings)
 
     monkeypatch.setattr(io.ImagePreview, "__init__", counting_init)
     monkeypatch.setattr(io, "_PREVIEW_POOL", [])
@@ -183,3 +183,24 @@ def test_reused_previews_have_the_arrows_of_their_own_data(tmp_path, monkeypatch
         figures.write_map(tmp_path / f"{k}.png", shown, "v", "m/s", cmap="RdBu_r",
                           vmin=-33.0 if k != 3 else 0.0, vmax=33.0)
     assert extends == [["neither"], ["both"], ["neither"], ["max"], ["neither"]]
+
+
+def test_previews_follow_matplotlib_settings_changed_between_them(tmp_path, monkeypatch):
+    """A preview made after a change of Matplotlib's settings (rcParams) is drawn in a new
+    figure with them, not in a pooled one made before; saving a figure twice puts it
+    into the pool once."""
+    import matplotlib
+
+    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
+    data = np.linspace(-1.0, 1.0, 64).reshape(8, 8)
+    io.write_png(tmp_path / "a.png", data)
+    (before,) = io._PREVIEW_POOL
+    with matplotlib.rc_context({"axes.linewidth": 3.0}):
+        io.write_png(tmp_path / "b.png", data)
+        assert len(io._PREVIEW_POOL) == 2 and io._PREVIEW_POOL[0] is before
+    io.write_png(tmp_path / "c.png", data)  # (settings back: the first figure again)
+    assert io._PREVIEW_POOL[-1] is before
+    assert np.array_equal(_rgb(tmp_path / "a.png"), _rgb(tmp_path / "c.png"))
+    assert not np.array_equal(_rgb(tmp_path / "a.png"), _rgb(tmp_path / "b.png"))  # (bolder)
+    io.save_figure(before.fig, tmp_path / "d.png")
+    assert io._PREVIEW_POOL.count(before) == 1

@@ -712,8 +712,8 @@ def preview_figure(size_inches, dpi: float):
 # (Matplotlib makes every axis, tick and spine anew). A capture writes a dozen previews of
 # one shape: each kind is made once, saved, put back as it was made and shown again with
 # the next data, colours and texts. The colour bar's arrows (``extend``) and its norm's
-# type (the bar's scale) are fixed when it is made: previews that differ in them are
-# different figures.
+# type (the bar's scale) are fixed when it is made, and so are the Matplotlib settings
+# (rcParams) it was made with: previews that differ in them are different figures.
 
 #: the most one-panel previews kept for reuse (the least recently saved dropped first)
 PREVIEW_POOL_SIZE = 12
@@ -725,12 +725,13 @@ class ImagePreview:
     """A one-panel preview on its own canvas (:func:`preview_figure`): the NaN hatching,
     one image, its colour bar, the title; ``key`` = (size in inches, dpi, image shape,
     colour bar extend, norm type, (label size, tick label size) of the colour bar, None
-    for Matplotlib's). :func:`show_preview` takes one and shows data in it; after a
-    successful :func:`save_figure` it goes back to the pool, as it was made."""
+    for Matplotlib's), ``settings`` the rcParams it is made with. :func:`show_preview`
+    takes one (``in_use``) and shows data in it; after a successful :func:`save_figure`
+    it goes back to the pool, as it was made."""
 
-    def __init__(self, key):
+    def __init__(self, key, settings):
         size_inches, dpi, shape, extend, _, (_, tick_size) = key
-        self.key = key
+        self.key, self.settings, self.in_use = key, settings, True
         self.fig, self.ax = preview_figure(size_inches, dpi)
         self.fig.dopplertof_preview = self  # (how save_figure knows it)
         self.hatch = show_no_signal(self.ax, shape)
@@ -759,7 +760,9 @@ class ImagePreview:
 
     def reset(self) -> None:
         """Back as made: what one use added (a caption, marks) removed, the layout that
-        :func:`fit_figure` changed restored."""
+        :func:`fit_figure` changed restored, the data let go (a pooled figure holds no
+        capture's arrays)."""
+        self.image.set_data(np.zeros((1, 1)))  # (the extent stays the key's shape's)
         for artist in [*self.fig.texts, *self.ax.collections,
                        *(p for p in self.ax.patches if p is not self.hatch)]:
             artist.remove()
@@ -781,19 +784,34 @@ def show_preview(size_inches, dpi: float, data, title: str, label: str, cmap: st
     gives it back to the pool of previews; add marks and a caption before)."""
     masked = np.ma.masked_invalid(np.asarray(data, np.float64))
     norm.autoscale_None(masked)
-    key = (tuple(size_inches), dpi, masked.shape, colorbar_extend(data, norm.vmin, norm.vmax),
-           type(norm), tuple(bar_text))
-    with _PREVIEW_POOL_LOCK:
-        preview = next((p for p in reversed(_PREVIEW_POOL) if p.key == key), None)
-        if preview is not None:
-            _PREVIEW_POOL.remove(preview)
-    preview = preview or ImagePreview(key)
+    preview = _take_preview((tuple(size_inches), dpi, masked.shape,
+                             colorbar_extend(data, norm.vmin, norm.vmax), type(norm),
+                             tuple(bar_text)))
     preview.show(masked, title, label, cmap, norm)
     return preview.fig, preview.ax
 
 
+def _take_preview(key) -> ImagePreview:
+    """A pooled preview of ``key`` made with today's Matplotlib settings (taken out of
+    the pool), or a new one."""
+    import matplotlib
+
+    settings = matplotlib.rcParams.copy()  # (a copy: reading it resolves no backend)
+    with _PREVIEW_POOL_LOCK:
+        preview = next((p for p in reversed(_PREVIEW_POOL)
+                        if p.key == key and p.settings == settings), None)
+        if preview is not None:
+            _PREVIEW_POOL.remove(preview)
+            preview.in_use = True
+    return preview or ImagePreview(key, settings)
+
+
 def _give_back(preview: ImagePreview) -> None:
-    """``preview`` (saved) reset and put back into the pool for the next one."""
+    """``preview`` (saved, in use) reset and put back into the pool for the next one; a
+    figure saved again after that stays out."""
+    if not preview.in_use:
+        return
+    preview.in_use = False
     preview.reset()
     with _PREVIEW_POOL_LOCK:
         _PREVIEW_POOL.append(preview)
