@@ -45,6 +45,20 @@ def test_signed_preview_limit_is_not_set_by_thin_silhouettes():
     assert io.robust_limit(np.zeros((4, 4))) == 1.0
 
 
+def test_median_3x3_is_scipys_median_filter():
+    """The robust limit's 3x3 median (NumPy, no scipy.ndimage import) has SciPy's values,
+    edges repeated ("nearest"), whatever the shape and the block of rows."""
+    from scipy.ndimage import median_filter
+
+    rng = np.random.default_rng(7)
+    for shape in [(1, 1), (1, 6), (6, 1), (2, 2), (17, 33), (70, 41)]:
+        image = np.abs(rng.normal(size=shape))
+        image[rng.random(shape) < 0.3] = 0.0
+        for rows in (1, 2, 256):
+            assert np.array_equal(io.median_3x3(image, rows),
+                                  median_filter(image, size=3, mode="nearest")), (shape, rows)
+
+
 def test_render_png_title_says_h_offset_and_frequency(tmp_path, monkeypatch, capsys):
     from dopplertof.cli import main
 
