@@ -123,8 +123,9 @@ def test_depth_preview_marks_the_pixels_beyond_the_wrap(tmp_path, monkeypatch):
 
 
 def _preview_specs(size):
-    """(file name, writer) pairs covering each kind of one-panel preview: signed and
-    unsigned captures, maps with captions, marks, arrows and NaN, a log map, radiance."""
+    """(file name, writer) pairs covering each kind of pooled figure: signed and unsigned
+    captures, maps with captions, marks, arrows and NaN, a log map, radiance, the
+    side-by-side comparison."""
     rng = np.random.default_rng(size)
     data = rng.normal(0.0, 10.0, (size, size + 3))
     data[1:4, 2:6] = np.nan
@@ -143,21 +144,23 @@ def _preview_specs(size):
                                                        "m/s (log scale)", note="x")),
         ("radiance.png", lambda p, k: figures.write_radiance(p, np.abs(data) * (k + 1),
                                                              f"radiance {k}")),
+        ("comparison.png", lambda p, k: figures.write_comparison(
+            p, np.abs(data) * (k + 1), data * (k + 1), data * 0.9, f"scene {k}",
+            note=f"note {k}")),
     ]
 
 
 def test_reused_previews_are_the_pictures_of_fresh_ones(tmp_path, monkeypatch):
-    """A preview drawn in a figure that showed another one before (io.show_preview's
+    """A preview drawn in a figure that showed another one before (io.take_figure's
     pool) has the pixels of the same preview drawn in a new figure: nothing of the
-    earlier data, texts, caption, marks or fitted size is left."""
+    earlier data, texts, caption, marks, fitted size or tight layout is left."""
     made = []
-    original_init = io.ImagePreview.__init__
+    for kind in (io.ImagePreview, figures.ComparisonFigure):
+        def counting_init(self, key, settings, original_init=kind.__init__):
+            made.append(key)
+            original_init(self, key, settings)
 
-    def counting_init(self, key, settings):
-        made.append(key)
-        original_init(self, key, settings)
-
-    monkeypatch.setattr(io.ImagePreview, "__init__", counting_init)
+        monkeypatch.setattr(kind, "__init__", counting_init)
     monkeypatch.setattr(io, "_PREVIEW_POOL", [])
     specs = _preview_specs(12)
     for name, write in specs:  # each in a new figure (the pool emptied before each)

@@ -735,57 +735,86 @@ _PREVIEW_POOL: list = []
 _PREVIEW_POOL_LOCK = threading.Lock()
 
 
-class ImagePreview:
-    """A one-panel preview on its own canvas (:func:`preview_figure`): the NaN hatching,
-    one image, its colour bar, the title; ``key`` = (size in inches, dpi, image shape,
-    colour bar extend, norm type, (label size, tick label size) of the colour bar, None
-    for Matplotlib's), ``settings`` the rcParams it is made with. :func:`show_preview`
-    takes one (``in_use``) and shows data in it; after a successful :func:`save_figure`
-    it goes back to the pool, as it was made."""
+class ImagePanel:
+    """One image with a colour bar on ``ax`` of ``fig``: the NaN hatching under it
+    (:func:`show_no_signal`), the axes hidden (:func:`hide_axes`), a colour bar with the
+    arrows ``extend``; ``bar_text`` = its label and tick label sizes (None: Matplotlib's).
+    Made with placeholder data, shown with a preview's (:meth:`show`) as often as needed."""
 
-    def __init__(self, key, settings):
-        size_inches, dpi, shape, extend, _, (_, tick_size) = key
-        self.key, self.settings, self.in_use = key, settings, True
-        self.fig, self.ax = preview_figure(size_inches, dpi)
-        self.fig.dopplertof_preview = self  # (how save_figure knows it)
-        self.hatch = show_no_signal(self.ax, shape)
-        self.image = self.ax.imshow(np.zeros(shape), vmin=0.0, vmax=1.0,
-                                    interpolation="nearest", zorder=1)
-        hide_axes(self.ax)
-        self.bar = self.fig.colorbar(self.image, ax=self.ax, fraction=0.046, pad=0.04,
-                                     extend=extend)
-        if tick_size is not None:
-            self.bar.ax.tick_params(labelsize=tick_size)
-        # the layout as made, before a fit (save_figure) moves and resizes it
-        self.made = (self.fig.get_size_inches().copy(),
-                     [(ax, ax.get_position(original=True), ax.get_axes_locator(),
-                       ax.get_in_layout()) for ax in self.fig.axes])
+    def __init__(self, fig, ax, shape, extend: str, bar_text):
+        self.ax, self.label_size = ax, bar_text[0]
+        self.hatch = show_no_signal(ax, shape)
+        self.image = ax.imshow(np.zeros(shape), vmin=0.0, vmax=1.0, interpolation="nearest",
+                               zorder=1)
+        hide_axes(ax)
+        self.bar = fig.colorbar(self.image, ax=ax, fraction=0.046, pad=0.04, extend=extend)
+        if bar_text[1] is not None:
+            self.bar.ax.tick_params(labelsize=bar_text[1])
 
     def show(self, masked, title: str, label: str, cmap: str, norm) -> None:
-        """``masked`` (a masked array of the key's shape) on ``norm`` in ``cmap`` (its
+        """``masked`` (a masked array of the panel's shape) on ``norm`` in ``cmap`` (its
         NaN transparent: :func:`no_signal_colours`), titled, the colour bar labelled."""
-        label_size = self.key[-1][0]
         self.image.set_data(masked)
         with self.image.callbacks.blocked(signal="changed"):  # (one colour bar update)
             self.image.set_cmap(no_signal_colours(cmap))
         self.image.set_norm(norm)  # (the colour bar follows: Colorbar.update_normal)
         self.ax.set_title(title, fontsize=10)
-        self.bar.set_label(label, **({} if label_size is None else {"fontsize": label_size}))
+        self.bar.set_label(label, **({} if self.label_size is None
+                                     else {"fontsize": self.label_size}))
+
+    def clear(self) -> None:
+        """What a use added on the axes (marks) removed, its data let go (a pooled figure
+        holds no capture's arrays; the image keeps its extent)."""
+        self.image.set_data(np.zeros((1, 1)))
+        for artist in [*self.ax.collections, *(p for p in self.ax.patches
+                                               if p is not self.hatch)]:
+            artist.remove()
+
+
+def layout_as_made(fig):
+    """What :func:`restore_layout` needs to undo a layout (``tight_layout``) and a fit
+    (:func:`fit_figure`): the size, the subplot parameters, each axes' place."""
+    params = fig.subplotpars
+    return (fig.get_size_inches().copy(),
+            (params.left, params.bottom, params.right, params.top, params.wspace,
+             params.hspace),
+            [(ax, ax.get_position(original=True), ax.get_axes_locator(), ax.get_in_layout())
+             for ax in fig.axes])
+
+
+def restore_layout(fig, made) -> None:
+    """``fig`` laid out as when ``made`` (:func:`layout_as_made`) was taken."""
+    size, params, places = made
+    fig.set_size_inches(size)
+    fig.subplots_adjust(*params)
+    for ax, position, locator, in_layout in places:
+        ax.set_position(position)
+        ax.set_axes_locator(locator)
+        ax.set_in_layout(in_layout)
+
+
+class ImagePreview:
+    """A one-panel preview on its own canvas (:func:`preview_figure`), one
+    :class:`ImagePanel`; ``key`` = (size in inches, dpi, image shape, colour bar extend,
+    norm type, colour bar text sizes), ``settings`` the rcParams it is made with.
+    :func:`show_preview` takes one (:func:`take_figure`) and shows data in it; after a
+    successful :func:`save_figure` it goes back to the pool, as it was made."""
+
+    def __init__(self, key, settings):
+        size_inches, dpi, shape, extend, _, bar_text = key
+        self.key, self.settings, self.in_use = key, settings, True
+        self.fig, ax = preview_figure(size_inches, dpi)
+        self.fig.dopplertof_preview = self  # (how save_figure knows it)
+        self.panel = ImagePanel(self.fig, ax, shape, extend, bar_text)
+        self.made = layout_as_made(self.fig)  # (before a fit moves and resizes it)
 
     def reset(self) -> None:
-        """Back as made: what one use added (a caption, marks) removed, the layout that
-        :func:`fit_figure` changed restored, the data let go (a pooled figure holds no
-        capture's arrays)."""
-        self.image.set_data(np.zeros((1, 1)))  # (the extent stays the key's shape's)
-        for artist in [*self.fig.texts, *self.ax.collections,
-                       *(p for p in self.ax.patches if p is not self.hatch)]:
-            artist.remove()
-        size, places = self.made
-        self.fig.set_size_inches(size)
-        for ax, position, locator, in_layout in places:
-            ax.set_position(position)
-            ax.set_axes_locator(locator)
-            ax.set_in_layout(in_layout)
+        """Back as made: what one use added (a caption, marks) removed, its data let go,
+        the layout that :func:`fit_figure` changed restored."""
+        self.panel.clear()
+        for text in list(self.fig.texts):
+            text.remove()
+        restore_layout(self.fig, self.made)
 
 
 def show_preview(size_inches, dpi: float, data, title: str, label: str, cmap: str, norm,
@@ -798,16 +827,18 @@ def show_preview(size_inches, dpi: float, data, title: str, label: str, cmap: st
     gives it back to the pool of previews; add marks and a caption before)."""
     masked = np.ma.masked_invalid(np.asarray(data, np.float64))
     norm.autoscale_None(masked)
-    preview = _take_preview((tuple(size_inches), dpi, masked.shape,
-                             colorbar_extend(data, norm.vmin, norm.vmax), type(norm),
-                             tuple(bar_text)))
-    preview.show(masked, title, label, cmap, norm)
-    return preview.fig, preview.ax
+    preview = take_figure((tuple(size_inches), dpi, masked.shape,
+                           colorbar_extend(data, norm.vmin, norm.vmax), type(norm),
+                           tuple(bar_text)), ImagePreview)
+    preview.panel.show(masked, title, label, cmap, norm)
+    return preview.fig, preview.panel.ax
 
 
-def _take_preview(key) -> ImagePreview:
-    """A pooled preview of ``key`` made with today's Matplotlib settings (taken out of
-    the pool), or a new one."""
+def take_figure(key, make):
+    """A pooled figure of ``key`` made with today's Matplotlib settings (taken out of the
+    pool, ``in_use``), or ``make(key, settings)``: an object with ``key``, ``settings``,
+    ``in_use``, ``fig`` (whose ``dopplertof_preview`` is the object) and ``reset()``, as
+    :class:`ImagePreview`; :func:`save_figure` gives it back."""
     import matplotlib
 
     settings = matplotlib.rcParams.copy()  # (a copy: reading it resolves no backend)
@@ -817,10 +848,10 @@ def _take_preview(key) -> ImagePreview:
         if preview is not None:
             _PREVIEW_POOL.remove(preview)
             preview.in_use = True
-    return preview or ImagePreview(key, settings)
+    return preview or make(key, settings)
 
 
-def _give_back(preview: ImagePreview) -> None:
+def _give_back(preview) -> None:
     """``preview`` (saved, in use) reset and put back into the pool for the next one; a
     figure saved again after that stays out."""
     if not preview.in_use:
