@@ -720,16 +720,17 @@ def preview_figure(size_inches, dpi: float):
     return fig, fig.add_subplot()
 
 
-# ---- One-panel previews, made once and shown again ----------------------------------------
+# ---- Previews made once and shown again ---------------------------------------------------
 #
 # Making a preview's figure, its axes and its colour bar costs about as much as drawing it
 # (Matplotlib makes every axis, tick and spine anew). A capture writes a dozen previews of
 # one shape: each kind is made once, saved, put back as it was made and shown again with
-# the next data, colours and texts. The colour bar's arrows (``extend``) and its norm's
-# type (the bar's scale) are fixed when it is made, and so are the Matplotlib settings
-# (rcParams) it was made with: previews that differ in them are different figures.
+# the next data, colours and texts (the one-panel previews here, tof.figures' side-by-side
+# comparison). The colour bars' arrows (``extend``) and norm types (the bars' scales) are
+# fixed when a figure is made, and so are the Matplotlib settings (rcParams) it was made
+# with: previews that differ in them are different figures.
 
-#: the most one-panel previews kept for reuse (the least recently saved dropped first)
+#: the most figures kept for reuse (the least recently saved dropped first)
 PREVIEW_POOL_SIZE = 12
 _PREVIEW_POOL: list = []
 _PREVIEW_POOL_LOCK = threading.Lock()
