@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io import (NO_SIGNAL_NOTE, add_caption, colorbar_extend, no_signal_colours,
-                  preview_figure, save_figure, show_no_signal)
+from ..io import (NO_SIGNAL_NOTE, ImagePanel, add_caption, agg_figure, colorbar_extend,
+                  layout_as_made, restore_layout, save_figure, show_preview, take_figure)
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
 RADIANCE_GAMMA = 2.2
@@ -53,24 +53,16 @@ def radiance_scalar(radiance: np.ndarray) -> np.ndarray:
     return r.mean(axis=-1) if r.ndim == 3 else r
 
 
-def _draw(ax, fig, data, title, label, cmap, vmin=None, vmax=None, norm=None):
-    colours = no_signal_colours(cmap)
-    masked = np.ma.masked_invalid(np.asarray(data, np.float64))
-    show_no_signal(ax, masked.shape)
-    if norm is not None:
-        im = ax.imshow(masked, cmap=colours, norm=norm, interpolation="nearest", zorder=1)
-    else:
-        im = ax.imshow(masked, cmap=colours, vmin=vmin, vmax=vmax, interpolation="nearest",
-                       zorder=1)
-    ax.set_title(title, fontsize=10)
-    ax.set_axis_off()
-    im.autoscale_None()
-    shown = im.norm  # (an arrow at each end that the data passes)
-    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
-                       extend=colorbar_extend(data, shown.vmin, shown.vmax))
-    bar.set_label(label, fontsize=9)
-    bar.ax.tick_params(labelsize=8)
-    return im
+#: the colour bar's label and tick label sizes (points) of every capture preview
+BAR_TEXT = (9, 8)
+
+
+def _preview(data, title, label, cmap, norm, extra_height: float = 0.9):
+    """(figure, axes) of a capture's one-panel preview of ``data`` (H, W): 6 inches
+    wide at 120 dpi (:func:`dopplertof.io.show_preview`)."""
+    h, w = data.shape
+    return show_preview((6.0, 4.8 * h / w + extra_height), 120, data, title, label, cmap,
+                        norm, BAR_TEXT)
 
 
 def radiance_top(*images) -> float:
@@ -97,6 +89,8 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
               metadata: dict | None = None, marked=None) -> None:
     """One scalar map with a colour bar; ``symmetric`` centres the range on zero;
     ``marked`` (H, W bool): pixels cross-hatched in white (:func:`mark_pixels`)."""
+    import matplotlib.colors as colors
+
     data = np.asarray(data, np.float64)
     if symmetric:
         limit = symmetric_limit(data) if vmax is None else vmax
@@ -105,9 +99,7 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
         finite = data[np.isfinite(data)]
         vmin = float(np.percentile(finite, 0.5)) if vmin is None and finite.size else vmin
         vmax = float(np.percentile(finite, 99.5)) if vmax is None and finite.size else vmax
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
-    _draw(ax, fig, data, title, label, cmap, vmin, vmax)
+    fig, ax = _preview(data, title, label, cmap, colors.Normalize(vmin, vmax))
     if marked is not None:
         mark_pixels(ax, marked)
     if note:
@@ -153,9 +145,7 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     hi = float(np.percentile(finite, 99.5)) if finite.size else 1.0
     hi = hi if hi > lo else lo * 10
     shown = np.where(np.isposinf(data), hi, shown)
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.9), 120)
-    _draw(ax, fig, shown, title, label, cmap, norm=colors.LogNorm(vmin=lo, vmax=hi))
+    fig, _ = _preview(shown, title, label, cmap, colors.LogNorm(vmin=lo, vmax=hi))
     if note:
         add_caption(fig, note)
     save_figure(fig, path, metadata)
@@ -163,36 +153,63 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
 
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
     data = radiance_scalar(radiance)
-    h, w = data.shape
-    fig, ax = preview_figure((6.0, 4.8 * h / w + 0.8), 120)
-    _draw(ax, fig, data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
-          "gray",
-          norm=_radiance_norm(data))
+    fig, _ = _preview(data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
+                      "gray", _radiance_norm(data), extra_height=0.8)
     save_figure(fig, path, metadata)
+
+
+#: the comparison figure's panels, left to right: (title, colour bar label, colour map)
+COMPARISON_PANELS = (
+    ("radiance", f"scene units, mean of RGB ({RADIANCE_GAMMA_LABEL})", "gray"),
+    ("reconstructed radial velocity", "m/s (+ receding)", "RdBu_r"),
+    ("ground truth (mid-exposure)", "m/s (+ receding)", "RdBu_r"),
+    ("error (reconstructed - truth)", "m/s", "PuOr_r"),
+)
+
+
+class ComparisonFigure:
+    """The side-by-side figure on its own canvas: four :class:`dopplertof.io.ImagePanel`
+    in a row; ``key`` = (image shape, the four colour bars' arrows). Made once per key
+    and Matplotlib settings and shown again (:func:`dopplertof.io.take_figure`), as the
+    one-panel previews are; :func:`dopplertof.io.save_figure` gives it back."""
+
+    def __init__(self, key, settings):
+        (h, w), extends = key
+        self.key, self.settings, self.in_use = key, settings, True
+        self.fig = agg_figure((20, 3.9 * h / w + 1.0), 110)
+        self.fig.dopplertof_preview = self  # (how save_figure knows it)
+        self.panels = [ImagePanel(self.fig, ax, (h, w), extend, BAR_TEXT)
+                       for ax, extend in zip(self.fig.subplots(1, 4), extends)]
+        self.made = layout_as_made(self.fig)  # (before tight_layout and the fit)
+
+    def reset(self) -> None:
+        """Back as made: the data let go, the layout restored (the title stays, set anew
+        by each use)."""
+        for panel in self.panels:
+            panel.clear()
+        restore_layout(self.fig, self.made)
 
 
 def write_comparison(path, radiance, velocity, velocity_gt, title: str,
                      metadata: dict | None = None, note: str = NO_SIGNAL_NOTE) -> None:
     """Side by side: radiance | reconstructed velocity | ground truth | error; ``note``
     captions the NaN pixels (by their reasons, tof.output.masked_caption)."""
-    plt = _pyplot()
+    import matplotlib.colors as colors
+
     rad = radiance_scalar(radiance)
     velocity = np.asarray(velocity, np.float64)
     truth = np.asarray(velocity_gt, np.float64)
     error = velocity - truth
-    h, w = rad.shape
-    fig, axes = plt.subplots(1, 4, figsize=(20, 3.9 * h / w + 1.0), dpi=110)
-    limit = truth_limit(truth, velocity)
-    err_limit = symmetric_limit(error)
-    _draw(axes[0], fig, rad, "radiance", f"scene units, mean of RGB ({RADIANCE_GAMMA_LABEL})",
-          "gray",
-          norm=_radiance_norm(rad))
-    _draw(axes[1], fig, velocity, "reconstructed radial velocity", "m/s (+ receding)",
-          "RdBu_r", -limit, limit)
-    _draw(axes[2], fig, truth, "ground truth (mid-exposure)", "m/s (+ receding)", "RdBu_r",
-          -limit, limit)
-    _draw(axes[3], fig, error, "error (reconstructed - truth)", "m/s", "PuOr_r",
-          -err_limit, err_limit)
+    limit, err_limit = truth_limit(truth, velocity), symmetric_limit(error)
+    shown = [(rad, _radiance_norm(rad)), (velocity, colors.Normalize(-limit, limit)),
+             (truth, colors.Normalize(-limit, limit)),
+             (error, colors.Normalize(-err_limit, err_limit))]
+    extends = tuple(colorbar_extend(data, norm.vmin, norm.vmax) for data, norm in shown)
+    comparison = take_figure((rad.shape, extends), ComparisonFigure)
+    for panel, (data, norm), (panel_title, label, cmap) in zip(comparison.panels, shown,
+                                                               COMPARISON_PANELS):
+        panel.show(np.ma.masked_invalid(data), panel_title, label, cmap, norm)
+    fig = comparison.fig
     fig.suptitle(f"{title}   ({note})", fontsize=11)
     fig.tight_layout()
     save_figure(fig, path, metadata)
