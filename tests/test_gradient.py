@@ -281,3 +281,34 @@ def test_path_replay_refuses_what_it_cannot_differentiate(published_small):
     with pytest.raises(DerivativeError, match="no BSDF with a delta lobe"):
         gradient(mirrored, loss, names=["g_1"], spp=4, method="path")
     assert gradient(mirrored, loss, names=["g_1"], spp=4).method == "trajectory"
+
+
+@pytest.mark.parametrize("hide_emitters", [False, True])
+def test_path_replay_equals_the_trajectory_with_an_area_light(hide_emitters):
+    """Stock Mitsuba's Cornell box (an area light in the ceiling, seen by the camera, hit
+    by BSDF samples and sampled, combined by MIS; or hidden, its camera rays passing
+    through it), max_depth 3: the light's radiance, the walls' reflectances and the
+    modulation by both methods."""
+    import mitsuba as mi
+
+    import dopplertof
+    from dopplertof.diff import DifferentiableScene, gradient
+    from dopplertof.diff.render import differentiable_names
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    d = mi.cornell_box()
+    d["integrator"] = {"type": "dopplertof", "max_depth": 3, "hide_emitters": hide_emitters,
+                       "hetero_frequency": 0.0, "w_g": 30.0}  # (homodyne: no cancellation)
+    d["sensor"]["film"].update(width=10, height=10)
+    d["sensor"].update(shutter_open=0.0, shutter_close=0.0015)
+    ds = DifferentiableScene(dopplertof.load_dict(d))
+    names = [n for n in differentiable_names(ds) if n.endswith(("radiance.value", "g_1"))
+             or n in ("white.reflectance.value", "red.reflectance.value[0]", "w_g")]
+    assert any(n.endswith("radiance.value") for n in names)
+    loss = _linear_loss(_weights((10, 10, 3), positive=True))
+    trajectory = gradient(ds, loss, names=names, spp=16, method="trajectory")
+    path = gradient(ds, loss, names=names, spp=16)
+    assert path.method == "path"
+    for name in names:
+        a, b = np.asarray(trajectory[name]), np.asarray(path[name])
+        assert np.all(a != 0.0) and np.all(np.abs(a - b) <= RELATIVE * np.abs(a)), (name, a, b)

@@ -22,9 +22,11 @@ places on their surfaces (x(theta) = T_theta(t) T_theta0(t)^-1 x for a body's po
 static points stay): both are the integrand's derivatives at fixed random numbers, so
 nothing propagates along a path, and memory does not grow with its length. Forward
 mode (and the trajectory method) let every vertex follow its ray instead: the two
-agree in expectation and per sample wherever no vertex after the first bounce moves
+agree in expectation, and per sample wherever no vertex after the first bounce moves
 (reflectances, emission, the modulation; light samples, which are points on the
-lights either way), not for the motion of indirectly lit bodies.
+lights either way). For the motion of indirectly lit bodies they differ per sample,
+and this one is far noisier: the derivative of the geometry term 1/r^2 between two
+vertices grows without bound where they meet (docs/differentiable.md, "Path replay").
 """
 
 from __future__ import annotations
