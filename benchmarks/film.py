@@ -9,6 +9,8 @@ or a shadow inside; the light excluded).
 
     .venv/bin/python benchmarks/film.py [--res 48] [--spp 16] [--seeds 24]
     .venv/bin/python benchmarks/film.py --timing 7     (throughput of the pixel sets)
+    .venv/bin/python benchmarks/film.py --depths 2 3 6 (the default film's ratio by max_depth:
+                                                        where the variance is)
 
 Prints, per filter and film (``splat`` with each normalization and ``pixel_sets``,
 ``importance``), the ratio of our variance to stock's (< 1: less noisy than stock); the
@@ -70,6 +72,32 @@ def throughput(repeats: int) -> None:
           f"{warm['joint'] / warm['independent']:.3f}")
 
 
+def by_depth(res: int, spp: int, seeds: int, depths) -> None:
+    """Per filter (box, tent) and max_depth, stock's per-pixel variance, ours (the default
+    film) and their ratio, on the smooth pixels of the depth-6 reference: how much of the
+    variance is direct light (max_depth 2) and how much each depth adds."""
+    import mitsuba as mi
+
+    import dopplertof
+
+    for rfilter in ("box", "tent"):
+        stock_full = mi.load_dict(scene({"type": "path", "max_depth": 6}, rfilter, res, spp))
+        mask = smooth_pixels(np.array(mi.render(stock_full, spp=64 * spp, seed=10_000))
+                             [..., :3].mean(-1))
+        for depth in depths:
+            stock_scene = mi.load_dict(scene({"type": "path", "max_depth": depth}, rfilter,
+                                             res, spp))
+            ours_scene = dopplertof.load_dict(scene(
+                {"type": "dopplertof", "max_depth": depth, "w_g": 1e-6}, rfilter, res, spp))
+            stock = np.array([np.array(mi.render(stock_scene, spp=spp, seed=s))[..., :3]
+                              .mean(-1) for s in range(seeds)])
+            ours = np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
+                             for s in range(seeds)])
+            v_stock, v_ours = (a.var(0, ddof=1)[mask].mean() for a in (stock, ours))
+            print(f"  {rfilter:5s} max_depth {depth}: stock {v_stock:.3e}, ours {v_ours:.3e}, "
+                  f"ratio {v_ours / v_stock:.2f}", flush=True)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--res", type=int, default=48)
@@ -77,6 +105,9 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=int, default=24)
     p.add_argument("--timing", type=int, metavar="REPEATS",
                    help="only time the pixel sets against each other (interleaved)")
+    p.add_argument("--depths", type=int, nargs="+", metavar="MAX_DEPTH",
+                   help="only the default film against stock at each max_depth (box, tent): "
+                   "2 is direct light, the rest adds bounces")
     args = p.parse_args(argv)
 
     import mitsuba as mi
@@ -86,6 +117,9 @@ def main(argv=None) -> int:
     dopplertof.set_variant("llvm_ad_rgb")
     if args.timing:
         throughput(args.timing)
+        return 0
+    if args.depths:
+        by_depth(args.res, args.spp, args.seeds, args.depths)
         return 0
     worst = 0.0
     for rfilter in ("box", "tent", "gaussian"):
