@@ -98,9 +98,11 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         lane_adjoint = LaneAdjoint(mi, setup, sums, image_adjoint, spp, (height, width))
 
         # ---- Adjoint: the same lanes, backwards ----
-        if variables and np.any(image_adjoint):
-            adjoint = _path_adjoint if method == "path" else _trajectory_adjoint
-            adjoint(mi, setup, plan, passes, kept, lane_adjoint)
+        if variables and np.any(image_adjoint) and method == "path":
+            motion = any(_MOTION_NAME.match(name) for name in names)
+            _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion)
+        elif variables and np.any(image_adjoint):
+            _trajectory_adjoint(mi, setup, plan, passes, kept, lane_adjoint)
         out = Gradient({name: _read_gradient(variables, name) for name in names})
     finally:
         restore()
@@ -141,9 +143,10 @@ def _trajectory_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
         del value, film_offset
 
 
-def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
+def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> None:
     """Each pass's paths traced again by the path-replay adjoint
-    (integrators/path_adjoint.py), with each lane's adjoint and primal sums."""
+    (integrators/path_adjoint.py), with each lane's adjoint and primal sums (``motion``:
+    a body's or the camera's motion is differentiated)."""
     import drjit as dr
 
     for first_chunk, end_chunk in passes:
@@ -154,7 +157,7 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
         else:
             (layout, value, film_offset, value_dl), kept = kept, None
         delta = mi.Spectrum(*lane_adjoint.lane_adjoints(layout, value, film_offset))
-        setup.adjoint(layout, delta, value, value_dl)
+        setup.adjoint(layout, delta, value, value_dl, motion)
         dr.eval()  # (the gradients the loop scatters; its values are not needed)
 
 

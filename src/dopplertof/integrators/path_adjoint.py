@@ -48,8 +48,9 @@ class AttachedLane:
     per-lane copies of them): the camera ray at the lane's film position and time,
     the bodies' frames at its time, and their detached frames."""
 
-    def __init__(self, mi, setup, start):
+    def __init__(self, mi, setup, start, motion: bool):
         self.mi, self.setup = mi, setup
+        self.motion = motion  #: whether anything the vertices' places depend on is attached
         self.time, self.position, self.lens = start.time, start.film_position, start.lens
         self.frames = start.frames  #: detached BodyFrames (None without bodies)
         self.light_frames = start.light_frames  #: the lights' frames (not differentiated)
@@ -129,15 +130,16 @@ def tangent_point(mi, p, n, move, camera_ray):
 
 
 @dr.syntax
-def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl):
+def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, motion=True):
     """Trace each lane's path again and back-propagate ``delta`` (per lane, the
     variant's Spectrum: d loss / d lane value) through each vertex's local terms;
-    ``total`` and ``total_dl`` are the primal pass's sums M and M_L. Returns the
-    lanes' values as traced again (the primal's, for checking)."""
+    ``total`` and ``total_dl`` are the primal pass's sums M and M_L; ``motion``: whether
+    any motion (a body's, the camera's) is attached (else the vertices stay as traced).
+    Returns the lanes' values as traced again (the primal's)."""
     static = setup.scene.static
     modulation = setup.modulation_weight
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
-    attached = AttachedLane(mi, setup, start)
+    attached = AttachedLane(mi, setup, start, motion)
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
 
@@ -216,18 +218,34 @@ def _local_terms(mi, setup, attached, hit, v, numbers, depth, beta, t_rel, suffi
                  before, bsdf_ctx):
     """The vertex's local terms (Spectrum, attached): d/d theta of their dot product with
     delta is the vertex's share of d loss / d theta (see the module docstring)."""
-    static, modulation = setup.scene.static, setup.modulation_weight
     si, pi, winner = hit
     remaining, remaining_dl = suffix  # the contributions at or after this vertex
+    terms = mi.Spectrum(0.0)
+    if attached.motion:  # ---- vertices that move: attached, with the segment's length ----
+        here, last_a, wi_last, segment = _moving_vertices(
+            mi, setup, attached, hit, v, depth, last, before)
+        terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
+    else:  # ---- nothing moves: the vertices as traced ----
+        here, last_a = si, mi.SurfaceInteraction3f(last.si)
+        wi_last = last_a.to_world(last_a.wi)
+
+    # ---- The transition into it, and its own emitter hit and light sample ----
+    terms += _transition_term(mi, (here, last_a), wi_last, depth, v.valid, remaining,
+                              bsdf_ctx)
+    return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
+
+
+def _moving_vertices(mi, setup, attached, hit, v, depth, last, before):
+    """This vertex and the last scattering one, attached (at most one of them lies on the
+    camera ray, so one interaction follows it), the direction the last one was reached
+    from, and the length of the segment reaching this one (from the lens on the camera
+    ray)."""
+    si, pi, winner = hit
     moved, moves = attached.pose()
     camera, camera_offset = attached.camera_ray()
     on_camera_ray = depth == 0
-    scattered = v.valid & ~v.through
-
-    # ---- This vertex and the last scattering one, attached ----
-    # (at most one of them lies on the camera ray: one interaction follows it)
     first = mi.PreliminaryIntersection3f(dr.select(on_camera_ray, pi, last.pi))
-    followed = surface_interaction(mi, static, moved, camera, first,
+    followed = surface_interaction(mi, setup.scene.static, moved, camera, first,
                                    dr.select(on_camera_ray, winner, last.winner),
                                    v.valid & (depth <= 1))
     last_a = dr.select(depth == 1, followed,
@@ -236,29 +254,22 @@ def _local_terms(mi, setup, attached, hit, v, numbers, depth, beta, t_rel, suffi
                      material_interaction(mi, si, attached.move_of(moves, winner)))
     here.wi = dr.select(on_camera_ray, here.wi,
                         here.to_local(dr.normalize(last_a.p - here.p)))
-
-    # ---- The segment reaching it: the path length of all that follows ----
-    segment = dr.select(on_camera_ray, modulation.to_float32(camera_offset)
-                        + dr.norm(here.p - camera.o), dr.norm(here.p - last_a.p))
-    terms = dr.select(scattered, remaining_dl * segment, 0.0)
-
-    # ---- The transition into it, and its own emitter hit and light sample ----
-    terms += _transition_term(mi, attached, moves, camera, (here, last_a), before, depth,
-                              v.valid, remaining, bsdf_ctx)
-    return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
-
-
-def _transition_term(mi, attached, moves, camera, vertices, before, depth, valid,
-                     remaining, bsdf_ctx):
-    """The transition into this vertex, ``remaining`` x Phi / detach(Phi): Phi the last
-    vertex's BSDF value toward it (from the one before, or the camera) times the
-    geometry term |cos| / r^2 at this vertex (``vertices``: both, attached)."""
-    here, last_a = vertices
     before_move = attached.move_of(moves, before.winner)
     before_a = dr.select(before.on_camera_ray != 0,
                          tangent_point(mi, before.si.p, before.si.n, before_move, camera),
                          material_point(mi, before.si.p, before_move))
     wi_last = dr.select(depth == 1, -camera.d, dr.normalize(before_a - last_a.p))
+    segment = dr.select(on_camera_ray,
+                        setup.modulation_weight.to_float32(camera_offset)
+                        + dr.norm(here.p - camera.o), dr.norm(here.p - last_a.p))
+    return here, last_a, wi_last, segment
+
+
+def _transition_term(mi, vertices, wi_last, depth, valid, remaining, bsdf_ctx):
+    """The transition into this vertex, ``remaining`` x Phi / detach(Phi): Phi the last
+    vertex's BSDF value toward it (reached from ``wi_last``, world) times the geometry
+    term |cos| / r^2 at this vertex (``vertices``: this one and the last, attached)."""
+    here, last_a = vertices
     to_here = here.p - last_a.p
     wo_last = dr.normalize(to_here)
     last_a.wi = last_a.to_local(wi_last)
