@@ -158,7 +158,7 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> 
             (layout, value, film_offset, value_dl), kept = kept, None
         delta = mi.Spectrum(*lane_adjoint.lane_adjoints(layout, value, film_offset))
         setup.adjoint(layout, delta, value, value_dl, motion)
-        dr.eval()  # (the gradients the loop scatters; its values are not needed)
+        dr.eval()  # (runs the loop: the gradients are what it scatters)
 
 
 def _method(mi, setup, names, method: str) -> str:

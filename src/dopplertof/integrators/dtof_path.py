@@ -205,15 +205,14 @@ def _define_class(mi):
             """The path-replay adjoint pass of ``trace(layout, length_derivative=True)``
             (its ``total`` and ``total_dl``): back-propagates each lane's ``delta``
             (d loss / d lane value) into the attached parameters (``motion``: a body's
-            or the camera's motion among them); returns the lanes' values as traced
-            again (integrators/path_adjoint.py)."""
+            or the camera's motion among them), as side effects that the next
+            ``dr.eval()`` runs (integrators/path_adjoint.py)."""
             from .path_adjoint import adjoint_paths
 
             with dr.suspend_grad():
                 streams = lane_streams(mi, self, layout)
-                return adjoint_paths(mi, self, layout, streams,
-                                     self.sample_camera(layout, streams), delta, total,
-                                     total_dl, motion)
+                adjoint_paths(mi, self, layout, streams, self.sample_camera(layout, streams),
+                              delta, total, total_dl, motion)
 
     DopplerToFPath.__qualname__ = "DopplerToFPath"  # (not _define_class.<locals>...)
     return DopplerToFPath

@@ -35,11 +35,10 @@ from dataclasses import dataclass
 
 import drjit as dr
 
-from ..scene import lights
 from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
 from ..scene.motion import select_transform, transform_point, transform_vector, vec3
-from .path_steps import (advance, contributions, length_derivatives, loop_settings, shade,
-                         survive, vertex_numbers)
+from .path_steps import (advance, contributions, length_derivatives, loop_settings,
+                         sample_light, shade, survive, vertex_numbers)
 
 
 class AttachedLane:
@@ -120,10 +119,10 @@ def material_point(mi, p, move):
     return p if move is None else vec3(mi, mi.Point3f, transform_point(move, p))
 
 
-def tangent_point(mi, p, n, move, camera_ray):
-    """A camera-ray vertex at ``p`` (geometric normal ``n``) as the camera ray's hit of
-    its moving tangent plane: exact to first order, as the vertex follows the ray."""
-    moved = material_point(mi, p, move)
+def tangent_point(mi, moved, n, move, camera_ray):
+    """A camera-ray vertex as the camera ray's hit of its moving tangent plane (exact to
+    first order, as the vertex follows the ray): ``moved``, its point moved with its
+    body (material_point), ``n`` its geometric normal, moved here by ``move``."""
     normal = n if move is None else vec3(mi, mi.Normal3f, transform_vector(move, n))
     t = dr.dot(normal, moved - camera_ray.o) / dr.dot(normal, camera_ray.d)
     return camera_ray.o + t * camera_ray.d
@@ -135,7 +134,8 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     variant's Spectrum: d loss / d lane value) through each vertex's local terms;
     ``total`` and ``total_dl`` are the primal pass's sums M and M_L; ``motion``: whether
     any motion (a body's, the camera's) is attached (else the vertices stay as traced).
-    Returns the lanes' values as traced again (the primal's)."""
+    Returns nothing: the gradients are the loop's side effects (``dr.eval()`` runs it;
+    evaluating a loop value as well would run the loop a second time)."""
     static = setup.scene.static
     modulation = setup.modulation_weight
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
@@ -189,7 +189,6 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
             mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
         prev_bsdf_delta = mi.UInt32(dr.select(delta_lobe, 1, 0))
         beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
-    return prefix
 
 
 @dataclass
@@ -255,9 +254,10 @@ def _moving_vertices(mi, setup, attached, hit, v, depth, last, before):
     here.wi = dr.select(on_camera_ray, here.wi,
                         here.to_local(dr.normalize(last_a.p - here.p)))
     before_move = attached.move_of(moves, before.winner)
+    before_moved = material_point(mi, before.si.p, before_move)
     before_a = dr.select(before.on_camera_ray != 0,
-                         tangent_point(mi, before.si.p, before.si.n, before_move, camera),
-                         material_point(mi, before.si.p, before_move))
+                         tangent_point(mi, before_moved, before.si.n, before_move, camera),
+                         before_moved)
     wi_last = dr.select(depth == 1, -camera.d, dr.normalize(before_a - last_a.p))
     segment = dr.select(on_camera_ray,
                         setup.modulation_weight.to_float32(camera_offset)
@@ -291,11 +291,8 @@ def _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
         emitted = si.emitter(static).eval(here, v.hit_emitter)
         terms += dr.select(v.hit_emitter, beta * v.mis_hit * emitted
                            * modulation(dr.detach(v.length_hit), t_rel), 0.0)
-    ds, em_weight = (
-        lights.sample_emitter_direction(mi, static, attached.light_frames, here, numbers[0],
-                                        v.active_em)
-        if attached.light_frames is not None
-        else static.sample_emitter_direction(here, numbers[0], False, v.active_em))
+    ds, em_weight = sample_light(mi, static, attached.light_frames, here, numbers[0],
+                                 v.active_em)
     bsdf_value = here.bsdf().eval(bsdf_ctx, here, here.to_local(ds.d), v.active_em)
     terms += dr.select(v.active_em, beta * v.mis_em * bsdf_value * em_weight
                        * modulation(dr.detach(v.length_hit) + modulation.F(ds.dist), t_rel),

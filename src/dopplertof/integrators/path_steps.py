@@ -248,10 +248,7 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
 
     # ---- Next-event estimation ----
     active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-    ds, em_weight = (
-        lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active_em)
-        if light_frames is not None
-        else static.sample_emitter_direction(si, u_em, False, active_em))
+    ds, em_weight = sample_light(mi, static, light_frames, si, u_em, active_em)
     active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
     shadow_ray = si.spawn_ray_to(ds.p)
     active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
@@ -266,6 +263,14 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
     v.valid, v.through, v.hit_emitter, v.length_hit = valid, through, hit_emitter, length_hit
     v.active_em, v.active_next = active_em, active_next
     return v
+
+
+def sample_light(mi, static, light_frames, si, u_em, active):
+    """A light sample seen from ``si`` (no visibility test): (direction sample, weight),
+    the lights moved to the lanes' times where any moves (``light_frames``)."""
+    if light_frames is not None:
+        return lights.sample_emitter_direction(mi, static, light_frames, si, u_em, active)
+    return static.sample_emitter_direction(si, u_em, False, active)
 
 
 def advance(mi, si, ray, v: Vertex, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta,
