@@ -10,10 +10,12 @@ samples); for the splat film it counts w_o / (n W_{j+o}) in each pixel j + o its
 filter reaches (w_o its filter weight there, W the pixel's normalizing weight, which
 depends on film positions only, not on any parameter): the adjoint gathers with the
 same weights the splat scattered with. The adjoint pass then traces the same lanes
-(same random numbers) with the parameters attached to Dr.Jit's AD graph and
-propagates sum(adjoint x value) back through the path loop: Dr.Jit replays the
-symbolic loop in reverse (the loop's ``max_iterations`` hint sets the stack it
-records its state on), so memory does not grow with the number of parameters.
+(same random numbers), by one of :data:`METHODS`: with the parameters attached to
+Dr.Jit's AD graph, propagating sum(adjoint x value) back through the path loop, which
+Dr.Jit replays in reverse (the loop's ``max_iterations`` hint sets the stack it
+records its state on: ``trajectory``); or detached, back-propagating each vertex's
+local terms (``path``, integrators/path_adjoint.py). Either way memory does not grow
+with the number of parameters.
 """
 
 from __future__ import annotations
@@ -87,7 +89,8 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         sums.start()
         passes = plan.uniform(0)
 
-        method = _method(mi, setup, names, method)
+        motion = any(_MOTION_NAME.match(name) for name in names)  # (a body's, the camera's)
+        method = _method(mi, setup, motion, method)
 
         # ---- Primal: the render, as the pipeline sums it ----
         kept = _primal(mi, setup, plan, sums, passes, method == "path")
@@ -99,7 +102,6 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
 
         # ---- Adjoint: the same lanes, backwards ----
         if variables and np.any(image_adjoint) and method == "path":
-            motion = any(_MOTION_NAME.match(name) for name in names)
             _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion)
         elif variables and np.any(image_adjoint):
             _trajectory_adjoint(mi, setup, plan, passes, kept, lane_adjoint)
@@ -161,23 +163,22 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> 
         dr.eval()  # (runs the loop: the gradients are what it scatters)
 
 
-def _method(mi, setup, names, method: str) -> str:
+def _method(mi, setup, motion: bool, method: str) -> str:
     """The method ``method`` stands for: ``auto`` is path replay when it gives the
-    trajectory's gradients (no motion among ``names``, or direct light from lights no
-    path can hit: every vertex lies on the camera ray or on a light) and can run."""
+    trajectory's gradients (no ``motion`` differentiated, or direct light from lights
+    no path can hit: every vertex lies on the camera ray or on a light) and can run."""
     if method == "path":
         check_path_replay(mi, setup)
     if method != "auto":
         return method
     from ..integrators.path_adjoint import emitters_hit
 
-    moving = any(_MOTION_NAME.match(name) for name in names)
     direct = setup.params.max_depth <= 2 and not emitters_hit(mi, setup.scene.static)
     try:
         check_path_replay(mi, setup)
     except DerivativeError:
         return "trajectory"
-    return "path" if not moving or direct else "trajectory"
+    return "path" if not motion or direct else "trajectory"
 
 
 def check_path_replay(mi, setup) -> None:
