@@ -13,7 +13,7 @@ import pytest
 
 matplotlib.use("Agg")
 
-from dopplertof import io  # noqa: E402
+from dopplertof import io, previews  # noqa: E402
 from dopplertof.tof import figures  # noqa: E402
 
 SIZES = (16, 128)
@@ -76,6 +76,50 @@ def assert_laid_out(found):
         assert max(border) < MAX_MARGIN_INCHES, f"{name}: empty margins {border} in"
 
 
+#: the resolution the previews' texts are set for (pixels per inch)
+PREVIEW_DPI = io.PREVIEW_DPI
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The previews saved through io.save_png (dopplertof.previews, no Matplotlib): a
+    list of (file name, Drawing)."""
+    found = []
+    original = io.save_png
+
+    def record_then_save(path, drawing, metadata=None):
+        found.append((os.path.basename(str(path)), drawing))
+        return original(path, drawing, metadata)
+
+    monkeypatch.setattr(io, "save_png", record_then_save)
+    return found
+
+
+def _overlap(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def assert_previews_laid_out(found):
+    """Every part of each preview inside the picture, no text over an image, a bar or
+    another text, and no empty border wider than MAX_MARGIN_INCHES (measured on the
+    pixels: the box of everything not white)."""
+    for name, drawing in found:
+        width, height = drawing.image.size
+        for part, box in drawing.boxes:
+            assert 0 <= box[0] <= box[2] <= width and 0 <= box[1] <= box[3] <= height, \
+                f"{name}: {part} {box} past the edge of {width}x{height}"
+        texts = [(p, b) for p, b in drawing.boxes if not p.endswith(("image", "bar"))]
+        for k, (part, box) in enumerate(texts):
+            for other, other_box in drawing.boxes:
+                if other != part and (other, other_box) not in texts[:k + 1]:
+                    assert not _overlap(box, other_box), f"{name}: {part} over {other}"
+        pixels = np.asarray(drawing.image.convert("RGB"))
+        rows = np.flatnonzero(np.any(pixels < 250, axis=(1, 2)))
+        cols = np.flatnonzero(np.any(pixels < 250, axis=(0, 2)))
+        border = [cols[0], rows[0], width - 1 - cols[-1], height - 1 - rows[-1]]
+        assert max(border) < MAX_MARGIN_INCHES * PREVIEW_DPI, f"{name}: empty margins {border} px"
+
+
 def speckled(size, seed=0, spread=1.0):
     rng = np.random.default_rng(seed)
     data = rng.normal(0.0, spread, (size, size))
@@ -84,39 +128,43 @@ def speckled(size, seed=0, spread=1.0):
 
 
 @pytest.mark.parametrize("size", SIZES)
-def test_render_preview_shows_its_title_without_margins(tmp_path, saved, size):
+def test_render_preview_shows_its_title_without_margins(tmp_path, drawn, size):
     """`render -o x.png`: e6dc814 cut the title's start off and left about an inch empty
     above and below a square image."""
     io.write_png(tmp_path / "r.png", speckled(size), title=LONG_TITLE)
-    assert_laid_out(saved)
+    assert_previews_laid_out(drawn)
 
 
 @pytest.mark.parametrize("size", SIZES)
-def test_capture_previews_show_titles_captions_and_bars(tmp_path, saved, size):
+@pytest.mark.parametrize("shape", ["square", "wide", "tall"])
+def test_capture_previews_show_titles_captions_and_bars(tmp_path, drawn, size, shape):
     """The capture's single maps (with a long caption), log maps, radiance and the
-    side-by-side comparison: everything inside, no wide margins."""
+    side-by-side comparison: everything inside, nothing over anything, no wide margins;
+    square, wide and tall images."""
     data = speckled(size)
+    data = {"square": data, "wide": data[: max(2, size // 6)], "tall": data[:, :3]}[shape]
     figures.write_map(tmp_path / "depth.png", data + 3, "reconstructed depth (with sensor noise)",
                       "m from the camera centre along the ray", note=LONG_CAPTION)
     figures.write_log_map(tmp_path / "std.png", np.abs(data) + 1e-3,
                           "velocity: predicted standard deviation, total", "m/s (log scale)",
-                          note=io.NO_SIGNAL_NOTE + "; top colour: also first order fails (inf)")
+                          note=previews.NO_SIGNAL_NOTE + "; top colour: also first order fails (inf)")
     figures.write_radiance(tmp_path / "radiance.png", np.abs(data)[..., None].repeat(3, -1),
                            "radiance, time-averaged over the exposure")
     figures.write_comparison(tmp_path / "comparison.png", np.abs(data), data, data * 0.9,
                              "translating_sphere.xml: 1024 spp per capture (with sensor noise)")
-    assert len(saved) == 4
-    assert_laid_out(saved)
+    assert len(drawn) == 4
+    assert_previews_laid_out(drawn)
+    texts = [p for _, d in drawn for p, _ in d.boxes]
+    assert sum(p == "caption" for p in texts) == 2 and sum(p == "title" for p in texts) == 1
+    assert sum(p.endswith("label") for p in texts) == 7  # (every colour bar labelled)
 
 
-def colour_bars(fig):
-    return [ax._colorbar for ax in fig.axes if getattr(ax, "_colorbar", None) is not None]
-
-
-def test_colour_bars_have_arrows_where_the_data_passes_their_range(tmp_path, saved):
+def test_colour_bars_have_arrows_where_the_data_passes_their_range(tmp_path, drawn):
     """velocity_error.png at +-33 m/s with errors up to 900 m/s (issue 24): arrows at
     both ends; one end passed, one arrow; inside the range, none. The same on the
-    comparison figure's panels."""
+    comparison figure's panels. An arrow is drawn where there is one: beside its tip
+    the bar's corner is white (the picture's background), where there is none the
+    bar's colour."""
     error = speckled(64, spread=10.0)
     error[5, 5], error[6, 6] = 900.0, -900.0
     figures.write_map(tmp_path / "e.png", error, "velocity error", "m/s", cmap="PuOr_r",
@@ -126,9 +174,15 @@ def test_colour_bars_have_arrows_where_the_data_passes_their_range(tmp_path, sav
     figures.write_map(tmp_path / "n.png", np.clip(error, -30, 30), "within", "m/s",
                       symmetric=True, vmax=33.0)
     figures.write_comparison(tmp_path / "c.png", positive, error, np.zeros_like(error), "t")
-    extends = [[bar.extend for bar in colour_bars(fig)] for _, _, _, fig in saved]
+    extends = [drawing.extends for _, drawing in drawn]
     assert extends[:3] == [["both"], ["max"], ["neither"]]
     assert extends[3][1] == "both" and extends[3][3] == "both"  # velocity, error panels
+    for (name, drawing), extend in zip(drawn[:3], ("both", "max", "neither")):
+        (x0, y0, x1, y1), = [b for p, b in drawing.boxes if p == "panel 0 bar"]
+        pixels = np.asarray(drawing.image.convert("RGB")).astype(int)
+        top, bottom = pixels[y0 + 1, x0 + 2], pixels[y1 - 2, x0 + 2]
+        assert np.all(top == 255) == (extend in ("both", "max")), name
+        assert np.all(bottom == 255) == (extend in ("both", "min")), name
 
 
 def test_precision_map_legend_has_the_check_circles_and_the_title_fits(tmp_path, saved):

@@ -1,5 +1,7 @@
 """Previews that do not mislead (issue 15, item 19): NaN unmistakable, robust signed
-limits, the render's PNG title says what was measured, one radiance gamma."""
+limits, the render's PNG title says what was measured, one radiance gamma; drawn by
+dopplertof.previews (issue 24, section 7): each pixel the colour of its value on its
+scale, Matplotlib's colour tables, the same bytes each time."""
 
 import os
 import pathlib
@@ -8,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from dopplertof import io
+from dopplertof import io, previews
 from dopplertof.tof import figures
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -23,7 +25,7 @@ def _rgb(path):
 def test_no_signal_is_a_colour_outside_every_map(tmp_path):
     import matplotlib
 
-    for name in ("RdBu_r", "PuOr_r", "viridis", "gray"):
+    for name in ("RdBu_r", "PuOr_r", "viridis", "gray", "magma"):
         colours = matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255
         assert np.min(np.linalg.norm(colours - MAGENTA, axis=1)) > 100, name
     data = np.linspace(-1, 1, 40 * 40).reshape(40, 40)
@@ -41,8 +43,8 @@ def test_signed_preview_limit_is_not_set_by_thin_silhouettes():
     data[20, :] = 0.1   # a one-pixel line of huge values (an edge sweeping a pixel row)
     data[:, 40] = -0.1
     assert np.percentile(np.abs(data), 99.5) == pytest.approx(0.1)
-    assert io.robust_limit(data) == pytest.approx(1e-3)
-    assert io.robust_limit(np.zeros((4, 4))) == 1.0
+    assert previews.robust_limit(data) == pytest.approx(1e-3)
+    assert previews.robust_limit(np.zeros((4, 4))) == 1.0
 
 
 def test_median_3x3_is_scipys_median_filter():
@@ -55,7 +57,7 @@ def test_median_3x3_is_scipys_median_filter():
         image = np.abs(rng.normal(size=shape))
         image[rng.random(shape) < 0.3] = 0.0
         for rows in (1, 2, 256):
-            assert np.array_equal(io.median_3x3(image, rows),
+            assert np.array_equal(previews.median_3x3(image, rows),
                                   median_filter(image, size=3, mode="nearest")), (shape, rows)
 
 
@@ -80,6 +82,7 @@ def test_render_png_title_says_h_offset_and_frequency(tmp_path, monkeypatch, cap
 def test_one_radiance_gamma_everywhere():
     norm = figures.radiance_norm(2.0)
     assert norm(1.0) == pytest.approx(0.5 ** (1 / 2.2))
+    assert figures.radiance_scale(2.0).position(1.0) == pytest.approx(0.5 ** (1 / 2.2))
     assert figures.RADIANCE_GAMMA_LABEL == "gamma 2.2"
     src = pathlib.Path(ROOT, "src", "dopplertof")
     for path in src.rglob("*.py"):
@@ -94,32 +97,27 @@ def test_depth_preview_marks_the_pixels_beyond_the_wrap(tmp_path, monkeypatch):
     import dopplertof
     from dopplertof.tof import output
 
-    figures_drawn = {}
-    monkeypatch.setattr(figures, "save_figure", lambda fig, path, metadata=None:
-                        figures_drawn.__setitem__(os.path.basename(path), fig))
+    drawn = {}
+    original = figures.draw
+    monkeypatch.setattr(figures, "draw", lambda panels, *args, **kwargs: drawn.setdefault(
+        "depth", []).append((panels, kwargs.get("caption", ""))) or original(panels, *args,
+                                                                              **kwargs))
     scene = dopplertof.load_file(SPHERE, {"res": "12", "spp": "4"})
     result = dopplertof.capture(scene, params={"w_g": 40.0}, progress=False)
     depth_info = result.summary["depth"]
     beyond = result.truth.depth >= depth_info["wrap_distance_m"]
     for info, marked in ((depth_info, True), (dict(depth_info, unambiguous_range_m=10.0),
                                               False)):
-        figures_drawn.clear()
+        drawn.clear()
         output._write_depth_maps(result.reconstruction, result.truth, info,
                                  lambda n: str(tmp_path / n), "")
-        fig = figures_drawn["depth.png"]
-        hatched = [c for c in fig.axes[0].collections if c.get_hatch() == figures.MARK_HATCH]
-        caption = " ".join(t.get_text() for t in fig.texts)
+        (panels, caption), _ = drawn["depth"]  # (depth.png, then depth_gt.png)
         if not marked:
-            assert not hatched and "beyond" not in caption
+            assert panels[0].marked is None and "beyond" not in caption
             continue
         assert beyond.any() and not beyond.all()
-        assert len(hatched) == 1 and f"{int(beyond.sum())} px beyond it" in caption
-        covered = np.zeros_like(beyond)
-        for path in hatched[0].get_paths():
-            (x0, y0), (x1, y1) = path.vertices.min(axis=0), path.vertices.max(axis=0)
-            covered[int(round(y0 + 0.5)):int(round(y1 + 0.5)),
-                    int(round(x0 + 0.5)):int(round(x1 + 0.5))] = True
-        assert np.array_equal(covered, beyond)
+        assert f"{int(beyond.sum())} px beyond it" in caption
+        assert np.array_equal(panels[0].marked, beyond)
 
 
 def _preview_specs(size):
@@ -150,74 +148,98 @@ def _preview_specs(size):
     ]
 
 
-def test_reused_previews_are_the_pictures_of_fresh_ones(tmp_path, monkeypatch):
-    """A preview drawn in a figure that showed another one before (io.take_figure's
-    pool) has the pixels of the same preview drawn in a new figure: nothing of the
-    earlier data, texts, caption, marks, fitted size or tight layout is left."""
-    made = []
-    for kind in (io.ImagePreview, figures.ComparisonFigure):
-        def counting_init(self, key, settings, original_init=kind.__init__):
-            made.append(key)
-            original_init(self, key, settings)
-
-        monkeypatch.setattr(kind, "__init__", counting_init)
-    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
-    specs = _preview_specs(12)
-    for name, write in specs:  # each in a new figure (the pool emptied before each)
-        io._PREVIEW_POOL.clear()
-        write(tmp_path / f"fresh_{name}", 1)
-    fresh_figures = len(made)
-    for name, write in specs:  # each after another of its kind, in that one's figure
-        io._PREVIEW_POOL.clear()
-        write(tmp_path / f"before_{name}", 0)
-        write(tmp_path / f"reused_{name}", 1)
-    assert len(made) == 2 * fresh_figures  # (the second of each pair reused the first)
-    for name, _ in specs:
-        fresh, reused = _rgb(tmp_path / f"fresh_{name}"), _rgb(tmp_path / f"reused_{name}")
-        assert fresh.shape == reused.shape, name
-        assert np.array_equal(fresh, reused), name
-        assert not np.array_equal(_rgb(tmp_path / f"before_{name}"), reused), name
+def test_previews_are_the_same_bytes_each_time(tmp_path):
+    """Every kind of preview drawn twice from the same data is the same file, byte for
+    byte; drawn from other data, another file."""
+    for name, write in _preview_specs(12):
+        for k, tag in ((1, "a"), (1, "b"), (0, "c")):
+            write(tmp_path / f"{tag}_{name}", k)
+        a, b, c = ((tmp_path / f"{tag}_{name}").read_bytes() for tag in "abc")
+        assert a == b, name
+        assert a != c, name
 
 
-def test_reused_previews_have_the_arrows_of_their_own_data(tmp_path, monkeypatch):
-    """The colour bar's arrows follow each preview's data when figures are reused: within
-    the range none, past both ends both, past the top only max, and none again."""
-    from matplotlib.figure import Figure
-
-    extends = []
-    original = Figure.savefig
-
-    def record(fig, path, *args, **kwargs):
-        extends.append([ax._colorbar.extend for ax in fig.axes
-                        if getattr(ax, "_colorbar", None) is not None])
-        return original(fig, path, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", record)
-    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
-    data = np.linspace(-1.0, 1.0, 64).reshape(8, 8)
-    for k, scale in enumerate((1.0, 50.0, 1.0, 50.0, 1.0)):
-        shown = data * scale if k != 3 else np.abs(data) * scale
-        figures.write_map(tmp_path / f"{k}.png", shown, "v", "m/s", cmap="RdBu_r",
-                          vmin=-33.0 if k != 3 else 0.0, vmax=33.0)
-    assert extends == [["neither"], ["both"], ["neither"], ["max"], ["neither"]]
+def _panel_pixels(drawing, k=0):
+    (x0, y0, x1, y1), = [b for p, b in drawing.boxes if p == f"panel {k} image"]
+    return np.asarray(drawing.image.convert("RGB"))[y0:y1, x0:x1].astype(np.int64)
 
 
-def test_previews_follow_matplotlib_settings_changed_between_them(tmp_path, monkeypatch):
-    """A preview made after a change of Matplotlib's settings (rcParams) is drawn in a new
-    figure with them, not in a pooled one made before; saving a figure twice puts it
-    into the pool once."""
+@pytest.mark.parametrize("scale", [previews.ColourScale(-2.0, 2.0),
+                                   previews.ColourScale(0.0, 4.0, "power", 1 / 2.2),
+                                   previews.ColourScale(1e-3, 10.0, "log")])
+def test_each_pixel_shows_the_colour_of_its_value(scale):
+    """A 3x4 map drawn on a linear, gamma and log scale: the middle of each pixel's block
+    is the colour table's entry floor(256 t) of its value's position t (t = (v - lo) /
+    (hi - lo), its 1/2.2 power, or log10's share of the decades), the end colours past
+    the ends; the colour bar's rows run from the first entry (bottom) to the last."""
+    values = np.array([[-3.0, -2.0, -0.5, 0.0], [1e-3, 0.02, 0.5, 1.0], [2.0, 3.9, 10.0, 50.0]])
+    panel = previews.Panel(values, "t", "m/s", "viridis", scale)
+    drawing = previews.draw([panel], fit=(400, 300))
+    pixels = _panel_pixels(drawing)
+    table = previews.colour_table("viridis").astype(np.int64)
+    h, w = pixels.shape[:2]
+    for (r, c), v in np.ndenumerate(values):
+        if scale.kind == "log" and v <= 0:
+            t = -1.0  # (log of zero or less: below the range, the first colour)
+        elif scale.kind == "log":
+            t = (np.log10(v) + 3.0) / 4.0
+        else:
+            t = (v - scale.vmin) / (scale.vmax - scale.vmin)
+            t = t ** scale.gamma if t > 0 else t
+        expected = table[int(np.clip(np.floor(256 * t), 0, 255))]
+        got = pixels[int((r + 0.5) * h / 3), int((c + 0.5) * w / 4)]
+        assert np.array_equal(got, expected), (v, got, expected)
+    (x0, y0, x1, y1), = [b for p, b in drawing.boxes if p == "panel 0 bar"]
+    bar = np.asarray(drawing.image.convert("RGB"))[:, (x0 + x1) // 2].astype(np.int64)
+    inside = [k for k in range(y0, y1) if any(np.array_equal(bar[k], c) for c in table)]
+    assert np.array_equal(bar[inside[0]], table[-1]) and np.array_equal(bar[inside[-1]], table[0])
+
+
+def test_hatching_and_marks_stay_inside_their_pixels():
+    """NaN pixels are black and magenta only, both; marked pixels have white lines over
+    their colour; every other pixel is its plain colour."""
+    values = np.full((4, 4), 0.5)
+    values[0, 0] = np.nan
+    marked = np.zeros((4, 4), bool)
+    marked[3, 3] = True
+    panel = previews.Panel(values, "t", "", "RdBu_r", previews.ColourScale(0.0, 1.0), marked)
+    pixels = _panel_pixels(previews.draw([panel], fit=(200, 200)))
+    block = pixels.shape[0] // 4
+    nan_block, marked_block = pixels[:block, :block], pixels[-block:, -block:]
+    plain = pixels[block:2 * block, block:2 * block]
+    kinds = {tuple(c) for c in nan_block.reshape(-1, 3)}
+    assert kinds == {(255, 0, 255), (0, 0, 0)}
+    colour = tuple(previews.colours("RdBu_r", 0.5))
+    assert {tuple(c) for c in plain.reshape(-1, 3)} == {colour}
+    assert {tuple(c) for c in marked_block.reshape(-1, 3)} == {colour, (255, 255, 255)}
+
+
+def test_colour_tables_are_matplotlibs():
+    """The package's colour tables (data/colormaps.npz, tools/make_colour_tables.py) are
+    the installed Matplotlib's maps at 256 entries, within one step of rounding; a map
+    the package does not ship comes from Matplotlib."""
     import matplotlib
 
-    monkeypatch.setattr(io, "_PREVIEW_POOL", [])
-    data = np.linspace(-1.0, 1.0, 64).reshape(8, 8)
-    io.write_png(tmp_path / "a.png", data)
-    (before,) = io._PREVIEW_POOL
-    with matplotlib.rc_context({"axes.linewidth": 3.0}):
-        io.write_png(tmp_path / "b.png", data)
-        assert len(io._PREVIEW_POOL) == 2 and io._PREVIEW_POOL[0] is before
-    io.write_png(tmp_path / "c.png", data)  # (settings back: the first figure again)
-    assert io._PREVIEW_POOL[-1] is before
-    assert np.array_equal(_rgb(tmp_path / "a.png"), _rgb(tmp_path / "c.png"))
-    assert not np.array_equal(_rgb(tmp_path / "a.png"), _rgb(tmp_path / "b.png"))  # (bolder)
-    io.save_figure(before.fig, tmp_path / "d.png")
-    assert io._PREVIEW_POOL.count(before) == 1
+    with np.load(previews.COLOUR_TABLES) as tables:
+        names = tables.files
+    assert {"RdBu_r", "PuOr_r", "viridis", "gray", "magma"} <= set(names)
+    for name in names + ["plasma"]:
+        expected = matplotlib.colormaps[name](np.linspace(0, 1, 256))[:, :3] * 255
+        assert np.max(np.abs(previews.colour_table(name) - expected)) <= 0.5 + 1e-9, name
+
+
+def test_colour_bar_ticks_are_round_values_inside_the_range():
+    """Ticks at 1, 2, 2.5 or 5 x 10^k steps inside the range, written with the decimals
+    their step needs, a typographic minus, powers of ten for tiny values; decades on a
+    log scale."""
+    ticks = previews.ColourScale(-23.4, 23.4).ticks()
+    assert [label for _, label in ticks] == ["\u221220", "\u221210", "0", "10", "20"]
+    assert [v for v, _ in previews.ColourScale(3.5, 4.9).ticks()] == pytest.approx(
+        [3.5, 3.75, 4.0, 4.25, 4.5, 4.75])
+    assert [label for _, label in previews.ColourScale(3.5, 4.9).ticks()][:2] == ["3.50", "3.75"]
+    assert [label for _, label in previews.ColourScale(0, 3e-5).ticks(4)] == \
+        ["0", "1e\u22125", "2e\u22125", "3e\u22125"]
+    assert [v for v, _ in previews.ColourScale(2e-3, 30.0, "log").ticks()] == pytest.approx(
+        [1e-2, 1e-1, 1.0, 10.0])
+    assert [v for v, _ in previews.ColourScale(3.0, 40.0, "log").ticks()] == pytest.approx(
+        [5.0, 10.0, 20.0])

@@ -60,14 +60,17 @@ def test_import_dopplertof_imports_nothing_heavy():
     assert result.returncode == 0 and result.stdout.split() == [], result.stdout + result.stderr
 
 
-def test_loading_and_capturing_import_no_scipy_or_matplotlib():
+def test_loading_capturing_and_writing_import_no_scipy_or_matplotlib(tmp_path):
     """A scene with a rotating body (rigid keyframes: quaternions) loads without SciPy
-    (0.5 s of import), and its capture, before it writes, without Matplotlib."""
+    (0.5 s of import), and its capture and its folder, previews included
+    (dopplertof.previews), without Matplotlib (0.5 s, and 0.15 s a preview drawn)."""
     scene = os.path.join(ROOT, "examples", "rotating_cube.xml")
+    out = str(tmp_path / "out")
     result = in_fresh_python(
         f"import sys, dopplertof\nscene = dopplertof.load_file({scene!r}, res=8)\n"
-        f"dopplertof.capture(scene, spp=4, progress=False)\n"
+        f"dopplertof.capture(scene, spp=4, progress=False).write({out!r})\n"
         f"print(*[m for m in ('scipy', 'matplotlib') if m in sys.modules])")
+    assert len([n for n in os.listdir(out) if n.endswith(".png")]) == 14
     assert result.returncode == 0 and result.stdout.split() == [], \
         result.stdout + result.stderr[-2000:]
 

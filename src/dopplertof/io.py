@@ -35,6 +35,7 @@ import threading
 import numpy as np
 
 from .backend import INTERRUPT_SEEN
+from .previews import NO_SIGNAL_COLOUR, preview_scalar, robust_limit
 
 FORMATS = (".exr", ".npy", ".png")
 
@@ -500,44 +501,6 @@ def render_title(metadata: dict) -> str:
                              f" {waveform}, {metadata['spp']} spp" if waveform else "")
 
 
-def robust_limit(data: np.ndarray, percentile: float = 99.5) -> float:
-    """A colour limit for |data| that thin features (silhouettes sweeping through pixels
-    during the exposure, one or two pixels wide) do not set: the ``percentile`` of |data|
-    after a 3x3 median filter (:func:`median_3x3`), or of |data| itself when the filter
-    leaves nothing."""
-    values = np.abs(np.asarray(data, np.float64))
-    finite = np.isfinite(values)
-    if not finite.any():
-        return 1.0
-    smooth = median_3x3(np.where(finite, values, 0.0))
-    for candidate in (smooth[finite], values[finite]):
-        limit = float(np.percentile(candidate, percentile))
-        if limit > 0:
-            return limit
-    return 1.0
-
-
-def median_3x3(image: np.ndarray, rows_per_block: int = 256) -> np.ndarray:
-    """The median of each pixel's 3x3 neighbourhood in ``image`` (H, W, no NaN), the
-    edge pixels repeated beyond the border: SciPy's ``median_filter(image, size=3,
-    mode="nearest")``, the same values without importing scipy.ndimage (0.4 s, in a
-    capture's first preview), ``rows_per_block`` rows at a time (9 copies of them)."""
-    image = np.asarray(image)
-    windows = np.lib.stride_tricks.sliding_window_view(np.pad(image, 1, mode="edge"), (3, 3))
-    smooth = np.empty_like(image)
-    for start in range(0, image.shape[0], rows_per_block):
-        block = windows[start:start + rows_per_block]
-        nine = block.reshape(*block.shape[:2], 9)
-        smooth[start:start + rows_per_block] = np.partition(nine, 4, axis=-1)[..., 4]
-    return smooth
-
-
-#: "no signal" (NaN) in every preview: black hatching on a magenta that none of the colour
-#: maps used (RdBu, PuOr, viridis, gray) contains, so that it cannot pass for a value
-NO_SIGNAL_COLOUR = "#ff00ff"
-NO_SIGNAL_NOTE = "hatched magenta: NaN (nothing hit or signal too weak)"
-
-
 def masked_note(counts: dict) -> str:
     """The caption of a preview's hatched (NaN) pixels, each kind by its own reason:
     ``counts`` maps a reason to its pixels, e.g. "hatched magenta: NaN, 124 px footprint
@@ -572,41 +535,49 @@ def hide_axes(ax) -> None:
     ax.yaxis.set_visible(False)
 
 
-def preview_scalar(image: np.ndarray) -> np.ndarray:
-    """The signed scalar a preview shows: the mean over channels."""
-    img = np.asarray(image, dtype=np.float64)
-    return img.mean(axis=-1) if img.ndim == 3 else img
-
-
 def write_png(path, image: np.ndarray, title: str = "D-ToF measurement",
               label: str = "time-averaged correlation (mean of channels)",
               cmap: str = "RdBu_r", metadata: dict | None = None,
               signed: bool = True) -> None:
-    """Signed preview: diverging colormap centred on zero, with a colour bar; with
-    ``signed=False`` a colour scale from zero to the maximum (counts, magnitudes)."""
-    from matplotlib.colors import Normalize
+    """Signed preview (:mod:`dopplertof.previews`): a diverging colour map centred on
+    zero, its limit robust (:func:`robust_limit`: the colour bar's arrows show what
+    saturates), with a colour bar; with ``signed=False`` a colour scale from zero to the
+    maximum (counts, magnitudes)."""
+    from .previews import ColourScale, Panel, draw
 
     data = preview_scalar(image)
     finite = data[np.isfinite(data)]
-    if signed:  # robust: the colour bar's arrows show what saturates
+    if signed:
         vmax = robust_limit(data)
     else:
         vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
-    h, w = data.shape
-    fig, _ = show_preview((5.5, 5.5 * h / w + 0.6), 120, data, title, label, cmap,
-                          Normalize(-vmax if signed else 0.0, vmax))
-    save_figure(fig, path, metadata)
+    scale = ColourScale.fitted(data, -vmax if signed else 0.0, vmax)
+    save_png(path, draw([Panel(data, title, label, cmap, scale)]), metadata)
 
 
-def colorbar_extend(data, vmin, vmax) -> str:
-    """A colour bar's ``extend`` for ``data`` shown from ``vmin`` to ``vmax``: an arrow
-    at each end that finite values pass ("both", "min", "max" or "neither")."""
-    values = np.asarray(data, np.float64)
-    values = values[np.isfinite(values)]
-    low = bool(values.size and vmin is not None and values.min() < vmin)
-    high = bool(values.size and vmax is not None and values.max() > vmax)
-    return {(True, True): "both", (True, False): "min", (False, True): "max"}.get(
-        (low, high), "neither")
+def save_png(path, drawing, metadata: dict | None = None) -> None:
+    """Write a preview (:class:`dopplertof.previews.Drawing`) as PNG atomically, with
+    ``metadata`` as its description (as :func:`save_figure` does for figures)."""
+    from PIL.PngImagePlugin import PngInfo
+
+    info = PngInfo()
+    for key, value in _png_texts(metadata).items():
+        info.add_text(key, value)
+    with atomic_path(path) as tmp:
+        drawing.image.save(tmp, format="png", pnginfo=info, dpi=(PREVIEW_DPI, PREVIEW_DPI),
+                           compress_level=PNG_COMPRESS_LEVEL)
+
+
+#: the resolution written into the previews (the size their texts were set for)
+PREVIEW_DPI = 120
+
+
+def _png_texts(metadata: dict | None) -> dict:
+    """The text chunks of a saved picture: the software, ``metadata`` as JSON."""
+    info = {"Software": "dopplertof"}
+    if metadata:
+        info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
+    return info
 
 
 #: room left around everything a figure draws when it is fitted (inches)
@@ -684,200 +655,33 @@ def fit_figure(fig, pad: float = FIGURE_PAD_INCHES) -> None:
         text.set_position(((x * old_w - x0) / new_w, (y * old_h - y0) / new_h))
 
 
-def add_caption(fig, text: str, fontsize: float = 8) -> None:
-    """``text`` centred under everything ``fig`` draws now (lay the figure out first):
-    :func:`fit_figure` wraps it to the figure's width and grows the figure to hold it."""
-    renderer = laid_out_renderer(fig)
-    bottom = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes) / fig.bbox.height
-    fig.text(0.5, bottom - 0.01, text, ha="center", va="top", fontsize=fontsize,
-             color="#444444")
-
-
-def agg_figure(size_inches, dpi: float):
-    """A Matplotlib figure on an Agg canvas of its own: no pyplot (nothing to close)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=size_inches, dpi=dpi)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def preview_figure(size_inches, dpi: float):
-    """(figure, axes) of a one-panel preview, on an Agg canvas of its own (no pyplot):
-    the axes fill the figure, and :func:`save_figure` fits the figure to what it draws
-    (growing it for the title, colour bar and caption), so no layout pass is needed."""
-    fig = agg_figure(size_inches, dpi)
-    fig.subplots_adjust(left=0.0, right=0.88, bottom=0.05, top=0.94)  # (room for the texts)
-    return fig, fig.add_subplot()
-
-
-# ---- Previews made once and shown again ---------------------------------------------------
-#
-# Making a preview's figure, its axes and its colour bar costs about as much as drawing it
-# (Matplotlib makes every axis, tick and spine anew). A capture writes a dozen previews of
-# one shape: each kind is made once, saved, put back as it was made and shown again with
-# the next data, colours and texts (the one-panel previews here, tof.figures' side-by-side
-# comparison). The colour bars' arrows (``extend``) and norm types (the bars' scales) are
-# fixed when a figure is made, and so are the Matplotlib settings (rcParams) it was made
-# with: previews that differ in them are different figures.
-
-#: the most figures kept for reuse (the least recently saved dropped first)
-PREVIEW_POOL_SIZE = 12
-_PREVIEW_POOL: list = []
-_PREVIEW_POOL_LOCK = threading.Lock()
-
-
-class ImagePanel:
-    """One image with a colour bar on ``ax`` of ``fig``: the NaN hatching under it
-    (:func:`show_no_signal`), the axes hidden (:func:`hide_axes`), a colour bar with the
-    arrows ``extend``; ``bar_text`` = its label and tick label sizes (None: Matplotlib's).
-    Made with placeholder data, shown with a preview's (:meth:`show`) as often as needed."""
-
-    def __init__(self, fig, ax, shape, extend: str, bar_text):
-        self.ax, self.label_size = ax, bar_text[0]
-        self.hatch = show_no_signal(ax, shape)
-        self.image = ax.imshow(np.zeros(shape), vmin=0.0, vmax=1.0, interpolation="nearest",
-                               zorder=1)
-        hide_axes(ax)
-        self.bar = fig.colorbar(self.image, ax=ax, fraction=0.046, pad=0.04, extend=extend)
-        if bar_text[1] is not None:
-            self.bar.ax.tick_params(labelsize=bar_text[1])
-
-    def show(self, masked, title: str, label: str, cmap: str, norm) -> None:
-        """``masked`` (a masked array of the panel's shape) on ``norm`` in ``cmap`` (its
-        NaN transparent: :func:`no_signal_colours`), titled, the colour bar labelled."""
-        self.image.set_data(masked)
-        with self.image.callbacks.blocked(signal="changed"):  # (one colour bar update)
-            self.image.set_cmap(no_signal_colours(cmap))
-        self.image.set_norm(norm)  # (the colour bar follows: Colorbar.update_normal)
-        self.ax.set_title(title, fontsize=10)
-        self.bar.set_label(label, **({} if self.label_size is None
-                                     else {"fontsize": self.label_size}))
-
-    def clear(self) -> None:
-        """What a use added on the axes (marks) removed, its data let go (a pooled figure
-        holds no capture's arrays; the image keeps its extent)."""
-        self.image.set_data(np.zeros((1, 1)))
-        for artist in [*self.ax.collections, *(p for p in self.ax.patches
-                                               if p is not self.hatch)]:
-            artist.remove()
-
-
-def layout_as_made(fig):
-    """What :func:`restore_layout` needs to undo a layout (``tight_layout``) and a fit
-    (:func:`fit_figure`): the size, the subplot parameters, each axes' place."""
-    params = fig.subplotpars
-    return (fig.get_size_inches().copy(),
-            (params.left, params.bottom, params.right, params.top, params.wspace,
-             params.hspace),
-            [(ax, ax.get_position(original=True), ax.get_axes_locator(), ax.get_in_layout())
-             for ax in fig.axes])
-
-
-def restore_layout(fig, made) -> None:
-    """``fig`` laid out as when ``made`` (:func:`layout_as_made`) was taken."""
-    size, params, places = made
-    fig.set_size_inches(size)
-    fig.subplots_adjust(*params)
-    for ax, position, locator, in_layout in places:
-        ax.set_position(position)
-        ax.set_axes_locator(locator)
-        ax.set_in_layout(in_layout)
-
-
-class ImagePreview:
-    """A one-panel preview on its own canvas (:func:`preview_figure`), one
-    :class:`ImagePanel`; ``key`` = (size in inches, dpi, image shape, colour bar extend,
-    norm type, colour bar text sizes), ``settings`` the rcParams it is made with.
-    :func:`show_preview` takes one (:func:`take_figure`) and shows data in it; after a
-    successful :func:`save_figure` it goes back to the pool, as it was made."""
-
-    def __init__(self, key, settings):
-        size_inches, dpi, shape, extend, _, bar_text = key
-        self.key, self.settings, self.in_use = key, settings, True
-        self.fig, ax = preview_figure(size_inches, dpi)
-        self.fig.dopplertof_preview = self  # (how save_figure knows it)
-        self.panel = ImagePanel(self.fig, ax, shape, extend, bar_text)
-        self.made = layout_as_made(self.fig)  # (before a fit moves and resizes it)
-
-    def reset(self) -> None:
-        """Back as made: what one use added (a caption, marks) removed, its data let go,
-        the layout that :func:`fit_figure` changed restored."""
-        self.panel.clear()
-        for text in list(self.fig.texts):
-            text.remove()
-        restore_layout(self.fig, self.made)
-
-
-def show_preview(size_inches, dpi: float, data, title: str, label: str, cmap: str, norm,
-                 bar_text=(None, None)):
-    """(figure, axes) of a one-panel preview: ``data`` (H, W; NaN hatched,
-    :func:`show_no_signal`) on ``norm`` (limits that are None autoscaled to the data) in
-    ``cmap``, titled ``title``, a colour bar labelled ``label`` with an arrow at each
-    end the data passes (:func:`colorbar_extend`); ``bar_text``: the colour bar's label
-    and tick label sizes (None: Matplotlib's). Save it with :func:`save_figure` (which
-    gives it back to the pool of previews; add marks and a caption before)."""
-    masked = np.ma.masked_invalid(np.asarray(data, np.float64))
-    norm.autoscale_None(masked)
-    preview = take_figure((tuple(size_inches), dpi, masked.shape,
-                           colorbar_extend(data, norm.vmin, norm.vmax), type(norm),
-                           tuple(bar_text)), ImagePreview)
-    preview.panel.show(masked, title, label, cmap, norm)
-    return preview.fig, preview.panel.ax
-
-
-def take_figure(key, make):
-    """A pooled figure of ``key`` made with today's Matplotlib settings (taken out of the
-    pool, ``in_use``), or ``make(key, settings)``: an object with ``key``, ``settings``,
-    ``in_use``, ``fig`` (whose ``dopplertof_preview`` is the object) and ``reset()``, as
-    :class:`ImagePreview`; :func:`save_figure` gives it back."""
-    import matplotlib
-
-    settings = matplotlib.rcParams.copy()  # (a copy: reading it resolves no backend)
-    with _PREVIEW_POOL_LOCK:
-        preview = next((p for p in reversed(_PREVIEW_POOL)
-                        if p.key == key and p.settings == settings), None)
-        if preview is not None:
-            _PREVIEW_POOL.remove(preview)
-            preview.in_use = True
-    return preview or make(key, settings)
-
-
-def _give_back(preview) -> None:
-    """``preview`` (saved, in use) reset and put back into the pool for the next one; a
-    figure saved again after that stays out."""
-    if not preview.in_use:
-        return
-    preview.in_use = False
-    preview.reset()
-    with _PREVIEW_POOL_LOCK:
-        _PREVIEW_POOL.append(preview)
-        del _PREVIEW_POOL[:-PREVIEW_POOL_SIZE]
-
-
 #: zlib level of the saved figures: the same pixels as the default 6 in about 60% of the
 #: time (a capture's 14 previews: 0.21-0.25 s against 0.38 s) for files about 25% larger
 PNG_COMPRESS_LEVEL = 3
 
 
+def pyplot():
+    """matplotlib.pyplot, on the Agg backend unless one was chosen (figures of plots;
+    the previews are :mod:`dopplertof.previews`)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def save_figure(fig, path, metadata: dict | None = None) -> None:
     """Save a matplotlib figure as PNG atomically, with ``metadata`` as its description,
-    fitted to what it draws (:func:`fit_figure`); closed if pyplot made it, given back
-    for reuse if :func:`show_preview` did."""
+    fitted to what it draws (:func:`fit_figure`); closed if pyplot made it."""
     fit_figure(fig)
-    info = {"Software": "dopplertof"}
-    if metadata:
-        info["Description"] = json.dumps(json_ready(metadata), default=_json_default)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", metadata=info,
+        fig.savefig(tmp, format="png", metadata=_png_texts(metadata),
                     pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     if fig.canvas.manager is not None:  # (a pyplot figure)
         import matplotlib.pyplot as plt
 
         plt.close(fig)
-    if getattr(fig, "dopplertof_preview", None) is not None:  # (show_preview's: reused)
-        _give_back(fig.dopplertof_preview)
 
 
 def write_image(path, image: np.ndarray, metadata: dict | None = None, **png_kwargs) -> None:

@@ -5,17 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import io
+from .. import io, previews
 from .demodulate import calibration_tables, wiggling_curves
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def write_wiggling(path, preset) -> dict:
@@ -23,7 +14,7 @@ def write_wiggling(path, preset) -> dict:
     modulation's correlation) as a PNG, and beside it (.json) the curves and the
     calibration tables; returns the numbers."""
     distances, per_frequency, raw, reported = wiggling_curves(preset)
-    plt = _pyplot()
+    plt = io.pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 3.8), dpi=120)
     for f, error in per_frequency.items():
         ax.plot(distances, error * 1e3, lw=0.8, alpha=0.6, label=f"{f:g} MHz alone, uncalibrated")
@@ -52,7 +43,7 @@ def write_wiggling(path, preset) -> dict:
 
 def write_camera_comparison(path, results, title: str) -> None:
     """One row per camera: range error, amplitude and (heterodyne) velocity."""
-    plt = _pyplot()
+    plt = io.pyplot()
     rows = len(results)
     fig, axes = plt.subplots(rows, 3, figsize=(10.5, 2.9 * rows), dpi=100, squeeze=False)
     errors = [r.depth - r.depth_gt for r in results]
@@ -64,7 +55,7 @@ def write_camera_comparison(path, results, title: str) -> None:
                               vmax=limit, interpolation="nearest")
         row[0].set_title(f"{name}: range error (m)", fontsize=8)
         fig.colorbar(shown, ax=row[0], fraction=0.046,
-                     extend=io.colorbar_extend(error, -limit, limit))
+                     extend=previews.colorbar_extend(error, -limit, limit))
         shown = row[1].imshow(result.reconstruction.amplitude, cmap="gray", interpolation="nearest")
         row[1].set_title(f"{name}: amplitude (DN)", fontsize=8)
         fig.colorbar(shown, ax=row[1], fraction=0.046)
@@ -75,7 +66,7 @@ def write_camera_comparison(path, results, title: str) -> None:
                                   vmax=v, interpolation="nearest")
             row[2].set_title(f"{name}: radial velocity (m/s)", fontsize=8)
             fig.colorbar(shown, ax=row[2], fraction=0.046,
-                         extend=io.colorbar_extend(velocity, -v, v))
+                         extend=previews.colorbar_extend(velocity, -v, v))
         else:
             row[2].text(0.5, 0.5, "no velocity\n(homodyne frames only)", ha="center",
                         va="center", fontsize=8, transform=row[2].transAxes)

@@ -88,11 +88,7 @@ def _write_previews(result, path, camera: str) -> None:
 
 def _write_raw_grid(path, raw, records, camera: str) -> None:
     """The raw frames side by side, one shared DN scale."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
+    plt = io.pyplot()
     count = len(raw)
     columns = min(count, 4)
     rows = -(-count // columns)

@@ -298,7 +298,7 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     from matplotlib.figure import Figure
     from PIL import Image
 
-    from .. import io
+    from .. import io, previews
     from ..tof.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
 
     load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
@@ -307,8 +307,8 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     radiance = [np.asarray(load(t, "radiance.npy"), np.float64) for t in tasks]
     radiance = [r.mean(axis=-1) if r.ndim == 3 else r for r in radiance]
     vlim = _velocity_limit(truth, velocity)
-    extend = io.colorbar_extend(np.concatenate([np.ravel(v) for v in velocity + truth]),
-                                -vlim, vlim)  # (the same bar, arrows by every frame)
+    extend = previews.colorbar_extend(np.concatenate([np.ravel(v) for v in velocity + truth]),
+                                      -vlim, vlim)  # (the same bar, arrows by every frame)
     norm = radiance_norm(radiance_top(*radiance))
     images = []
     for task, rad, vel, gt in zip(tasks, radiance, velocity, truth):

@@ -413,7 +413,7 @@ class _ImageLayout:
 
 def _image_grid(runs, references, grid, out, files, title_suffix):
     """``images.png``: the runs over two axes beside their reference, one colour scale."""
-    from ..io import preview_scalar
+    from ..previews import preview_scalar
 
     if not runs:
         return

@@ -10,7 +10,7 @@ import os
 
 import numpy as np
 
-from .. import io
+from .. import io, previews
 from . import figures
 from . import reconstruct as rec
 
@@ -171,7 +171,7 @@ def write_uncertainty(uncertainty, path, recon=None, truth=None) -> None:
         title, unit = _STD_TITLES[name]
         io.write_npy(path(f"{name}.npy"), data)
         if np.any(np.isfinite(data) & (data > 0)):
-            masked = (io.NO_SIGNAL_NOTE if recon is None else masked_caption(
+            masked = (previews.NO_SIGNAL_NOTE if recon is None else masked_caption(
                 getattr(recon, f"{name.split('_')[0]}_reasons"), truth))
             figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
                                   note=f"{masked}; top colour: also first order fails (inf)")

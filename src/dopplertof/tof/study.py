@@ -269,10 +269,9 @@ def write_map(path, study: StudyResult, title: str) -> None:
     0.1 m/s, the paper's setting marked), atomically."""
     import matplotlib.colors as colors
 
-    from ..io import save_figure
-    from .figures import _pyplot
+    from ..io import pyplot, save_figure
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 5.2), dpi=100)
     data = np.ma.masked_invalid(study.velocity_std)
     finite = study.velocity_std[np.isfinite(study.velocity_std)]
