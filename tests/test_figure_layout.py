@@ -264,3 +264,24 @@ def test_analysis_figures_show_their_titles_and_legends(tmp_path, saved):
     write_figures(tmp_path / "figs", quick=True)
     assert len(saved) == len(FIGURE_FILES)
     assert_laid_out(saved)
+
+
+@pytest.mark.parametrize("frames, size", [(9, (24, 32)), (8, (120, 160)), (4, (8, 8))])
+def test_camera_raw_frame_grid_is_laid_out_with_one_bar(tmp_path, drawn, frames, size):
+    """A camera capture's raw.png: the frames in rows of a frequency's phases, one shared
+    colour bar (with an arrow at neither end: the scale is the frames' own range)."""
+    from dopplertof.cameras import output
+
+    rng = np.random.default_rng(frames)
+    raw = rng.integers(800, 3000, (frames, *size)).astype(np.float32)
+    per = 3 if frames == 9 else 4
+    records = [{"w_g_MHz": 16.0 * (1 + k // per), "phase_deg": 360.0 * (k % per) / per}
+               for k in range(frames)]
+    output._write_raw_grid(tmp_path / "raw.png", raw, records, "kinect-v2")
+    (name, drawing), = drawn
+    assert_previews_laid_out(drawn)
+    parts = [p for p, _ in drawing.boxes]
+    assert sum(p.endswith("image") for p in parts) == frames and parts.count("bar") == 1
+    assert drawing.extends == ["neither"]
+    images = [b for p, b in drawing.boxes if p.endswith("image")]
+    assert len({b[1] for b in images}) == -(-frames // per)  # (a row per frequency)

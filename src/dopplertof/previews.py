@@ -342,66 +342,153 @@ def image_size(shape, fit) -> tuple:
     return max(1, int(round(w * scale))), max(1, int(round(h * scale)))
 
 
-class _PanelLayout:
-    """Where a panel's parts go, relative to the panel's top left corner."""
+class _BarLayout:
+    """A colour bar of ``length`` pixels for ``scale`` in ``cmap``: its arrows
+    (``extend``), round ticks and ``label`` read upwards; positions from its top left."""
 
-    def __init__(self, panel: Panel, fit):
+    def __init__(self, scale: ColourScale, cmap: str, label: str, length: int, extend: str):
+        self.scale, self.cmap, self.length, self.extend = scale, cmap, length, extend
+        self.ticks = scale.ticks(max(3, length // TICK_SPACING + 1))
+        self.tick_w = max((text_width(text, TICK_SIZE) for _, text in self.ticks), default=0)
+        self.label = TextBlock(wrap(label, LABEL_SIZE, length) if label else [], LABEL_SIZE)
+        self.tick_x = BAR_WIDTH + TICK_LENGTH + 3
+        self.label_x = self.tick_x + self.tick_w + TEXT_GAP
+        self.width = self.label_x + self.label.height
+
+    def arrows(self) -> tuple:
+        """The lengths (top, bottom) of the arrows: one bar width each where ``extend``
+        has them (at most a fifth of the bar)."""
+        size = min(BAR_WIDTH, self.length // 5)
+        return (size if self.extend in ("max", "both") else 0,
+                size if self.extend in ("min", "both") else 0)
+
+    def paint(self, canvas, x: int, y: int, name: str) -> list:
+        """The bar's colours between its arrows, top row the highest value."""
+        top, bottom = self.arrows()
+        inner = self.length - top - bottom
+        steps = (inner - 1 - np.arange(inner) + 0.5) / inner
+        canvas[y + top:y + top + inner, x:x + BAR_WIDTH] = colours(self.cmap, steps)[:, None, :]
+        return [(name, (x, y, x + BAR_WIDTH, y + self.length))]
+
+    def write(self, image, pen, x: int, y: int, name: str) -> list:
+        """The outline, the arrows, the ticks and the label; returns the texts' boxes."""
+        x1, y1 = x + BAR_WIDTH - 1, y + self.length - 1
+        top, bottom = self.arrows()
+        table = colour_table(self.cmap)
+        outline = [(x, y + top), (x1, y + top), (x1, y1 - bottom), (x, y1 - bottom)]
+        pen.line(outline + [outline[0]], fill=(0, 0, 0), width=1)
+        middle = (x + x1) / 2
+        if top:
+            pen.polygon([(x, y + top), (middle, y), (x1, y + top)],
+                        fill=tuple(int(c) for c in table[-1]), outline=(0, 0, 0))
+        if bottom:
+            pen.polygon([(x, y1 - bottom), (middle, y1), (x1, y1 - bottom)],
+                        fill=tuple(int(c) for c in table[0]), outline=(0, 0, 0))
+        inner, boxes = self.length - top - bottom, []
+        for value, text in self.ticks:
+            t = float(self.scale.position(value))
+            if not -1e-9 <= t <= 1 + 1e-9:
+                continue
+            ty = int(round(y + top + (inner - 1) * (1.0 - t)))
+            pen.line([(x1 + 1, ty), (x1 + TICK_LENGTH, ty)], fill=(0, 0, 0), width=1)
+            at = (x + self.tick_x, ty)
+            pen.text(at, text, font=font(TICK_SIZE), fill=(0, 0, 0), anchor="lm")
+            boxes.append((f"{name} tick {text}",
+                          pen.textbbox(at, text, font=font(TICK_SIZE), anchor="lm")))
+        if self.label.lines:
+            boxes.append(_write_along(image, self.label, x + self.label_x, y, self.length,
+                                      f"{name} label"))
+        return boxes
+
+
+class _PanelLayout:
+    """Where a panel's parts go, relative to the panel's top left corner: its title, its
+    image and (``with_bar``) its colour bar beside it."""
+
+    def __init__(self, panel: Panel, fit, with_bar: bool = True):
         self.panel = panel
         self.image_w, self.image_h = image_size(panel.data.shape, fit)
-        self.bar_len = max(self.image_h, BAR_MIN_LENGTH)
-        self.ticks = panel.scale.ticks(max(3, self.bar_len // TICK_SPACING + 1))
-        self.tick_w = max((text_width(label, TICK_SIZE) for _, label in self.ticks),
-                          default=0)
-        label_lines = wrap(panel.label, LABEL_SIZE, self.bar_len) if panel.label else []
-        self.label = TextBlock(label_lines, LABEL_SIZE)
-        content_w = (self.image_w + BAR_GAP + BAR_WIDTH + TICK_LENGTH + 3 + self.tick_w
-                     + TEXT_GAP + self.label.height)
+        self.bar = (_BarLayout(panel.scale, panel.cmap, panel.label,
+                               max(self.image_h, BAR_MIN_LENGTH), panel.extend)
+                    if with_bar else None)
+        content_w = self.image_w + (BAR_GAP + self.bar.width if self.bar else 0)
         # the title wrapped to the panel, at least TITLE_MIN_WIDTH wide (a narrow image's
         # panel grows to it, the image and its bar centred in it)
         self.title = TextBlock.wrapped(panel.title, TITLE_SIZE, max(content_w, TITLE_MIN_WIDTH))
         self.width = max(content_w, self.title.width)
         self.image_x = (self.width - content_w) // 2
         self.bar_x = self.image_x + self.image_w + BAR_GAP
-        self.tick_x = self.bar_x + BAR_WIDTH + TICK_LENGTH + 3
-        self.label_x = self.tick_x + self.tick_w + TEXT_GAP
         self.body_y = self.title.height + (TEXT_GAP if self.title.lines else 0)
-        self.body_h = max(self.image_h, self.bar_len)
+        self.body_h = max(self.image_h, self.bar.length if self.bar else 0)
         self.height = self.body_y + self.body_h
         self.image_y = self.body_y + (self.body_h - self.image_h) // 2
-        self.bar_y = self.body_y + (self.body_h - self.bar_len) // 2
+        self.bar_y = self.body_y + (self.body_h - self.bar.length) // 2 if self.bar else 0
 
 
-def draw(panels, fit=(576, 576), title: str = "", caption: str = "") -> Drawing:
-    """The preview of ``panels`` side by side, each image fitted into ``fit`` (width,
-    height in pixels), under ``title`` and over ``caption`` (both wrapped to the
-    picture's width); see the module docstring."""
+def draw(panels, fit=(576, 576), title: str = "", caption: str = "", columns=None,
+         shared_bar: bool = False) -> Drawing:
+    """The preview of ``panels`` in rows of ``columns`` (None: one row), each image
+    fitted into ``fit`` (width, height in pixels), under ``title`` and over ``caption``
+    (both wrapped to the picture's width); ``shared_bar``: one colour bar right of them
+    all, the first panel's scale, colour map and label (give them all the same scale),
+    with arrows where any panel's data passes it. See the module docstring."""
     from PIL import Image, ImageDraw
 
-    layouts = [_PanelLayout(p, fit) for p in panels]
-    inner_w = sum(lay.width for lay in layouts) + PANEL_GAP * (len(layouts) - 1)
+    layouts = [_PanelLayout(p, fit, with_bar=not shared_bar) for p in panels]
+    grid = _Grid(layouts, columns or len(layouts))
+    bar = None
+    if shared_bar:
+        first = panels[0]
+        every = np.concatenate([np.ravel(p.data) for p in panels])
+        bar = _BarLayout(first.scale, first.cmap, first.label,
+                         max(grid.height - layouts[0].body_y, BAR_MIN_LENGTH),
+                         colorbar_extend(every, first.scale.vmin, first.scale.vmax))
+    inner_w = grid.width + (BAR_GAP + bar.width if bar else 0)
     top = TextBlock.wrapped(title, SUPTITLE_SIZE, inner_w)
     bottom = TextBlock.wrapped(caption, CAPTION_SIZE, inner_w, CAPTION_COLOUR)
-    inner_w = max(inner_w, top.width, bottom.width)
-    panels_y = PAD + top.height + (TITLE_GAP if top.lines else 0)
-    panels_h = max(lay.height for lay in layouts)
-    caption_y = panels_y + panels_h + (TEXT_GAP if bottom.lines else 0)
-    size = (inner_w + 2 * PAD, caption_y + bottom.height + PAD)
+    grid_x = PAD + (max(inner_w, top.width, bottom.width) - inner_w) // 2
+    grid_y = PAD + top.height + (TITLE_GAP if top.lines else 0)
+    body_h = max(grid.height, layouts[0].body_y + bar.length if bar else 0)
+    caption_y = grid_y + body_h + (TEXT_GAP if bottom.lines else 0)
+    size = (max(inner_w, top.width, bottom.width) + 2 * PAD, caption_y + bottom.height + PAD)
     canvas = np.full((size[1], size[0], 3), 255, np.uint8)
+    starts = [(grid_x + x, grid_y + y) for x, y in grid.corners]
     boxes = []
-    starts, x = [], PAD + (inner_w - sum(lay.width for lay in layouts)
-                           - PANEL_GAP * (len(layouts) - 1)) // 2
-    for lay in layouts:  # (each panel's top left corner; the panels' bottoms aligned)
-        starts.append((x, panels_y + panels_h - lay.height))
-        x += lay.width + PANEL_GAP
     for k, (lay, (x, y)) in enumerate(zip(layouts, starts)):
         boxes += _paint_panel(canvas, lay, x, y, k)
+    bar_at = (grid_x + grid.width + BAR_GAP, grid_y + layouts[0].body_y)
+    if bar:
+        boxes += bar.paint(canvas, *bar_at, "bar")
     image = Image.fromarray(canvas)
     pen = ImageDraw.Draw(image)
     for k, (lay, (x, y)) in enumerate(zip(layouts, starts)):
         boxes += _write_panel_texts(image, pen, lay, x, y, k)
+    if bar:
+        boxes += bar.write(image, pen, *bar_at, "bar")
     boxes += _write_block(pen, top, size[0] // 2, PAD, "title")
     boxes += _write_block(pen, bottom, size[0] // 2, caption_y, "caption")
-    return Drawing(image, boxes, [lay.panel.extend for lay in layouts])
+    extends = [bar.extend] if bar else [lay.bar.extend for lay in layouts]
+    return Drawing(image, boxes, extends)
+
+
+class _Grid:
+    """Panels in rows of ``columns``: each column as wide as its widest panel, each row
+    as tall as its tallest, the panels centred in their column and their bottoms
+    aligned in their row; ``corners`` are their top left corners from the grid's."""
+
+    def __init__(self, layouts, columns: int):
+        columns = max(1, min(columns, len(layouts)))
+        rows = [layouts[k:k + columns] for k in range(0, len(layouts), columns)]
+        col_w = [max(row[c].width for row in rows if c < len(row)) for c in range(columns)]
+        row_h = [max(lay.height for lay in row) for row in rows]
+        self.width = sum(col_w) + PANEL_GAP * (columns - 1)
+        self.height = sum(row_h) + PANEL_GAP * (len(rows) - 1)
+        self.corners = []
+        for r, row in enumerate(rows):
+            y = sum(row_h[:r]) + PANEL_GAP * r
+            for c, lay in enumerate(row):
+                x = sum(col_w[:c]) + PANEL_GAP * c + (col_w[c] - lay.width) // 2
+                self.corners.append((x, y + row_h[r] - lay.height))
 
 
 def _paint_panel(canvas, lay: _PanelLayout, x: int, y: int, k: int) -> list:
@@ -424,59 +511,21 @@ def _paint_panel(canvas, lay: _PanelLayout, x: int, y: int, k: int) -> list:
         pixels[marked & lines] = MARK_COLOUR
     image_x, image_y = x + lay.image_x, y + lay.image_y
     canvas[image_y:image_y + lay.image_h, image_x:image_x + lay.image_w] = pixels
-    # ---- the colour bar: its colours between the arrows, black edges ---------------------
-    x0, y0 = x + lay.bar_x, y + lay.bar_y
-    arrow = _arrows(panel.extend, lay.bar_len)
-    inner = lay.bar_len - arrow[0] - arrow[1]
-    steps = (inner - 1 - np.arange(inner) + 0.5) / inner  # (top row: the highest value)
-    canvas[y0 + arrow[0]:y0 + arrow[0] + inner, x0:x0 + BAR_WIDTH] = \
-        colours(panel.cmap, steps)[:, None, :]
-    return [(f"panel {k} image", (image_x, image_y, image_x + lay.image_w,
-                                  image_y + lay.image_h)),
-            (f"panel {k} bar", (x0, y0, x0 + BAR_WIDTH, y0 + lay.bar_len))]
-
-
-def _arrows(extend: str, bar_len: int) -> tuple:
-    """The lengths (top, bottom) of a colour bar's arrows: one bar width each where
-    ``extend`` has them (at most a fifth of the bar)."""
-    size = min(BAR_WIDTH, bar_len // 5)
-    return (size if extend in ("max", "both") else 0, size if extend in ("min", "both") else 0)
+    boxes = [(f"panel {k} image", (image_x, image_y, image_x + lay.image_w,
+                                   image_y + lay.image_h))]
+    if lay.bar:
+        boxes += lay.bar.paint(canvas, x + lay.bar_x, y + lay.bar_y, f"panel {k} bar")
+    return boxes
 
 
 def _write_panel_texts(image, pen, lay: _PanelLayout, x: int, y: int, k: int) -> list:
-    """Panel ``k``'s title, the colour bar's outline, arrows, ticks and label; returns the
-    boxes of the texts."""
-    panel = lay.panel
-    boxes = []
+    """Panel ``k``'s title and its colour bar's outline, arrows, ticks and label;
+    returns the boxes of the texts."""
     centre = x + lay.image_x + lay.image_w // 2  # (over the image, kept inside the panel)
     centre = min(max(centre, x + lay.title.width // 2), x + lay.width - lay.title.width // 2)
-    boxes += _write_block(pen, lay.title, centre, y, f"panel {k} title")
-    x0, y0 = x + lay.bar_x, y + lay.bar_y
-    x1, y1 = x0 + BAR_WIDTH - 1, y0 + lay.bar_len - 1
-    top, bottom = _arrows(panel.extend, lay.bar_len)
-    table = colour_table(panel.cmap)
-    outline = [(x0, y0 + top), (x1, y0 + top), (x1, y1 - bottom), (x0, y1 - bottom)]
-    pen.line(outline + [outline[0]], fill=(0, 0, 0), width=1)
-    middle = (x0 + x1) / 2
-    if top:
-        pen.polygon([(x0, y0 + top), (middle, y0), (x1, y0 + top)],
-                    fill=tuple(int(c) for c in table[-1]), outline=(0, 0, 0))
-    if bottom:
-        pen.polygon([(x0, y1 - bottom), (middle, y1), (x1, y1 - bottom)],
-                    fill=tuple(int(c) for c in table[0]), outline=(0, 0, 0))
-    inner = lay.bar_len - top - bottom
-    tick_font = font(TICK_SIZE)
-    for value, label in lay.ticks:
-        t = float(panel.scale.position(value))
-        if not -1e-9 <= t <= 1 + 1e-9:
-            continue
-        ty = int(round(y0 + top + (inner - 1) * (1.0 - t)))
-        pen.line([(x1 + 1, ty), (x1 + TICK_LENGTH, ty)], fill=(0, 0, 0), width=1)
-        pen.text((x + lay.tick_x, ty), label, font=tick_font, fill=(0, 0, 0), anchor="lm")
-        box = pen.textbbox((x + lay.tick_x, ty), label, font=tick_font, anchor="lm")
-        boxes.append((f"panel {k} tick {label}", box))
-    if lay.label.lines:
-        boxes.append(_write_along(image, lay.label, x + lay.label_x, y0, lay.bar_len, k))
+    boxes = _write_block(pen, lay.title, centre, y, f"panel {k} title")
+    if lay.bar:
+        boxes += lay.bar.write(image, pen, x + lay.bar_x, y + lay.bar_y, f"panel {k}")
     return boxes
 
 
@@ -492,7 +541,7 @@ def _write_block(pen, block: TextBlock, centre_x: int, y: int, name: str) -> lis
     return [(name, (left, y, left + block.width, y + block.height))]
 
 
-def _write_along(image, block: TextBlock, x: int, y: int, length: int, k: int):
+def _write_along(image, block: TextBlock, x: int, y: int, length: int, name: str):
     """A colour bar's label read upwards at ``x``, centred on the bar (``y``,
     ``length``); returns its box."""
     from PIL import Image, ImageDraw
@@ -506,7 +555,7 @@ def _write_along(image, block: TextBlock, x: int, y: int, length: int, k: int):
     mask = mask.rotate(90, expand=True)
     top = y + (length - mask.height) // 2
     image.paste(block.colour, (x, top), mask)
-    return (f"panel {k} label", (x, top, x + mask.width, top + mask.height))
+    return (name, (x, top, x + mask.width, top + mask.height))
 
 
 def _rgb(colour: str) -> tuple:

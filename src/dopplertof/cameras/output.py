@@ -87,21 +87,20 @@ def _write_previews(result, path, camera: str) -> None:
 
 
 def _write_raw_grid(path, raw, records, camera: str) -> None:
-    """The raw frames side by side, one shared DN scale."""
-    plt = io.pyplot()
-    count = len(raw)
-    columns = min(count, 4)
-    rows = -(-count // columns)
-    h, w = raw.shape[1:]
-    fig, axes = plt.subplots(rows, columns, figsize=(2.6 * columns, 2.6 * rows * h / w + 0.6),
-                             dpi=100, squeeze=False)
+    """The raw frames side by side (a row per modulation frequency when each has as many
+    frames, else rows of 4), titled by frequency and phase, on one shared DN scale."""
+    from ..previews import ColourScale, Panel, draw
+
+    frequencies = [r["w_g_MHz"] for r in records]
+    per_frequency = len(raw) // max(1, len(set(frequencies)))
+    columns = per_frequency if per_frequency * len(set(frequencies)) == len(raw) else 4
     lo, hi = float(np.min(raw)), float(np.max(raw))
-    for ax, frame, record in zip(axes.flat, raw, records):
-        image = ax.imshow(frame, cmap="gray", vmin=lo, vmax=max(hi, lo + 1),
-                          interpolation="nearest")
-        ax.set_title(f"{record['w_g_MHz']:g} MHz, {record['phase_deg']:g} deg", fontsize=8)
-    for ax in axes.flat:
-        ax.set_axis_off()
-    fig.suptitle(f"{camera}: raw frames (DN)", fontsize=10)
-    fig.colorbar(image, ax=axes.ravel().tolist(), fraction=0.03)
-    io.save_figure(fig, path)
+    scale = ColourScale(lo, max(hi, lo + 1))
+    panels = [Panel(np.asarray(frame, np.float64), f"{r['w_g_MHz']:g} MHz, {r['phase_deg']:g} deg",
+                    "DN", "gray", scale) for frame, r in zip(raw, records)]
+    io.save_png(path, draw(panels, RAW_FRAME_FIT, title=f"{camera}: raw frames (DN)",
+                           columns=min(columns, 6), shared_bar=True))
+
+
+#: the box (pixels) each raw frame of raw.png is fitted into
+RAW_FRAME_FIT = (256, 256)
