@@ -111,3 +111,20 @@ def test_matrix_to_quaternion_is_the_rotation_about_its_axis(angle, axis):
     assert np.allclose(q, expected, atol=1e-12)
     x, y, z, w = Rotation.from_matrix(R).as_quat()
     assert abs(abs(np.dot(q, [w, x, y, z])) - 1.0) < 1e-12
+
+
+@pytest.mark.parametrize("omega", [(0.0, 0.0, 0.0), (0.3, -1.2, 2.0), (1e-5, 0.0, 0.0)])
+def test_velocity_motion_sweeps_every_time_at_once_as_one_at_a_time(omega):
+    """VelocityMotion.moved_points (all times in one NumPy pass, for the swept boxes of
+    every gradient and fit step) equals Motion.moved_points (a matrix per time), with
+    and without rotation and with a base pose."""
+    from dopplertof.diff.motion import VelocityMotion
+    from dopplertof.scene.motion import Motion
+
+    base = np.array([[1, 0, 0, 0.2], [0, 0, -1, 0.1], [0, 1, 0, 0], [0, 0, 0, 1.0]])
+    corners = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-0.5, 0.5) for z in (0, 2)])
+    times = np.linspace(0.0, 0.002, 33)
+    for b in (None, base):
+        vm = VelocityMotion([0.1, 0.2, 0.3], [1.0, -2.0, 0.5], list(omega), 0.001, base=b)
+        np.testing.assert_allclose(vm.moved_points(corners, times),
+                                   Motion.moved_points(vm, corners, times), rtol=0, atol=1e-12)

@@ -159,6 +159,18 @@ class VelocityMotion:
         """Keyframes of this motion at ``times`` (for scenes, ground truth, files)."""
         return Keyframes.create(times, [self.world_matrix(t) for t in times])
 
+    def moved_points(self, points, times) -> np.ndarray:
+        """As Motion.moved_points, every time at once (NumPy arrays through
+        :meth:`relative`: a fit's bounding boxes were 0.1 s of Python per gradient)."""
+        (A, b), _ = self.relative(np.asarray(times, np.float64))
+        A = np.eye(3) if A is None else A
+        out = np.empty((len(times), len(points), 3))
+        for i in range(3):
+            out[:, :, i] = (np.multiply.outer(np.broadcast_to(b[i], len(times)), np.ones(len(points)))
+                            + sum(np.multiply.outer(np.broadcast_to(A[i][j], len(times)),
+                                                    points[:, j]) for j in range(3)))
+        return out.reshape(-1, 3)
+
     def swept_bbox(self, bbox_min, bbox_max, t_start: float, t_end: float, samples: int = 257):
         # the same sweep as keyframed motion, padded for the small steps of derivatives
         lo, hi = Motion.swept_bbox(self, bbox_min, bbox_max, t_start, t_end, samples)

@@ -260,6 +260,11 @@ class Motion:
     def relative_matrix(self, t: float) -> np.ndarray:
         return self.world_matrix(t) @ self.ref_inverse
 
+    def moved_points(self, points, times) -> np.ndarray:
+        """(len(times) x len(points), 3): the points (N x 4, homogeneous, of the
+        reference pose) moved to each of ``times``."""
+        return np.concatenate([(self.relative_matrix(t) @ points.T).T[:, :3] for t in times])
+
     def swept_bbox(self, bbox_min, bbox_max, t_start: float, t_end: float, samples: int = 257):
         """World bounding box of the reference-pose box over [t_start, t_end].
 
@@ -271,7 +276,7 @@ class Motion:
                             for z in (lo[2], hi[2])])
         times = list(np.linspace(t_start, t_end, samples))
         times += [t for t in self.times if t_start <= t <= t_end]
-        pts = np.concatenate([(self.relative_matrix(t) @ corners.T).T[:, :3] for t in times])
+        pts = self.moved_points(corners, np.array(times))
         pmin, pmax = pts.min(axis=0), pts.max(axis=0)
         pad = 0.01 * np.linalg.norm(pmax - pmin) + 1e-6
         return pmin - pad, pmax + pad
