@@ -243,3 +243,15 @@ def test_colour_bar_ticks_are_round_values_inside_the_range():
         [1e-2, 1e-1, 1.0, 10.0])
     assert [v for v, _ in previews.ColourScale(3.0, 40.0, "log").ticks()] == pytest.approx(
         [5.0, 10.0, 20.0])
+
+
+def test_a_very_wide_image_is_not_drawn_as_a_line():
+    """A 2 x 300 map is fitted to the preview's width with its pixels drawn taller: at
+    least MIN_IMAGE_SIDE pixels high, each data row a band of equal height."""
+    data = np.tile(np.array([[0.0], [1.0]]), (1, 300))
+    panel = previews.Panel(data, "wide", "m", "viridis", previews.ColourScale(0.0, 1.0))
+    pixels = _panel_pixels(previews.draw([panel], fit=(576, 576)))
+    assert pixels.shape[0] >= previews.MIN_IMAGE_SIDE and pixels.shape[1] == 576
+    half = pixels.shape[0] // 2
+    assert np.all(pixels[:half] == previews.colours("viridis", 0.0))
+    assert np.all(pixels[-half:] == previews.colours("viridis", 1.0))

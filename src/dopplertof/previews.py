@@ -57,6 +57,7 @@ CAPTION_SIZE = 13   # the caption under the panels
 BAR_GAP = 18        # between an image and its colour bar
 BAR_WIDTH = 22
 BAR_MIN_LENGTH = 120
+MIN_IMAGE_SIDE = 48  # the shortest side of an image (a very wide or tall one's pixels stretch)
 TICK_LENGTH = 5
 TICK_SPACING = 70   # the least room between two ticks of a linear colour bar
 TITLE_GAP = 12      # under the title over all panels
@@ -336,10 +337,12 @@ class Drawing:
 
 def image_size(shape, fit) -> tuple:
     """(width, height) in pixels of an image of ``shape`` (H, W) fitted into ``fit``
-    (width, height), its aspect kept."""
+    (width, height), its aspect kept, except that no side is under MIN_IMAGE_SIDE
+    pixels (a row of 300 pixels would be a line: its pixels are drawn taller then)."""
     h, w = shape[:2]
     scale = min(fit[0] / w, fit[1] / h)
-    return max(1, int(round(w * scale))), max(1, int(round(h * scale)))
+    return (max(min(MIN_IMAGE_SIDE, fit[0]), int(round(w * scale))),
+            max(min(MIN_IMAGE_SIDE, fit[1]), int(round(h * scale))))
 
 
 class _BarLayout:
