@@ -164,21 +164,20 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> 
 
 
 def _method(mi, setup, motion: bool, method: str) -> str:
-    """The method ``method`` stands for: ``auto`` is path replay when it gives the
-    trajectory's gradients (no ``motion`` differentiated, or direct light from lights
-    no path can hit: every vertex lies on the camera ray or on a light) and can run."""
+    """The method ``method`` stands for: ``auto`` is path replay wherever it can run
+    (check_path_replay: its memory does not grow with the path's length, and it gives
+    the trajectory's gradients, per sample where the moving bodies are flat-faced),
+    else the trajectory. ``motion`` (whether a body's or the camera's motion is
+    differentiated) does not change the choice."""
     if method == "path":
         check_path_replay(mi, setup)
     if method != "auto":
         return method
-    from ..integrators.path_adjoint import emitters_hit
-
-    direct = setup.params.max_depth <= 2 and not emitters_hit(mi, setup.scene.static)
     try:
         check_path_replay(mi, setup)
     except DerivativeError:
         return "trajectory"
-    return "path" if not motion or direct else "trajectory"
+    return "path"
 
 
 def check_path_replay(mi, setup) -> None:

@@ -52,6 +52,10 @@ def rotation(omega, tau, xp):
             for i in range(3)]
 
 
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
 class VelocityMotion:
     """Rigid motion of constant velocity (see the module docstring).
 
@@ -137,6 +141,65 @@ class VelocityMotion:
         IA = [[sum(Bi3[i][k] * RT[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
         ib = [-(IA[i][0] * b[0] + IA[i][1] * b[1] + IA[i][2] * b[2]) for i in range(3)]
         return (A, b), (IA, ib)
+
+    def attached_components(self) -> list:
+        """The velocity components that carry gradients: (kind "v" or "w", axis 0-2,
+        the Dr.Jit variable), in a fixed order."""
+        import drjit as dr
+
+        with dr.resume_grad():  # (whether gradients are enabled, also where suspended)
+            return [(kind, axis, x) for kind, values in (("v", self.velocity),
+                                                         ("w", self.angular_velocity))
+                    for axis, x in enumerate(values)
+                    if not isinstance(x, float) and dr.grad_enabled(x)]
+
+    def turn_rates(self, mi, time) -> list:
+        """Per attached component (:meth:`attached_components`, same order), the rate
+        rho at which the body turns with it at the lanes' ``time`` (detached): d R / d
+        component = [rho]x R, rho = tau J(omega tau) e_i for an angular component (J
+        the left Jacobian of the rotation exp at the detached angular velocity), zero
+        for a linear one."""
+        import drjit as dr
+
+        components = self.attached_components()
+        tau = dr.detach(time - self.t_ref)
+        zero = [0.0 * tau] * 3
+        if not any(kind == "w" for kind, _, _ in components):
+            return [zero for _ in components]
+        phi = [dr.detach(mi.Float(w)) * tau for w in self.angular_velocity]
+        t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+        small = t2 < SMALL_ANGLE_SQUARED
+        t2_safe = dr.select(small, 1.0, t2)
+        theta = dr.sqrt(t2_safe)
+        c1 = dr.select(small, 0.5 - t2 / 24.0, (1.0 - dr.cos(theta)) / t2_safe)
+        c2 = dr.select(small, 1.0 / 6.0 - t2 / 120.0,
+                       (theta - dr.sin(theta)) / (t2_safe * theta))
+        out = []
+        for kind, axis, _ in components:
+            if kind == "v":
+                out.append(zero)
+                continue
+            e = [1.0 if i == axis else 0.0 for i in range(3)]
+            once = _cross(phi, e)
+            twice = _cross(phi, once)
+            out.append([tau * (e[i] + c1 * once[i] + c2 * twice[i]) for i in range(3)])
+        return out
+
+    def point_velocities(self, mi, time, x, rates=None) -> list:
+        """Per attached component (same order), d x / d component of the body's
+        material point at world ``x`` (3 Floats, per lane) at the lanes' ``time``,
+        detached: tau e_i for a linear component, rho x (x - c) for an angular one (rho
+        its :meth:`turn_rates`, given as ``rates`` or computed; c = p + v tau the
+        pivot's place)."""
+        import drjit as dr
+
+        components = self.attached_components()
+        tau = dr.detach(time - self.t_ref)
+        rates = self.turn_rates(mi, time) if rates is None else rates
+        arm = [dr.detach(x[i]) - self.pivot[i] - dr.detach(mi.Float(self.velocity[i])) * tau
+               for i in range(3)]
+        return [[tau if i == axis else 0.0 * tau for i in range(3)] if kind == "v"
+                else _cross(rho, arm) for (kind, axis, _), rho in zip(components, rates)]
 
     def _translation_only(self, w) -> bool:
         """No rotation (plain zeros, not AD variables) and a base without linear part:

@@ -1,5 +1,5 @@
 """The adjoint pass of reverse-mode gradients by path replay
-(:func:`dopplertof.diff.gradient` with ``method="path"``).
+(:func:`dopplertof.diff.gradient` with ``method="path"``, the default where it runs).
 
 A lane's value is a sum of contributions C_j, one per emitter hit and light sample of
 its path. The primal pass gives each lane that sum M and the sum M_L of the
@@ -10,33 +10,30 @@ what is local to it, weighted by the lane's adjoint delta (d loss / d lane value
 
 * the segment that reaches the vertex: its length adds to the path length of every
   contribution at or after the vertex, delta . (M_L - prefix) x length;
-* the transition into the vertex (the previous vertex's BSDF value toward it and the
-  geometry term): every contribution at or after the vertex scales with it,
-  delta . (M - prefix) x Phi / detach(Phi);
 * the vertex's own emitter hit and light sample: their emission, BSDF value, light
-  sample weight and modulation weight.
+  sample weight and modulation weight;
+* the BSDF sample that continues the path: every contribution after the vertex scales
+  with the BSDF value times |cos| toward it, delta . (M - prefix') x Phi / detach(Phi).
 
-The camera ray's vertices (before the first bounce) follow the camera ray, since a
-pixel integrates over film positions; the vertices after the first bounce keep their
-places on their surfaces (x(theta) = T_theta(t) T_theta0(t)^-1 x for a body's points,
-static points stay): both are the integrand's derivatives at fixed random numbers, so
-nothing propagates along a path, and memory does not grow with its length. Forward
-mode (and the trajectory method) let every vertex follow its ray instead: the two
-agree in expectation, and per sample wherever no vertex after the first bounce moves
-(reflectances, emission, the modulation; light samples, which are points on the
-lights either way). For the motion of indirectly lit bodies they differ per sample,
-and this one is far noisier: the derivative of the geometry term 1/r^2 between two
-vertices grows without bound where they meet (docs/differentiable.md, "Path replay").
+Where motion is differentiated, every vertex follows its ray, as in forward mode and
+the trajectory method: the camera ray's first hit the attached camera ray, every later
+one the ray from the vertex before it along the sampled direction, that direction
+turning with the body of the vertex it leaves. The vertex before is attached through
+its tangents (d position / d each motion parameter, detached loop state: 3 numbers
+per parameter), which each vertex passes on to the next (the first order of a ray's
+hit on a moving surface, :func:`follow_ray`), so that nothing attached crosses an
+iteration and memory does not grow with the path's length. On flat-faced bodies this
+is the trajectory's derivative per sample; on curved ones, whose shading frames turn
+as a vertex slides, the trajectory's directions turn with the frame and these with
+the body: two unbiased estimators of the same derivative (tests/test_gradient.py).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import drjit as dr
 
 from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
-from ..scene.motion import select_transform, transform_point, transform_vector, vec3
+from ..scene.motion import vec3
 from .path_steps import (advance, contributions, length_derivatives, loop_settings,
                          sample_light, shade, survive, vertex_numbers)
 
@@ -45,7 +42,8 @@ class AttachedLane:
     """What a lane's vertices are re-attached with, recomputed inside the loop from its
     detached inputs (so that gradients reach the width-1 parameters directly, not
     per-lane copies of them): the camera ray at the lane's film position and time,
-    the bodies' frames at its time, and their detached frames."""
+    the bodies' frames at its time, and their detached frames; and the motion
+    parameters whose tangents the loop carries (:meth:`tangents_at`)."""
 
     def __init__(self, mi, setup, start, motion: bool):
         self.mi, self.setup = mi, setup
@@ -54,6 +52,14 @@ class AttachedLane:
         self.frames = start.frames  #: detached BodyFrames (None without bodies)
         self.light_frames = start.light_frames  #: the lights' frames (not differentiated)
         self.emitters_hit = emitters_hit(mi, setup.scene.static)  #: (emitters_hit)
+        #: the attached motion components, (owner, variable): owner k for body k, -1 for
+        #: the camera; each vertex carries d position / d variable for each
+        self.parameters = []
+        owners = [(k, body.motion) for k, body in enumerate(setup.scene.bodies)]
+        owners.append((-1, getattr(setup.camera, "motion", None)))
+        for owner, motion_k in owners:
+            for _, _, variable in getattr(motion_k, "attached_components", list)():
+                self.parameters.append((owner, variable))
 
     def camera_ray(self):
         """(attached camera ray, attached path length from the lens to its origin)."""
@@ -61,27 +67,52 @@ class AttachedLane:
         return ray, offset
 
     def pose(self):
-        """(the bodies' attached frames at the lanes' times, their moves): per body the
-        attached rigid map from its detached pose to its attached one, (R, b): x -> R x
-        + b (R None: a translation), by which its points, normals and frames move (a
-        VelocityMotion's linear part is a rotation times a fixed base, so R is a
-        rotation). (None, None) without bodies."""
+        """The bodies' attached frames at the lanes' times (None without bodies)."""
         setup = self.setup
         if self.frames is None:
-            return None, None
-        moved = BodyFrames(self.mi, setup.scene.bodies, self.time, setup.shutter_open,
-                           setup.shutter_open + setup.modulation.exposure)
-        moves = []
-        for (A, b), (IA, ib) in zip(moved.to_world, self.frames.to_local):
-            R = None if A is None and IA is None else _matmul3(A, IA)
-            moves.append((R, transform_point((A, b), ib)))
-        return moved, moves
-
-    def move_of(self, moves, winner):
-        """Per lane, the move of the scene ``winner`` names (identity: static)."""
-        if moves is None:
             return None
-        return select_transform(self.mi, dr, [winner == k for k in range(len(moves))], moves)
+        return BodyFrames(self.mi, setup.scene.bodies, self.time, setup.shutter_open,
+                          setup.shutter_open + setup.modulation.exposure)
+
+    def _motions(self):
+        """{owner: (motion, its turn rates at the lanes' times)} for the motions with
+        attached components (owner k: body k, -1: the camera)."""
+        setup = self.setup
+        owners = [(k, body.motion) for k, body in enumerate(setup.scene.bodies)]
+        owners.append((-1, getattr(setup.camera, "motion", None)))
+        return {k: (m, m.turn_rates(self.mi, self.time)) for k, m in owners
+                if hasattr(m, "point_velocities")}
+
+    def _per_parameter(self, owner, values):
+        """Per parameter, its owner's entry of ``values`` ({owner: iterator of
+        3-vectors}) where ``owner`` (per lane) is that parameter's owner, else zero."""
+        mi = self.mi
+        return [dr.select(owner == k, vec3(mi, mi.Vector3f, next(values[k])), mi.Vector3f(0.0))
+                for k, _ in self.parameters]
+
+    def tangents_at(self, x, owner):
+        """Per parameter, d x / d parameter (detached Vector3f) of the material point at
+        world ``x`` of the scene ``owner`` names (per lane: body k, or len(bodies) for the
+        static scene; -1: the camera's origin), zero for the parameters of the others."""
+        motions = self._motions()
+        return self._per_parameter(owner, {
+            k: iter(m.point_velocities(self.mi, self.time, x, rates))
+            for k, (m, rates) in motions.items()})
+
+    def turn_tangents(self, d, owner):
+        """Per parameter, d d / d parameter (detached) of a direction ``d`` fixed in the
+        frame of the body ``owner`` names: rho x d (VelocityMotion.turn_rates)."""
+        mi = self.mi
+        return self._per_parameter(owner, {
+            k: iter(dr.cross(vec3(mi, mi.Vector3f, rho), d) for rho in rates)
+            for k, (_, rates) in self._motions().items()})
+
+    def attached_point(self, x, tangents):
+        """``x`` (detached) plus its tangents times each parameter's change from its
+        detached value: the value of x, the derivative it was carried with."""
+        for (_, variable), t in zip(self.parameters, tangents):
+            x = x + t * (variable - dr.detach(variable))
+        return x
 
 
 def emitters_hit(mi, scene) -> bool:
@@ -92,56 +123,42 @@ def emitters_hit(mi, scene) -> bool:
                for e in scene.emitters())
 
 
-def _matmul3(A, B):
-    """A B of 3x3 linear parts (None: the identity)."""
-    if A is None or B is None:
-        return B if A is None else A
-    return [[A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j] for j in range(3)]
-            for i in range(3)]
+def follow_ray(origin_tangents, direction_tangents, t, d, n, surface):
+    """The tangents of the hit, at distance ``t``, of a ray from an origin with
+    ``origin_tangents`` along ``d`` with ``direction_tangents``, on a surface through
+    the hit with normal ``n`` whose material point there has ``surface`` tangents: the
+    first order of the ray's intersection with the moving tangent plane (exact for the
+    position), x' = o' + t d' + d t', t' = n . (surface - o' - t d') / n . d."""
+    cos = dr.dot(n, d)
+    cos = dr.select(dr.abs(cos) > 1e-12, cos, 1e-12)
+    out = []
+    for o, turn, s in zip(origin_tangents, direction_tangents, surface):
+        along = o + t * turn
+        out.append(along + d * (dr.dot(n, s - along) / cos))
+    return out
 
 
-def material_interaction(mi, si, move):
-    """``si`` (world, detached) as a material point of its body, moved with it by
-    ``move`` (AttachedLane.move_of; None: nothing moves)."""
-    if move is None:
-        return si
-    si = mi.SurfaceInteraction3f(si)
-    si.p = vec3(mi, mi.Point3f, transform_point(move, si.p))
-    si.n = vec3(mi, mi.Normal3f, transform_vector(move, si.n))
-    si.sh_frame = mi.Frame3f(vec3(mi, mi.Vector3f, transform_vector(move, si.sh_frame.s)),
-                             vec3(mi, mi.Vector3f, transform_vector(move, si.sh_frame.t)),
-                             vec3(mi, mi.Normal3f, transform_vector(move, si.sh_frame.n)))
-    return si
+def owner_of(winner, n_bodies: int):
+    """The owner (AttachedLane.parameters) of the scene ``winner`` names: body k, or
+    ``n_bodies`` for the static scene."""
+    import mitsuba as mi
 
-
-def material_point(mi, p, move):
-    """A world point ``p`` (detached) moved with its body by ``move``."""
-    return p if move is None else vec3(mi, mi.Point3f, transform_point(move, p))
-
-
-def tangent_point(mi, moved, n, move, camera_ray):
-    """A camera-ray vertex as the camera ray's hit of its moving tangent plane (exact to
-    first order, as the vertex follows the ray): ``moved``, its point moved with its
-    body (material_point), ``n`` its geometric normal, moved here by ``move``."""
-    normal = n if move is None else vec3(mi, mi.Normal3f, transform_vector(move, n))
-    t = dr.dot(normal, moved - camera_ray.o) / dr.dot(normal, camera_ray.d)
-    return camera_ray.o + t * camera_ray.d
+    return dr.select(winner < n_bodies, mi.Int32(winner), mi.Int32(n_bodies))
 
 
 @dr.syntax
 def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, motion=True):
-    """Trace each lane's path again and back-propagate ``delta`` (per lane, the
-    variant's Spectrum: d loss / d lane value) through each vertex's local terms;
-    ``total`` and ``total_dl`` are the primal pass's sums M and M_L; ``motion``: whether
-    any motion (a body's, the camera's) is attached (else the vertices stay as traced).
-    Returns nothing: the gradients are the loop's side effects (``dr.eval()`` runs it;
+    """Trace each lane's path again and back-propagate ``delta`` (per lane: d loss / d
+    lane value) through each vertex's local terms; ``total``, ``total_dl``: the primal
+    pass's M and M_L; ``motion``: whether any motion is attached (else the vertices stay
+    as traced). The gradients are the loop's side effects (``dr.eval()`` runs it;
     evaluating a loop value as well would run the loop a second time)."""
-    static = setup.scene.static
-    modulation = setup.modulation_weight
+    static, modulation = setup.scene.static, setup.modulation_weight
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
     attached = AttachedLane(mi, setup, start, motion)
-    u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
-    u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
+    u_first = [streams.first_hit_2d(k, layout.group, layout.index, setup.groups_per_pixel)
+               for k in (0, 1)]  # (the first hit's light and BSDF samples)
+    moving = motion and bool(attached.parameters)
 
     # ---- Loop state (all detached) ----
     prefix = mi.Spectrum(0.0)  # the contributions so far
@@ -154,36 +171,37 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
     prev_bsdf_delta = mi.UInt32(1)  # whether that sample was a delta lobe (1)
     eta = mi.Float(1.0)  # relative index of refraction along the path
-    last = LastVertex.zeros(mi)  # the last scattering vertex (none yet)
-    before = LastVertex.zeros(mi)  # the one before it
+    origin = mi.Point3f(0.0)  # the last scattering vertex, where the ray starts (moving)
+    origin_owner = mi.Int32(-1)  # the scene it is on (owner_of; -1: the camera)
+    tangents = [mi.Vector3f(0.0) for _ in attached.parameters if moving]  # d origin / d each
     bsdf_ctx = mi.BSDFContext()
-
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof_adjoint"):
-        active = going != 0
         # ---- The vertex, traced as the primal pass traced it ----
+        active = going != 0
         pi, winner = nearest_hit(mi, static, frames, ray, active, coherent=depth == 0)
         si = surface_interaction(mi, static, frames, ray, pi, winner, active)
-        numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
+        numbers = vertex_numbers(streams, depth, *u_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
                   hide_direct_emitters, modulation.F, bsdf_ctx)
+        hit_contribution, light_contribution = contributions(modulation, v, t_rel)
 
         # ---- Its local terms, attached, back-propagated at once ----
         with dr.resume_grad():
-            local = _local_terms(mi, setup, attached, (si, pi, winner), v, numbers, depth,
-                                 beta, t_rel, (total - prefix, total_dl - prefix_dl), last,
-                                 before, bsdf_ctx)
+            after = total - prefix - hit_contribution - light_contribution
+            local = _local_terms(mi, setup, attached, (si, pi, winner), ray, v, numbers,
+                                 beta, t_rel, (total - prefix, total_dl - prefix_dl, after),
+                                 (depth, origin, origin_owner, tangents), bsdf_ctx)
             dr.backward_from(_dot(delta, local), flags=dr.ADFlag.AllowNoGrad)
-        hit_contribution, light_contribution = contributions(modulation, v, t_rel)
         prefix += hit_contribution  # (summed as the primal pass sums them)
         prefix += light_contribution
         prefix_dl += length_derivatives(modulation, v, t_rel)
 
+        # ---- The vertex's place and tangents, for the next one's ray ----
+        origin, origin_owner, tangents = _next_place(
+            mi, attached, (si, winner, ray, v, depth), (origin, origin_owner, tangents), moving)
         # ---- Continue the path (as the primal pass) ----
-        bounced = v.valid & ~v.through
-        before = dr.select(bounced, last, before)
-        last = dr.select(bounced, LastVertex.of(mi, si, pi, winner, depth), last)
         length = v.length_hit
         ray, beta, eta, prev_si, prev_bsdf_pdf, delta_lobe, depth = advance(
             mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
@@ -191,94 +209,90 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
 
 
-@dataclass
-class LastVertex:
-    """A scattering vertex of the path, detached, as the loop keeps it: its interaction,
-    its hit and the scene it is in (to follow the camera ray again), and whether it
-    lies on the camera ray (before the first bounce: 1)."""
-
-    si: object  #: mi.SurfaceInteraction3f (world)
-    pi: object  #: mi.PreliminaryIntersection3f
-    winner: object  #: mi.UInt32, the scene it is in (nearest_hit)
-    on_camera_ray: object  #: mi.UInt32
-
-    @classmethod
-    def zeros(cls, mi):
-        return cls(dr.zeros(mi.SurfaceInteraction3f), dr.zeros(mi.PreliminaryIntersection3f),
-                   mi.UInt32(0), mi.UInt32(1))
-
-    @classmethod
-    def of(cls, mi, si, pi, winner, depth):
-        return cls(mi.SurfaceInteraction3f(si), mi.PreliminaryIntersection3f(pi),
-                   mi.UInt32(winner), mi.UInt32(dr.select(depth == 0, 1, 0)))
+def _next_place(mi, attached, vertex, place, moving: bool):
+    """(origin, its owner, its tangents) of the next ray: this vertex's where the path
+    bounces off it (``vertex``: its si, winner, ray, Vertex and depth), ``place`` (the
+    last ones) otherwise or where nothing moves."""
+    if not moving:
+        return place
+    si, winner, ray, v, depth = vertex
+    origin, origin_owner, tangents = place
+    tangents = _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents)
+    bounced = v.valid & ~v.through
+    return (dr.select(bounced, si.p, origin),
+            dr.select(bounced, owner_of(winner, len(attached.setup.scene.bodies)), origin_owner),
+            tangents)
 
 
-def _local_terms(mi, setup, attached, hit, v, numbers, depth, beta, t_rel, suffix, last,
-                 before, bsdf_ctx):
+def _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents):
+    """The tangents of this vertex (the origin of the next ray): its hit slides along
+    its ray on its moving surface (follow_ray); the ray from the last vertex, its
+    direction turning with that vertex's body, or the camera ray (from the camera's
+    origin, its direction fixed)."""
+    on_camera_ray = depth == 0
+    camera = attached.tangents_at(ray.o, mi.Int32(-1))
+    origin_tangents = [dr.select(on_camera_ray, c, t) for c, t in zip(camera, tangents)]
+    turns = [dr.select(on_camera_ray, mi.Vector3f(0.0), turn)
+             for turn in attached.turn_tangents(dr.detach(ray.d), origin_owner)]
+    surface = attached.tangents_at(si.p, owner_of(winner, len(attached.setup.scene.bodies)))
+    followed = follow_ray(origin_tangents, turns, si.t, dr.detach(ray.d), dr.detach(si.n),
+                          surface)
+    return [dr.select(si.is_valid(), f, t) for f, t in zip(followed, tangents)]
+
+
+def _local_terms(mi, setup, attached, hit, ray, v, numbers, beta, t_rel, suffix, place,
+                 bsdf_ctx):
     """The vertex's local terms (Spectrum, attached): d/d theta of their dot product with
     delta is the vertex's share of d loss / d theta (see the module docstring)."""
     si, pi, winner = hit
-    remaining, remaining_dl = suffix  # the contributions at or after this vertex
+    remaining, remaining_dl, after = suffix  # at or after this vertex; after it
+    depth, origin, origin_owner, tangents = place
     terms = mi.Spectrum(0.0)
-    if attached.motion:  # ---- vertices that move: attached, with the segment's length ----
-        here, last_a, wi_last, segment = _moving_vertices(
-            mi, setup, attached, hit, v, depth, last, before)
+    here = si
+    if attached.motion:  # ---- the vertex re-attached, following its ray ----
+        here, segment = _moving_vertex(mi, setup, attached, hit, ray, v, depth, origin,
+                                       origin_owner, tangents)
         terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
-    else:  # ---- nothing moves: the vertices as traced ----
-        here, last_a = si, mi.SurfaceInteraction3f(last.si)
-        wi_last = last_a.to_world(last_a.wi)
-
-    # ---- The transition into it, and its own emitter hit and light sample ----
-    terms += _transition_term(mi, (here, last_a), wi_last, depth, v.valid, remaining,
-                              bsdf_ctx)
+    # ---- The BSDF sample that continues the path, its own emitter hit and light sample ----
+    turning = (attached.motion, owner_of(winner, len(setup.scene.bodies)))
+    terms += _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx)
     return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
 
 
-def _moving_vertices(mi, setup, attached, hit, v, depth, last, before):
-    """This vertex and the last scattering one, attached (at most one of them lies on the
-    camera ray, so one interaction follows it), the direction the last one was reached
-    from, and the length of the segment reaching this one (from the lens on the camera
-    ray)."""
+def _moving_vertex(mi, setup, attached, hit, ray, v, depth, origin, origin_owner, tangents):
+    """This vertex, attached: the hit of its ray (the attached camera ray on the camera
+    ray, else from the last vertex, attached by its tangents, along a direction fixed
+    in that vertex's body) on its surface in the bodies' attached frames; and the
+    length of the segment reaching it (from the lens on the camera ray)."""
     si, pi, winner = hit
-    moved, moves = attached.pose()
     camera, camera_offset = attached.camera_ray()
     on_camera_ray = depth == 0
-    first = mi.PreliminaryIntersection3f(dr.select(on_camera_ray, pi, last.pi))
-    followed = surface_interaction(mi, setup.scene.static, moved, camera, first,
-                                   dr.select(on_camera_ray, winner, last.winner),
-                                   v.valid & (depth <= 1))
-    last_a = dr.select(depth == 1, followed,
-                       material_interaction(mi, last.si, attached.move_of(moves, last.winner)))
-    here = dr.select(on_camera_ray, followed,
-                     material_interaction(mi, si, attached.move_of(moves, winner)))
-    here.wi = dr.select(on_camera_ray, here.wi,
-                        here.to_local(dr.normalize(last_a.p - here.p)))
-    before_move = attached.move_of(moves, before.winner)
-    before_moved = material_point(mi, before.si.p, before_move)
-    before_a = dr.select(before.on_camera_ray != 0,
-                         tangent_point(mi, before_moved, before.si.n, before_move, camera),
-                         before_moved)
-    wi_last = dr.select(depth == 1, -camera.d, dr.normalize(before_a - last_a.p))
+    start_point = attached.attached_point(origin, tangents)
+    d = dr.detach(ray.d)
+    followed_ray = mi.Ray3f(start_point, attached.attached_point(
+        d, attached.turn_tangents(d, origin_owner)), ray.maxt, ray.time, ray.wavelengths)
+    ray_a = dr.select(on_camera_ray, camera, followed_ray)
+    here = surface_interaction(mi, setup.scene.static, attached.pose(), ray_a, pi, winner,
+                               v.valid)
     segment = dr.select(on_camera_ray,
                         setup.modulation_weight.to_float32(camera_offset)
-                        + dr.norm(here.p - camera.o), dr.norm(here.p - last_a.p))
-    return here, last_a, wi_last, segment
+                        + dr.norm(here.p - camera.o), dr.norm(here.p - start_point))
+    return here, segment
 
 
-def _transition_term(mi, vertices, wi_last, depth, valid, remaining, bsdf_ctx):
-    """The transition into this vertex, ``remaining`` x Phi / detach(Phi): Phi the last
-    vertex's BSDF value toward it (reached from ``wi_last``, world) times the geometry
-    term |cos| / r^2 at this vertex (``vertices``: this one and the last, attached)."""
-    here, last_a = vertices
-    to_here = here.p - last_a.p
-    wo_last = dr.normalize(to_here)
-    last_a.wi = last_a.to_local(wi_last)
-    transition = (depth > 0) & valid
-    phi = (last_a.bsdf().eval(bsdf_ctx, last_a, last_a.to_local(wo_last), transition)
-           * dr.abs(dr.dot(here.n, wo_last)) / dr.squared_norm(to_here))
+def _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx):
+    """The BSDF sample that continues the path from this vertex, ``after`` x Phi /
+    detach(Phi): Phi the vertex's BSDF value times |cos| toward the sampled direction
+    (turning with the vertex's body where it moves: ``turning`` = (whether anything
+    moves, the vertex's owner); the next vertex follows it), ``after`` the
+    contributions after this vertex (every one of them scales with Phi)."""
+    bounced = v.valid & ~v.through & v.active_next
+    d_next = dr.detach(si.to_world(v.bs.wo))
+    if turning[0]:
+        d_next = attached.attached_point(d_next, attached.turn_tangents(d_next, turning[1]))
+    phi = here.bsdf().eval(bsdf_ctx, here, here.to_local(d_next), bounced)
     base = dr.detach(phi)
-    return dr.select(transition & (base > 0.0),
-                     remaining * phi / dr.select(base > 0.0, base, 1.0), 0.0)
+    return dr.select(bounced & (base > 0.0), after * phi / dr.select(base > 0.0, base, 1.0), 0.0)
 
 
 def _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx):
