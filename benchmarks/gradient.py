@@ -7,8 +7,8 @@ own film (splat):
 * ``trajectory`` and ``path``: ``dopplertof.diff.gradient`` of a linear loss with
   respect to every differentiable name (``differentiable_names``: 2 bodies x 6 motion
   parameters, the camera's velocity, the modulation's three, every reflectance and the
-  light), with each adjoint method (``method=``; the demo's ``auto`` is the
-  trajectory: it has motion and indirect light);
+  light), with each adjoint method (``method=``; the demo's ``auto`` is path
+  replay, which follows the rays as the trajectory does);
 * ``forward``: ``render_derivatives`` with the same names on the importance film (one
   derivative pass per parameter), what the gradient replaces.
 
