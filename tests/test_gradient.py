@@ -331,11 +331,13 @@ def test_path_replay_equals_the_trajectory_for_motion_in_indirect_light():
 def test_path_replay_is_unbiased_on_a_curved_body_in_indirect_light():
     """On the translating sphere (max_depth 3) the trajectory's directions turn with the
     sliding shading frame and path replay's with the body: other estimators of the same
-    derivatives. Over 48 seeds their means agree within 4 standard errors for each
-    velocity component, and path replay's spread is at most 1.5x the trajectory's for
-    the linear ones, 4x for the angular ones about the sphere's centre (whose true
-    derivatives vanish: the trajectory's are nearly exactly zero per sample, so the
-    spread is only bounded in absolute terms there)."""
+    derivatives. Over 48 seeds their means agree for each velocity component (|t| under
+    the Student bound of a 1e-4 family rate over the 6), and path replay's spread is at
+    most 2x the trajectory's for the linear ones, 6x for the angular ones about the
+    sphere's centre, whose true derivatives vanish (measured 0.97-1.18x and 2.5-3.2x;
+    the material points' path replay was 22-95x in a box)."""
+    from bounds import student_bound
+
     import dopplertof
     from dopplertof.diff import DifferentiableScene, gradient
     from dopplertof.diff.render import differentiable_names
@@ -351,10 +353,11 @@ def test_path_replay_is_unbiased_on_a_curved_body_in_indirect_light():
             for m in ("trajectory", "path")}
     t, p = runs["trajectory"], runs["path"]
     se = np.sqrt((t.var(0, ddof=1) + p.var(0, ddof=1)) / len(t))
-    assert np.all(np.abs(p.mean(0) - t.mean(0)) <= 4 * se), (names, p.mean(0), t.mean(0), se)
+    bound = student_bound(1e-4, len(names), len(t) - 1)
+    assert np.all(np.abs(p.mean(0) - t.mean(0)) <= bound * se), (names, p.mean(0), t.mean(0))
     linear = np.array([n.split(".")[1].startswith("v") for n in names])
-    assert np.all(p.std(0, ddof=1)[linear] <= 1.5 * t.std(0, ddof=1)[linear])
-    angular_limit = 4 * max(t.std(0, ddof=1)[~linear].max(), 1e-3 * t.std(0, ddof=1)[linear].max())
+    assert np.all(p.std(0, ddof=1)[linear] <= 2 * t.std(0, ddof=1)[linear])
+    angular_limit = 6 * max(t.std(0, ddof=1)[~linear].max(), 1e-3 * t.std(0, ddof=1)[linear].max())
     assert np.all(p.std(0, ddof=1)[~linear] <= angular_limit)
 
 
