@@ -227,11 +227,11 @@ class VelocityMotion:
         :meth:`relative`: a fit's bounding boxes were 0.1 s of Python per gradient)."""
         (A, b), _ = self.relative(np.asarray(times, np.float64))
         A = np.eye(3) if A is None else A
-        out = np.empty((len(times), len(points), 3))
-        for i in range(3):
-            out[:, :, i] = (np.multiply.outer(np.broadcast_to(b[i], len(times)), np.ones(len(points)))
-                            + sum(np.multiply.outer(np.broadcast_to(A[i][j], len(times)),
-                                                    points[:, j]) for j in range(3)))
+        n = len(times)
+        out = np.empty((n, len(points), 3))
+        for i in range(3):  # (row i of A and b per time, times each point)
+            out[:, :, i] = np.broadcast_to(b[i], n)[:, None] + sum(
+                np.broadcast_to(A[i][j], n)[:, None] * points[None, :, j] for j in range(3))
         return out.reshape(-1, 3)
 
     def swept_bbox(self, bbox_min, bbox_max, t_start: float, t_end: float, samples: int = 257):

@@ -54,12 +54,16 @@ class AttachedLane:
         self.emitters_hit = emitters_hit(mi, setup.scene.static)  #: (emitters_hit)
         #: the attached motion components, (owner, variable): owner k for body k, -1 for
         #: the camera; each vertex carries d position / d variable for each
-        self.parameters = []
+        self.parameters = [(owner, variable) for owner, motion_k in self._owned_motions()
+                           for _, _, variable in motion_k.attached_components()]
+
+    def _owned_motions(self):
+        """(owner, motion) of every motion with velocity parameters (VelocityMotion):
+        owner k for body k, -1 for the camera."""
+        setup = self.setup
         owners = [(k, body.motion) for k, body in enumerate(setup.scene.bodies)]
         owners.append((-1, getattr(setup.camera, "motion", None)))
-        for owner, motion_k in owners:
-            for _, _, variable in getattr(motion_k, "attached_components", list)():
-                self.parameters.append((owner, variable))
+        return [(k, m) for k, m in owners if hasattr(m, "attached_components")]
 
     def camera_ray(self):
         """(attached camera ray, attached path length from the lens to its origin)."""
@@ -77,11 +81,7 @@ class AttachedLane:
     def _motions(self):
         """{owner: (motion, its turn rates at the lanes' times)} for the motions with
         attached components (owner k: body k, -1: the camera)."""
-        setup = self.setup
-        owners = [(k, body.motion) for k, body in enumerate(setup.scene.bodies)]
-        owners.append((-1, getattr(setup.camera, "motion", None)))
-        return {k: (m, m.turn_rates(self.mi, self.time)) for k, m in owners
-                if hasattr(m, "point_velocities")}
+        return {k: (m, m.turn_rates(self.mi, self.time)) for k, m in self._owned_motions()}
 
     def _per_parameter(self, owner, values):
         """Per parameter, its owner's entry of ``values`` ({owner: iterator of
@@ -138,11 +138,9 @@ def follow_ray(origin_tangents, direction_tangents, t, d, n, surface):
     return out
 
 
-def owner_of(winner, n_bodies: int):
+def owner_of(mi, winner, n_bodies: int):
     """The owner (AttachedLane.parameters) of the scene ``winner`` names: body k, or
     ``n_bodies`` for the static scene."""
-    import mitsuba as mi
-
     return dr.select(winner < n_bodies, mi.Int32(winner), mi.Int32(n_bodies))
 
 
@@ -219,9 +217,8 @@ def _next_place(mi, attached, vertex, place, moving: bool):
     origin, origin_owner, tangents = place
     tangents = _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents)
     bounced = v.valid & ~v.through
-    return (dr.select(bounced, si.p, origin),
-            dr.select(bounced, owner_of(winner, len(attached.setup.scene.bodies)), origin_owner),
-            tangents)
+    owner = owner_of(mi, winner, len(attached.setup.scene.bodies))
+    return (dr.select(bounced, si.p, origin), dr.select(bounced, owner, origin_owner), tangents)
 
 
 def _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents):
@@ -234,7 +231,7 @@ def _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents)
     origin_tangents = [dr.select(on_camera_ray, c, t) for c, t in zip(camera, tangents)]
     turns = [dr.select(on_camera_ray, mi.Vector3f(0.0), turn)
              for turn in attached.turn_tangents(dr.detach(ray.d), origin_owner)]
-    surface = attached.tangents_at(si.p, owner_of(winner, len(attached.setup.scene.bodies)))
+    surface = attached.tangents_at(si.p, owner_of(mi, winner, len(attached.setup.scene.bodies)))
     followed = follow_ray(origin_tangents, turns, si.t, dr.detach(ray.d), dr.detach(si.n),
                           surface)
     return [dr.select(si.is_valid(), f, t) for f, t in zip(followed, tangents)]
@@ -254,7 +251,7 @@ def _local_terms(mi, setup, attached, hit, ray, v, numbers, beta, t_rel, suffix,
                                        origin_owner, tangents)
         terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
     # ---- The BSDF sample that continues the path, its own emitter hit and light sample ----
-    turning = (attached.motion, owner_of(winner, len(setup.scene.bodies)))
+    turning = (attached.motion, owner_of(mi, winner, len(setup.scene.bodies)))
     terms += _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx)
     return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
 
