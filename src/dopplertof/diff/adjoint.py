@@ -166,8 +166,9 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> 
 def _method(mi, setup, motion: bool, method: str) -> str:
     """The method ``method`` stands for: ``auto`` is path replay wherever it can run
     (check_path_replay: its memory does not grow with the path's length, and it gives
-    the trajectory's gradients, per sample where the moving bodies are flat-faced),
-    else the trajectory. ``motion`` (whether a body's or the camera's motion is
+    the trajectory's gradients, per sample where the moving bodies are flat-faced and
+    the lights are points, spots or directional: no MIS weight moves), else the
+    trajectory. ``motion`` (whether a body's or the camera's motion is
     differentiated) does not change the choice."""
     if method == "path":
         check_path_replay(mi, setup)

@@ -25,7 +25,9 @@ hit on a moving surface, :func:`follow_ray`), so that nothing attached crosses a
 iteration and memory does not grow with the path's length. On flat-faced bodies this
 is the trajectory's derivative per sample; on curved ones, whose shading frames turn
 as a vertex slides, the trajectory's directions turn with the frame and these with
-the body: two unbiased estimators of the same derivative (tests/test_gradient.py).
+the body, and where a light can be both hit and sampled the MIS weights are held at
+their traced values (the trajectory differentiates them): unbiased estimators of the
+same derivative either way (tests/test_gradient.py).
 """
 
 from __future__ import annotations
