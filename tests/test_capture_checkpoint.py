@@ -88,7 +88,10 @@ def test_capture_interrupted_after_a_capture_resumes_bitwise(tmp_path, capsys):
     reused, total = (int(w) for w in line[0].split(": ")[2].split(" captures")[0]
                      .split(" of "))
     rendered = int(line[0].split(", ")[-1].split()[0])
-    assert total == 11 and 1 <= reused and rendered < total - reused + 1 and reused < 11, err
+    # (on a loaded machine this process may poll late and the interrupt land after the
+    # last render, while the folder is written: then every capture is reused and none is
+    # rendered; the camera test below stops part way deterministically)
+    assert total == 11 and 1 <= reused and rendered < total - reused + 1, err
     assert_same_outputs(out, reference)
     assert not ckpt.exists()  # emptied and removed once the outputs are written
 
