@@ -81,8 +81,7 @@ def test_a_camera_capture_and_its_folder_import_no_matplotlib(tmp_path):
     out = str(tmp_path / "out")
     result = in_fresh_python(
         "import sys, dopplertof\ndopplertof.set_variant()\n"
-        "from dopplertof.cameras import capture_camera, load_preset\n"
-        "from dopplertof.cameras.capture import load_scene_for_camera\n"
+        "from dopplertof.cameras import capture_camera, load_preset, load_scene_for_camera\n"
         "preset = load_preset('kinect-v2')\n"
         f"scene = load_scene_for_camera({SPHERE!r}, preset, (16, 12), {{'max_depth': '2'}})\n"
         f"capture_camera(scene, preset, spp=4, progress=False).write({out!r})\n"

@@ -19,5 +19,5 @@ from ..lazy import lazy_exports
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     ".preset": ("CameraPreset", "PresetError", "RawFrame", "format_preset", "load_preset",
                 "preset_names"),
-    ".capture": ("capture_camera",),
+    ".capture": ("capture_camera", "load_scene_for_camera"),
 })
