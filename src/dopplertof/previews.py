@@ -208,18 +208,17 @@ def format_number(value: float, step: float) -> str:
     """``value`` written with the decimals its tick ``step`` needs; in powers of ten
     (2.5e−5) when it is very large or very small."""
     size = max(abs(value), abs(step))
-    if (size >= 1e5 or size < 1e-3) and value == 0:
-        text = "0"
-    elif size >= 1e5 or size < 1e-3:
+    if (size >= 1e5 or size < 1e-3) and value != 0:
         exponent = math.floor(math.log10(abs(value)))
         mantissa = round(value / 10.0 ** exponent, 2)
         if abs(mantissa) >= 10:
             mantissa, exponent = mantissa / 10, exponent + 1
         text = f"{mantissa:g}e{exponent}"
+    elif size >= 1e5 or size < 1e-3:
+        text = "0"
     else:
-        decimals = max(0, -math.floor(math.log10(abs(step)) + 1e-9)) if step else 0
-        if step and round(step / 10.0 ** math.floor(math.log10(abs(step)) + 1e-9), 3) == 2.5:
-            decimals += 1
+        digit = math.floor(math.log10(abs(step)) + 1e-9) if step else 0  # (its leading digit)
+        decimals = max(0, -digit) + bool(step and round(step / 10.0 ** digit, 3) == 2.5)
         text = f"{value:.{decimals}f}"
     return text.replace("-", MINUS)
 
@@ -285,7 +284,7 @@ def wrap(text: str, size: int, width: int) -> list:
 
 @dataclass
 class TextBlock:
-    """Lines of one text, centred on a point or left-aligned."""
+    """Lines of one text (drawn centred, or read upwards along a colour bar)."""
 
     lines: list
     size: int
@@ -449,11 +448,12 @@ def draw(panels, fit=(576, 576), title: str = "", caption: str = "", columns=Non
     inner_w = grid.width + (BAR_GAP + bar.width if bar else 0)
     top = TextBlock.wrapped(title, SUPTITLE_SIZE, inner_w)
     bottom = TextBlock.wrapped(caption, CAPTION_SIZE, inner_w, CAPTION_COLOUR)
-    grid_x = PAD + (max(inner_w, top.width, bottom.width) - inner_w) // 2
+    width = max(inner_w, top.width, bottom.width)  # (a word longer than the panels)
+    grid_x = PAD + (width - inner_w) // 2
     grid_y = PAD + top.height + (TITLE_GAP if top.lines else 0)
     body_h = max(grid.height, layouts[0].body_y + bar.length if bar else 0)
     caption_y = grid_y + body_h + (TEXT_GAP if bottom.lines else 0)
-    size = (max(inner_w, top.width, bottom.width) + 2 * PAD, caption_y + bottom.height + PAD)
+    size = (width + 2 * PAD, caption_y + bottom.height + PAD)
     canvas = np.full((size[1], size[0], 3), 255, np.uint8)
     starts = [(grid_x + x, grid_y + y) for x, y in grid.corners]
     boxes = []

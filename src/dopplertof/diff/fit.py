@@ -821,13 +821,9 @@ def write_fit(result: FitResult, folder) -> list:
 
 
 def write_convergence_plot(result: FitResult, path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .. import io
 
+    plt = io.pyplot()
     its = [h["iteration"] for h in result.history]
     loss = np.array([h["loss"] for h in result.history])
     angular = bool(result.settings.get("angular"))

@@ -109,9 +109,10 @@ class AttachedLane:
             k: iter(dr.cross(vec3(mi, mi.Vector3f, rho), d) for rho in rates)
             for k, (_, rates) in self._motions().items()})
 
-    def attached_point(self, x, tangents):
-        """``x`` (detached) plus its tangents times each parameter's change from its
-        detached value: the value of x, the derivative it was carried with."""
+    def with_tangents(self, x, tangents):
+        """``x`` (detached: a point or a direction) plus its tangents times each
+        parameter's change from its detached value: the value of x, the derivative it
+        was carried with."""
         for (_, variable), t in zip(self.parameters, tangents):
             x = x + t * (variable - dr.detach(variable))
         return x
@@ -266,9 +267,9 @@ def _moving_vertex(mi, setup, attached, hit, ray, v, depth, origin, origin_owner
     si, pi, winner = hit
     camera, camera_offset = attached.camera_ray()
     on_camera_ray = depth == 0
-    start_point = attached.attached_point(origin, tangents)
+    start_point = attached.with_tangents(origin, tangents)
     d = dr.detach(ray.d)
-    followed_ray = mi.Ray3f(start_point, attached.attached_point(
+    followed_ray = mi.Ray3f(start_point, attached.with_tangents(
         d, attached.turn_tangents(d, origin_owner)), ray.maxt, ray.time, ray.wavelengths)
     ray_a = dr.select(on_camera_ray, camera, followed_ray)
     here = surface_interaction(mi, setup.scene.static, attached.pose(), ray_a, pi, winner,
@@ -288,7 +289,7 @@ def _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx):
     bounced = v.valid & ~v.through & v.active_next
     d_next = dr.detach(si.to_world(v.bs.wo))
     if turning[0]:
-        d_next = attached.attached_point(d_next, attached.turn_tangents(d_next, turning[1]))
+        d_next = attached.with_tangents(d_next, attached.turn_tangents(d_next, turning[1]))
     phi = here.bsdf().eval(bsdf_ctx, here, here.to_local(d_next), bounced)
     base = dr.detach(phi)
     return dr.select(bounced & (base > 0.0), after * phi / dr.select(base > 0.0, base, 1.0), 0.0)

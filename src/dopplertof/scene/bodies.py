@@ -330,19 +330,9 @@ def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, wi
     to_local, to_world = body_transforms(mi, frames, winner)
     hit_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
     si = pi.compute_surface_interaction(hit_ray, mi.RayFlags.All, active)
-    si = moved_interaction(mi, si, to_local, to_world, winner < n)  # (back to world space)
-    # The incident direction is recomputed from the world ray.
-    si.wi = dr.select(si.is_valid(), si.to_local(-ray.d), si.wi)
-    return si
 
-
-def moved_interaction(mi, si, to_local, to_world, on_body):
-    """``si`` moved by ``to_world`` where ``on_body`` (as it is elsewhere): its point and
-    tangents by ``to_world``, its normals by the inverse transpose (``to_local``, the
-    inverse), the shading frame made orthonormal again (Gram-Schmidt: exact under
-    shear too). Its ``wi`` is left as it was."""
-    import drjit as dr
-
+    # ---- Back to world space (identity for static hits) ----
+    on_body = winner < n
     p = vec3(mi, mi.Point3f, transform_point(to_world, si.p))
     nrm = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.n)))
     sn = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
@@ -356,6 +346,8 @@ def moved_interaction(mi, si, to_local, to_world, on_body):
                          si.dp_du)
     si.dp_dv = dr.select(on_body, vec3(mi, mi.Vector3f, transform_vector(to_world, si.dp_dv)),
                          si.dp_dv)
+    # The incident direction is recomputed from the world ray.
+    si.wi = dr.select(si.is_valid(), si.to_local(-ray.d), si.wi)
     return si
 
 
