@@ -34,30 +34,38 @@ from __future__ import annotations
 
 import drjit as dr
 
-from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
+from ..scene.bodies import nearest_hit, surface_interaction
 from ..scene.motion import vec3
 from .path_steps import (advance, contributions, length_derivatives, loop_settings,
                          sample_light, shade, survive, vertex_numbers)
 
 
 class AttachedLane:
-    """What a lane's vertices are re-attached with, recomputed inside the loop from its
-    detached inputs (so that gradients reach the width-1 parameters directly, not
-    per-lane copies of them): the camera ray at the lane's film position and time,
-    the bodies' frames at its time, and their detached frames; and the motion
-    parameters whose tangents the loop carries (:meth:`tangents_at`)."""
+    """What a lane's vertices are attached with: the motion parameters whose tangents
+    the loop carries (d x / d parameter of every place and direction, detached), and
+    each parameter's change from its detached value, broadcast to the lanes once per
+    vertex (:meth:`start_vertex`), so that every attached quantity x of the vertex is
+    x + sum over parameters of its tangent times that change (:meth:`with_tangents`),
+    and the gradient of a parameter leaves each lane once per vertex."""
 
     def __init__(self, mi, setup, start, motion: bool):
         self.mi, self.setup = mi, setup
         self.motion = motion  #: whether anything the vertices' places depend on is attached
-        self.time, self.position, self.lens = start.time, start.film_position, start.lens
-        self.frames = start.frames  #: detached BodyFrames (None without bodies)
+        self.time = start.time
+        self.camera_origin = dr.detach(start.ray.o)  #: where the camera ray leaves the lens
         self.light_frames = start.light_frames  #: the lights' frames (not differentiated)
         self.emitters_hit = emitters_hit(mi, setup.scene.static)  #: (emitters_hit)
-        #: the attached motion components, (owner, variable): owner k for body k, -1 for
-        #: the camera; each vertex carries d position / d variable for each
-        self.parameters = [(owner, variable) for owner, motion_k in self._owned_motions()
-                           for _, _, variable in motion_k.attached_components()]
+        #: whether a shading normal turns as a hit slides over its surface (curved_shapes)
+        self.curved = motion and curved_shapes(mi, setup.scene)
+        #: the attached motion components, (owner, kind, variable): owner k for body k,
+        #: -1 for the camera; kind "v" (linear) or "w" (angular); each vertex carries
+        #: d position / d variable for each
+        self.parameters = [(owner, kind, variable) for owner, motion_k in self._owned_motions()
+                           for kind, _, variable in motion_k.attached_components()]
+        self.steps = []  #: this vertex's changes of the parameters (start_vertex)
+        self.moving = motion and bool(self.parameters)  #: whether the loop carries tangents
+        #: what the vertices' interactions hold (a curved surface's normal derivatives)
+        self.hit_flags = (mi.RayFlags.All | mi.RayFlags.dNSdUV if self.curved else mi.RayFlags.All)
 
     def _owned_motions(self):
         """(owner, motion) of every motion with velocity parameters (VelocityMotion):
@@ -67,55 +75,84 @@ class AttachedLane:
         owners.append((-1, getattr(setup.camera, "motion", None)))
         return [(k, m) for k, m in owners if hasattr(m, "attached_components")]
 
-    def camera_ray(self):
-        """(attached camera ray, attached path length from the lens to its origin)."""
-        ray, _, offset = self.setup.camera.ray(self.position, self.time, *self.lens)
-        return ray, offset
-
-    def pose(self):
-        """The bodies' attached frames at the lanes' times (None without bodies)."""
-        setup = self.setup
-        if self.frames is None:
-            return None
-        return BodyFrames(self.mi, setup.scene.bodies, self.time, setup.shutter_open,
-                          setup.shutter_open + setup.modulation.exposure)
+    def start_vertex(self, active):
+        """Each parameter's change from its detached value (zero, attached), one wide
+        variable per parameter for this vertex (called inside the loop body, where
+        gradients are enabled)."""
+        self.steps = [dr.select(active, variable - dr.detach(variable), 0.0)
+                      for _, _, variable in self.parameters]
 
     def _motions(self):
         """{owner: (motion, its turn rates at the lanes' times)} for the motions with
         attached components (owner k: body k, -1: the camera)."""
         return {k: (m, m.turn_rates(self.mi, self.time)) for k, m in self._owned_motions()}
 
-    def _per_parameter(self, owner, values):
-        """Per parameter, its owner's entry of ``values`` ({owner: iterator of
-        3-vectors}) where ``owner`` (per lane) is that parameter's owner, else zero."""
-        mi = self.mi
-        return [dr.select(owner == k, vec3(mi, mi.Vector3f, next(values[k])), mi.Vector3f(0.0))
-                for k, _ in self.parameters]
-
     def tangents_at(self, x, owner):
         """Per parameter, d x / d parameter (detached Vector3f) of the material point at
         world ``x`` of the scene ``owner`` names (per lane: body k, or len(bodies) for the
         static scene; -1: the camera's origin), zero for the parameters of the others."""
-        motions = self._motions()
-        return self._per_parameter(owner, {
-            k: iter(m.point_velocities(self.mi, self.time, x, rates))
-            for k, (m, rates) in motions.items()})
+        mi = self.mi
+        values = {k: iter(m.point_velocities(mi, self.time, x, rates))
+                  for k, (m, rates) in self._motions().items()}
+        return [dr.select(owner == k, vec3(mi, mi.Vector3f, next(values[k])), mi.Vector3f(0.0))
+                for k, _, _ in self.parameters]
+
+    def turn_rates(self, owner):
+        """Per parameter, the rate rho (detached Vector3f) at which the body ``owner``
+        names (per lane) turns with it (VelocityMotion.turn_rates); None for a linear
+        component (no turn)."""
+        mi = self.mi
+        rates = {k: iter(r) for k, (_, r) in self._motions().items()}
+        out = []
+        for k, kind, _ in self.parameters:
+            rho = next(rates[k])
+            out.append(None if kind == "v" else
+                       dr.select(owner == k, vec3(mi, mi.Vector3f, rho), mi.Vector3f(0.0)))
+        return out
 
     def turn_tangents(self, d, owner):
         """Per parameter, d d / d parameter (detached) of a direction ``d`` fixed in the
-        frame of the body ``owner`` names: rho x d (VelocityMotion.turn_rates)."""
-        mi = self.mi
-        return self._per_parameter(owner, {
-            k: iter(dr.cross(vec3(mi, mi.Vector3f, rho), d) for rho in rates)
-            for k, (_, rates) in self._motions().items()})
+        frame of the body ``owner`` names: rho x d (None where it does not turn)."""
+        return turned(self.turn_rates(owner), d)
 
     def with_tangents(self, x, tangents):
-        """``x`` (detached: a point or a direction) plus its tangents times each
-        parameter's change from its detached value: the value of x, the derivative it
-        was carried with."""
-        for (_, variable), t in zip(self.parameters, tangents):
-            x = x + t * (variable - dr.detach(variable))
+        """``x`` (detached: a point or a direction) plus its tangents times this
+        vertex's parameter changes (:meth:`start_vertex`): the value of x, the
+        derivative it was carried with (None tangents: none)."""
+        for step, t in zip(self.steps, tangents):
+            if t is not None:
+                x = x + t * step
         return x
+
+
+def turned(rates, d):
+    """Per rate rho (None: no turn), rho x d."""
+    return [None if rho is None else dr.cross(rho, d) for rho in rates]
+
+
+def curved_shapes(mi, scene) -> bool:
+    """Whether a shading normal of the scene's shapes (static or a body's) varies over
+    its surface: a shape other than a rectangle, a disk or a mesh, or a mesh whose
+    vertex normals differ from its faces' normals."""
+    import numpy as np
+
+    shapes = list(scene.static.shapes()) + [s for b in scene.bodies for s in b.scene.shapes()]
+    for shape in shapes:
+        if shape.class_name() in ("Rectangle", "Disk") or (
+                shape.is_mesh() and not shape.has_vertex_normals()):
+            continue
+        if not shape.is_mesh():
+            return True
+        faces = np.asarray(shape.face_indices(dr.arange(mi.UInt32, shape.face_count())))
+        points = np.asarray(shape.vertex_position(dr.arange(mi.UInt32, shape.vertex_count())))
+        normals = np.asarray(shape.vertex_normal(dr.arange(mi.UInt32, shape.vertex_count())))
+        a, b, c = (points[:, faces[k]] for k in range(3))
+        face_normal = np.cross(b - a, c - a, axis=0)
+        face_normal /= np.maximum(np.linalg.norm(face_normal, axis=0), 1e-30)
+        if any(np.min(np.abs(np.sum(normals[:, faces[k]] * face_normal, axis=0))) < 1.0 - 1e-6
+               for k in range(3)):
+            return True
+    return False
 
 
 def emitters_hit(mi, scene) -> bool:
@@ -128,15 +165,16 @@ def emitters_hit(mi, scene) -> bool:
 
 def follow_ray(origin_tangents, direction_tangents, t, d, n, surface):
     """The tangents of the hit, at distance ``t``, of a ray from an origin with
-    ``origin_tangents`` along ``d`` with ``direction_tangents``, on a surface through
-    the hit with normal ``n`` whose material point there has ``surface`` tangents: the
-    first order of the ray's intersection with the moving tangent plane (exact for the
-    position), x' = o' + t d' + d t', t' = n . (surface - o' - t d') / n . d."""
+    ``origin_tangents`` along ``d`` with ``direction_tangents`` (None: fixed), on a
+    surface through the hit with normal ``n`` whose material point there has
+    ``surface`` tangents: the first order of the ray's intersection with the moving
+    tangent plane (exact for the position), x' = o' + t d' + d t',
+    t' = n . (surface - o' - t d') / n . d."""
     cos = dr.dot(n, d)
     cos = dr.select(dr.abs(cos) > 1e-12, cos, 1e-12)
     out = []
     for o, turn, s in zip(origin_tangents, direction_tangents, surface):
-        along = o + t * turn
+        along = o if turn is None else o + t * turn
         out.append(along + d * (dr.dot(n, s - along) / cos))
     return out
 
@@ -147,19 +185,29 @@ def owner_of(mi, winner, n_bodies: int):
     return dr.select(winner < n_bodies, mi.Int32(winner), mi.Int32(n_bodies))
 
 
+class Followed:
+    """A vertex's tangents where motion is differentiated (:func:`followed_vertex`)."""
+
+    def __init__(self, owner, origin_tangents, direction_tangents, tangents, slides):
+        self.owner = owner  #: the scene the vertex is on (owner_of)
+        self.origin_tangents = origin_tangents  #: its ray's origin's, per parameter
+        self.direction_tangents = direction_tangents  #: its ray's direction's (None: fixed)
+        self.tangents = tangents  #: the hit's (follow_ray)
+        self.slides = slides  #: the hit's move over its surface, hit's minus material point's
+
+
 @dr.syntax
 def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, motion=True):
     """Trace each lane's path again and back-propagate ``delta`` (per lane: d loss / d
     lane value) through each vertex's local terms; ``total``, ``total_dl``: the primal
-    pass's M and M_L; ``motion``: whether any motion is attached (else the vertices stay
-    as traced). The gradients are the loop's side effects (``dr.eval()`` runs it;
-    evaluating a loop value as well would run the loop a second time)."""
+    pass's M and M_L; ``motion``: whether any motion is attached. The gradients are the
+    loop's side effects (``dr.eval()`` runs it; evaluating a loop value as well would
+    run the loop a second time)."""
     static, modulation = setup.scene.static, setup.modulation_weight
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
     attached = AttachedLane(mi, setup, start, motion)
     u_first = [streams.first_hit_2d(k, layout.group, layout.index, setup.groups_per_pixel)
                for k in (0, 1)]  # (the first hit's light and BSDF samples)
-    moving = motion and bool(attached.parameters)
 
     # ---- Loop state (all detached) ----
     prefix = mi.Spectrum(0.0)  # the contributions so far
@@ -174,34 +222,36 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     eta = mi.Float(1.0)  # relative index of refraction along the path
     origin = mi.Point3f(0.0)  # the last scattering vertex, where the ray starts (moving)
     origin_owner = mi.Int32(-1)  # the scene it is on (owner_of; -1: the camera)
-    tangents = [mi.Vector3f(0.0) for _ in attached.parameters if moving]  # d origin / d each
+    # d origin / d each parameter
+    tangents = [mi.Vector3f(0.0) for _ in attached.parameters if attached.moving]
     bsdf_ctx = mi.BSDFContext()
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof_adjoint"):
         # ---- The vertex, traced as the primal pass traced it ----
         active = going != 0
         pi, winner = nearest_hit(mi, static, frames, ray, active, coherent=depth == 0)
-        si = surface_interaction(mi, static, frames, ray, pi, winner, active)
+        si = surface_interaction(mi, static, frames, ray, pi, winner, active, attached.hit_flags)
         numbers = vertex_numbers(streams, depth, *u_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
                   hide_direct_emitters, modulation.F, bsdf_ctx)
         hit_contribution, light_contribution = contributions(modulation, v, t_rel)
+        # ---- Its tangents (where motion is differentiated): its ray's and its own ----
+        followed = followed_vertex(mi, attached, (si, winner), ray, depth,
+                                   (origin_owner, tangents), attached.moving)
 
         # ---- Its local terms, attached, back-propagated at once ----
-        with dr.resume_grad():
-            after = total - prefix - hit_contribution - light_contribution
-            local = _local_terms(mi, setup, attached, (si, pi, winner), ray, v, numbers,
-                                 beta, t_rel, (total - prefix, total_dl - prefix_dl, after),
-                                 (depth, origin, origin_owner, tangents), bsdf_ctx)
-            dr.backward_from(_dot(delta, local), flags=dr.ADFlag.AllowNoGrad)
+        suffix = (total - prefix, total_dl - prefix_dl,
+                  total - prefix - hit_contribution - light_contribution)
+        _back_propagate(mi, setup, attached, (delta, active), (si, ray, v, numbers, beta, t_rel),
+                        suffix, (depth, origin, followed), bsdf_ctx)
         prefix += hit_contribution  # (summed as the primal pass sums them)
         prefix += light_contribution
         prefix_dl += length_derivatives(modulation, v, t_rel)
 
         # ---- The vertex's place and tangents, for the next one's ray ----
-        origin, origin_owner, tangents = _next_place(
-            mi, attached, (si, winner, ray, v, depth), (origin, origin_owner, tangents), moving)
+        origin, origin_owner, tangents = _next_place(si, v, followed, (origin, origin_owner,
+                                                                       tangents))
         # ---- Continue the path (as the primal pass) ----
         length = v.length_hit
         ray, beta, eta, prev_si, prev_bsdf_pdf, delta_lobe, depth = advance(
@@ -210,86 +260,119 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
 
 
-def _next_place(mi, attached, vertex, place, moving: bool):
-    """(origin, its owner, its tangents) of the next ray: this vertex's where the path
-    bounces off it (``vertex``: its si, winner, ray, Vertex and depth), ``place`` (the
-    last ones) otherwise or where nothing moves."""
+def followed_vertex(mi, attached, hit, ray, depth, last, moving: bool):
+    """The vertex's Followed tangents (None where nothing moves): its ray is the camera
+    ray (from the camera's origin, its direction fixed) or the ray from the last vertex
+    (``last``: its owner and tangents), its direction turning with that vertex's body;
+    its hit slides along the ray on its moving surface (follow_ray)."""
     if not moving:
-        return place
-    si, winner, ray, v, depth = vertex
-    origin, origin_owner, tangents = place
-    tangents = _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents)
-    bounced = v.valid & ~v.through
-    owner = owner_of(mi, winner, len(attached.setup.scene.bodies))
-    return (dr.select(bounced, si.p, origin), dr.select(bounced, owner, origin_owner), tangents)
-
-
-def _next_tangents(mi, attached, si, winner, ray, depth, origin_owner, tangents):
-    """The tangents of this vertex (the origin of the next ray): its hit slides along
-    its ray on its moving surface (follow_ray); the ray from the last vertex, its
-    direction turning with that vertex's body, or the camera ray (from the camera's
-    origin, its direction fixed)."""
+        return None
+    si, winner = hit
+    origin_owner, tangents = last
     on_camera_ray = depth == 0
-    camera = attached.tangents_at(ray.o, mi.Int32(-1))
+    camera = attached.tangents_at(attached.camera_origin, mi.Int32(-1))
     origin_tangents = [dr.select(on_camera_ray, c, t) for c, t in zip(camera, tangents)]
-    turns = [dr.select(on_camera_ray, mi.Vector3f(0.0), turn)
+    turns = [None if turn is None else dr.select(on_camera_ray, mi.Vector3f(0.0), turn)
              for turn in attached.turn_tangents(dr.detach(ray.d), origin_owner)]
-    surface = attached.tangents_at(si.p, owner_of(mi, winner, len(attached.setup.scene.bodies)))
-    followed = follow_ray(origin_tangents, turns, si.t, dr.detach(ray.d), dr.detach(si.n),
-                          surface)
-    return [dr.select(si.is_valid(), f, t) for f, t in zip(followed, tangents)]
+    owner = owner_of(mi, winner, len(attached.setup.scene.bodies))
+    surface = attached.tangents_at(si.p, owner)
+    hit_tangents = follow_ray(origin_tangents, turns, si.t, dr.detach(ray.d), dr.detach(si.n),
+                              surface)
+    return Followed(owner, origin_tangents, turns, hit_tangents,
+                    [h - s for h, s in zip(hit_tangents, surface)])
 
 
-def _local_terms(mi, setup, attached, hit, ray, v, numbers, beta, t_rel, suffix, place,
+def _back_propagate(mi, setup, attached, lanes, vertex, suffix, place, bsdf_ctx):
+    """Back-propagate delta . the vertex's local terms (_local_terms) into the
+    parameters' gradients (``lanes``: delta and whether the lane's path goes on; the
+    vertex's attached values live only here)."""
+    delta, active = lanes
+    with dr.resume_grad():
+        attached.start_vertex(active)
+        local = _local_terms(mi, setup, attached, *vertex, suffix, place, bsdf_ctx)
+        dr.backward_from(_dot(delta, local), flags=dr.ADFlag.AllowNoGrad)
+
+
+def _next_place(si, v, followed, place):
+    """(origin, its owner, its tangents) of the next ray: this vertex's where the path
+    bounces off it, ``place`` (the last ones) otherwise or where nothing moves."""
+    if followed is None:
+        return place
+    origin, origin_owner, tangents = place
+    tangents = [dr.select(si.is_valid(), f, t) for f, t in zip(followed.tangents, tangents)]
+    bounced = v.valid & ~v.through
+    return (dr.select(bounced, si.p, origin), dr.select(bounced, followed.owner, origin_owner),
+            tangents)
+
+
+def _local_terms(mi, setup, attached, si, ray, v, numbers, beta, t_rel, suffix, place,
                  bsdf_ctx):
     """The vertex's local terms (Spectrum, attached): d/d theta of their dot product with
     delta is the vertex's share of d loss / d theta (see the module docstring)."""
-    si, pi, winner = hit
     remaining, remaining_dl, after = suffix  # at or after this vertex; after it
-    depth, origin, origin_owner, tangents = place
+    depth, origin, followed = place
     terms = mi.Spectrum(0.0)
-    here = si
-    if attached.motion:  # ---- the vertex re-attached, following its ray ----
-        here, segment = _moving_vertex(mi, setup, attached, hit, ray, v, depth, origin,
-                                       origin_owner, tangents)
+    here, turns = si, None
+    if followed is not None:  # ---- the vertex attached by its tangents ----
+        here, segment = attached_vertex(mi, attached, si, ray, depth, origin, followed)
         terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
+        turns = attached.turn_rates(followed.owner)
     # ---- The BSDF sample that continues the path, its own emitter hit and light sample ----
-    turning = (attached.motion, owner_of(mi, winner, len(setup.scene.bodies)))
-    terms += _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx)
+    terms += _continuation_term(mi, attached, turns, si, here, v, after, bsdf_ctx)
     return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
 
 
-def _moving_vertex(mi, setup, attached, hit, ray, v, depth, origin, origin_owner, tangents):
-    """This vertex, attached: the hit of its ray (the attached camera ray on the camera
-    ray, else from the last vertex, attached by its tangents, along a direction fixed
-    in that vertex's body) on its surface in the bodies' attached frames; and the
-    length of the segment reaching it (from the lens on the camera ray)."""
-    si, pi, winner = hit
-    camera, camera_offset = attached.camera_ray()
-    on_camera_ray = depth == 0
-    start_point = attached.with_tangents(origin, tangents)
+def attached_vertex(mi, attached, si, ray, depth, origin, followed):
+    """This vertex attached by its tangents: its place (``followed.tangents``), its
+    shading frame turning with its body and, on a curved surface, with the normal's
+    change as the hit slides (``followed.slides``), its uv sliding, the direction it is
+    seen from (its ray's, turning: ``followed.direction_tangents``); and the length of
+    the segment reaching it (from the camera's origin on the camera ray)."""
+    start = dr.select(depth == 0, attached.camera_origin, origin)
+    start = attached.with_tangents(start, followed.origin_tangents)
+    here = mi.SurfaceInteraction3f(si)
+    here.p = attached.with_tangents(dr.detach(si.p), followed.tangents)
+    slid_uv = _uv_slides(mi, si, followed.slides)
+    here.uv = attached.with_tangents(dr.detach(si.uv), slid_uv)
+    rates = attached.turn_rates(followed.owner)
+    here.n = attached.with_tangents(dr.detach(si.n), turned(rates, dr.detach(si.n)))
+    if attached.curved:  # the frame also turns as the hit slides: n x dn
+        n = dr.detach(si.sh_frame.n)
+        slid = [dr.cross(n, dr.detach(si.dn_du) * uv[0] + dr.detach(si.dn_dv) * uv[1])
+                for uv in slid_uv]
+        rates = [w if rho is None else rho + w for rho, w in zip(rates, slid)]
+    frame = si.sh_frame
+    here.sh_frame = mi.Frame3f(*(attached.with_tangents(dr.detach(axis), turned(rates, axis))
+                                 for axis in (frame.s, frame.t, frame.n)))
     d = dr.detach(ray.d)
-    followed_ray = mi.Ray3f(start_point, attached.with_tangents(
-        d, attached.turn_tangents(d, origin_owner)), ray.maxt, ray.time, ray.wavelengths)
-    ray_a = dr.select(on_camera_ray, camera, followed_ray)
-    here = surface_interaction(mi, setup.scene.static, attached.pose(), ray_a, pi, winner,
-                               v.valid)
-    segment = dr.select(on_camera_ray,
-                        setup.modulation_weight.to_float32(camera_offset)
-                        + dr.norm(here.p - camera.o), dr.norm(here.p - start_point))
-    return here, segment
+    here.wi = here.to_local(-attached.with_tangents(d, followed.direction_tangents))
+    return here, dr.norm(here.p - start)
 
 
-def _continuation_term(mi, attached, turning, si, here, v, after, bsdf_ctx):
+def _uv_slides(mi, si, slides):
+    """Per parameter, the change of uv (Point2f) of a hit sliding by ``slides`` (world,
+    in the tangent plane): the least-squares solve with dp/du and dp/dv."""
+    du, dv = dr.detach(si.dp_du), dr.detach(si.dp_dv)
+    e, f, g = dr.dot(du, du), dr.dot(du, dv), dr.dot(dv, dv)
+    det = e * g - f * f
+    inverse = dr.select(det > 1e-20 * (e * g), dr.rcp(det), 0.0)
+    out = []
+    for r in slides:
+        a, b = dr.dot(du, r), dr.dot(dv, r)
+        out.append(mi.Vector2f((g * a - f * b) * inverse, (e * b - f * a) * inverse))
+    return out
+
+
+def _continuation_term(mi, attached, turns, si, here, v, after, bsdf_ctx):
     """The BSDF sample that continues the path from this vertex, ``after`` x Phi /
     detach(Phi): Phi the vertex's BSDF value times |cos| toward the sampled direction
-    (turning with the vertex's body where it moves: ``turning`` = (whether anything
-    moves, the vertex's owner); the next vertex follows it), ``after`` the
-    contributions after this vertex (every one of them scales with Phi)."""
+    (turning with the vertex's body where it moves: ``turns``, its turn rates, None
+    where nothing moves; the next vertex follows it), ``after`` the contributions after
+    this vertex (every one of them scales with Phi)."""
     bounced = v.valid & ~v.through & v.active_next
     d_next = dr.detach(si.to_world(v.bs.wo))
-    if turning[0]:
-        d_next = attached.with_tangents(d_next, attached.turn_tangents(d_next, turning[1]))
+    if turns is not None:
+        d_next = attached.with_tangents(d_next, turned(turns, d_next))
     phi = here.bsdf().eval(bsdf_ctx, here, here.to_local(d_next), bounced)
     base = dr.detach(phi)
     return dr.select(bounced & (base > 0.0), after * phi / dr.select(base > 0.0, base, 1.0), 0.0)

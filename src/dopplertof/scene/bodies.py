@@ -320,25 +320,35 @@ def body_transforms(mi, frames: BodyFrames | None, winner):
             select_transform(mi, dr, won, frames.to_world))
 
 
-def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, winner, active):
-    """The world-space surface interaction of a preliminary hit from :func:`nearest_hit`."""
+def surface_interaction(mi, static_scene, frames: BodyFrames | None, ray, pi, winner, active,
+                        flags=None):
+    """The world-space surface interaction of a preliminary hit from :func:`nearest_hit`
+    (``flags``: Mitsuba's RayFlags, ``All`` by default; with ``dNSdUV`` the shading
+    normal's derivatives are in world space too)."""
     import drjit as dr
 
+    flags = mi.RayFlags.All if flags is None else flags
     if frames is None or not frames.bodies:
-        return pi.compute_surface_interaction(ray, mi.RayFlags.All, active)
+        return pi.compute_surface_interaction(ray, flags, active)
     n = len(frames.bodies)
     to_local, to_world = body_transforms(mi, frames, winner)
     hit_ray = transformed_ray(mi, to_local, ray, ray.maxt)  # the world ray where static won
-    si = pi.compute_surface_interaction(hit_ray, mi.RayFlags.All, active)
+    si = pi.compute_surface_interaction(hit_ray, flags, active)
 
     # ---- Back to world space (identity for static hits) ----
     on_body = winner < n
     p = vec3(mi, mi.Point3f, transform_point(to_world, si.p))
     nrm = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.n)))
-    sn = dr.normalize(vec3(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n)))
+    sn_moved = vec3(mi, mi.Normal3f, transform_normal(to_local, si.sh_frame.n))
+    sn = dr.normalize(sn_moved)
     ss = vec3(mi, mi.Vector3f, transform_vector(to_world, si.sh_frame.s))
     ss = dr.normalize(ss - sn * dr.dot(ss, sn))  # Gram-Schmidt: exact frames under shear too
     frame = mi.Frame3f(ss, dr.cross(sn, ss), sn)
+    if mi.has_flag(flags, mi.RayFlags.dNSdUV):  # d normalize(m) = (I - n n^T) dm / |m|
+        for name in ("dn_du", "dn_dv"):
+            dm = vec3(mi, mi.Vector3f, transform_normal(to_local, getattr(si, name)))
+            moved = (dm - sn * dr.dot(sn, dm)) / dr.norm(sn_moved)
+            setattr(si, name, dr.select(on_body, moved, getattr(si, name)))
     si.p = dr.select(on_body, p, si.p)
     si.n = dr.select(on_body, nrm, si.n)
     si.sh_frame = dr.select(on_body, frame, si.sh_frame)
