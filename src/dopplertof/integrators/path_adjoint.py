@@ -222,8 +222,7 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     eta = mi.Float(1.0)  # relative index of refraction along the path
     origin = mi.Point3f(0.0)  # the last scattering vertex, where the ray starts (moving)
     origin_owner = mi.Int32(-1)  # the scene it is on (owner_of; -1: the camera)
-    # d origin / d each parameter
-    tangents = [mi.Vector3f(0.0) for _ in attached.parameters if attached.moving]
+    tangents = [mi.Vector3f(0.0) for _ in attached.parameters if attached.moving]  # d origin
     bsdf_ctx = mi.BSDFContext()
     max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
     while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof_adjoint"):
