@@ -252,6 +252,28 @@ def test_path_replay_equals_the_trajectory_for_what_no_vertex_carries(published_
         assert np.all(np.abs(a - b) <= RELATIVE * np.abs(a)), (name, a, b)
 
 
+def test_path_replay_reads_the_primal_visibility_as_its_shadow_rays_find_it(monkeypatch):
+    """The adjoint reads which light samples reached their lights from the primal pass
+    (a bit per depth) instead of tracing the shadow rays again: the same gradients as
+    with them traced (paths too deep for the bits), on the demo with its occluding
+    boxes, every name (within float32 rounding: the two adjoint kernels differ)."""
+    from dopplertof.demo import demo_scene_path
+    from dopplertof.diff import DifferentiableScene, gradient
+    from dopplertof.integrators import dtof_path
+
+    import dopplertof
+
+    ds = DifferentiableScene(dopplertof.load_file(demo_scene_path(), {"res": 12, "spp": 16}))
+    loss = _linear_loss(_weights((12, 12, 3)))
+    with_bits = gradient(ds, loss, spp=16, method="path")
+    monkeypatch.setattr(dtof_path, "VISIBILITY_BITS_MAX_DEPTH", 0)
+    traced = gradient(ds, loss, spp=16, method="path")
+    assert np.array_equal(with_bits.image, traced.image)
+    for name, value in traced.items():
+        a, b = np.asarray(with_bits[name]), np.asarray(value)
+        assert np.all(np.abs(a - b) <= RELATIVE * np.max(np.abs(b)) + 1e-30), (name, a, b)
+
+
 def test_path_replay_equals_the_trajectory_for_motion_in_direct_light():
     """Direct light from a point light (the demo scene at max_depth 2): every path is a
     camera-ray vertex and a point on the light, which both methods move alike, so each

@@ -114,19 +114,22 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
 
 def _primal(mi, setup, plan, sums, passes, path: bool):
     """Trace ``passes`` into ``sums`` (the pipeline's Accumulator); one pass is kept for
-    the adjoint and returned (else None: the adjoint traces each pass again): for the
+    the adjoint, in the list returned, which the adjoint empties as it takes it (else
+    the list is empty: the adjoint traces each pass again): for the
     trajectory method traced with the parameters attached, (layout, value, film
     offset); for path replay detached, with the values' path-length derivatives too."""
     import drjit as dr
 
-    kept = None
+    kept = []
     for first_chunk, end_chunk in passes:
         layout, chunk_size, threads = plan.lanes(mi, first_chunk, end_chunk, None)
         with dr.suspend_grad(when=len(passes) > 1 or path):
             traced = setup.trace(layout, length_derivative=path)
-            dr.eval(*traced)
+            # (path replay: the film offsets are recomputed where they are read, a
+            # cheap expression of the lanes' random numbers, instead of stored)
+            dr.eval(*(traced[:1] + traced[2:] if path else traced))
         sums.add(dr.detach(traced[0]), dr.detach(traced[1]), chunk_size, threads, pilot=False)
-        kept = (layout, *traced) if len(passes) == 1 else None
+        kept = [(layout, *traced)] if len(passes) == 1 else []
     return kept
 
 
@@ -136,11 +139,11 @@ def _trajectory_adjoint(mi, setup, plan, passes, kept, lane_adjoint) -> None:
     import drjit as dr
 
     for first_chunk, end_chunk in passes:
-        if kept is None:
+        if not kept:
             layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
             value, film_offset = setup.trace(layout)
         else:
-            (layout, value, film_offset), kept = kept, None
+            layout, value, film_offset = kept.pop()
         dr.backward(lane_adjoint.weighted_sum(layout, value, film_offset))
         del value, film_offset
 
@@ -152,14 +155,14 @@ def _path_adjoint(mi, setup, plan, passes, kept, lane_adjoint, motion: bool) -> 
     import drjit as dr
 
     for first_chunk, end_chunk in passes:
-        if kept is None:
+        if not kept:
             layout, _, _ = plan.lanes(mi, first_chunk, end_chunk, None)
             with dr.suspend_grad():
-                value, film_offset, value_dl = setup.trace(layout, length_derivative=True)
+                value, film_offset, value_dl, lit = setup.trace(layout, length_derivative=True)
         else:
-            (layout, value, film_offset, value_dl), kept = kept, None
+            layout, value, film_offset, value_dl, lit = kept.pop()
         delta = mi.Spectrum(*lane_adjoint.lane_adjoints(layout, value, film_offset))
-        setup.adjoint(layout, delta, value, value_dl, motion)
+        setup.adjoint(layout, delta, value, value_dl, motion, lit)
         dr.eval()  # (runs the loop: the gradients are what it scatters)
 
 

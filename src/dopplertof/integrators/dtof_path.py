@@ -28,10 +28,10 @@ from . import pipeline
 from .analytic import trace_analytic_pass
 from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
 from .film import FilmSampler, SplatFilter
-from .path_steps import (CameraSample, ModulationWeight, PassLayout, _as_colour,
-                         _camera_rays, _intersect, advance, contributions, film_position,
-                         lane_streams, length_derivatives, loop_settings, shade, survive,
-                         vertex_numbers)
+from .path_steps import (VISIBILITY_BITS_MAX_DEPTH, CameraSample, ModulationWeight, PassLayout,
+                         _as_colour, _camera_rays, _intersect, advance, contributions,
+                         film_position, lane_streams, length_derivatives, lit_bits,
+                         loop_settings, shade, survive, vertex_numbers)
 
 _classes: dict = {}  # variant name -> its DopplerToFPath class
 
@@ -194,25 +194,30 @@ def _define_class(mi):
             from its pixel's centre, in pixels (Vector2f; the splat film weighs the lane
             with it). With ``length_derivative`` also each lane's sum of its
             contributions' derivatives with respect to their path lengths (the
-            sampled loop only: what the path-replay adjoint needs)."""
+            sampled loop only: what the path-replay adjoint needs) and which of its
+            light samples reached their lights (lit_bits; None for paths deeper than
+            VISIBILITY_BITS_MAX_DEPTH)."""
             if self.analytic:
                 return trace_analytic_pass(mi, self, layout)
             streams = lane_streams(mi, self, layout)
             return _trace_paths(mi, self, layout, streams, self.sample_camera(layout, streams),
                                 length_derivative)
 
-        def adjoint(self, layout: PassLayout, delta, total, total_dl, motion: bool = True):
+        def adjoint(self, layout: PassLayout, delta, total, total_dl, motion: bool = True,
+                    lit=None):
             """The path-replay adjoint pass of ``trace(layout, length_derivative=True)``
             (its ``total`` and ``total_dl``): back-propagates each lane's ``delta``
             (d loss / d lane value) into the attached parameters (``motion``: a body's
             or the camera's motion among them), as side effects that the next
-            ``dr.eval()`` runs (integrators/path_adjoint.py)."""
+            ``dr.eval()`` runs (integrators/path_adjoint.py); ``lit``: the trace's
+            light sample bits, where it recorded them (its shadow rays are not traced
+            again)."""
             from .path_adjoint import adjoint_paths
 
             with dr.suspend_grad():
                 streams = lane_streams(mi, self, layout)
                 adjoint_paths(mi, self, layout, streams, self.sample_camera(layout, streams),
-                              delta, total, total_dl, motion)
+                              delta, total, total_dl, motion, lit)
 
     DopplerToFPath.__qualname__ = "DopplerToFPath"  # (not _define_class.<locals>...)
     return DopplerToFPath
@@ -238,7 +243,7 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,
 
     # ---- Loop state ----
     measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
-    measured_dl = mi.Spectrum(0.0) if length_derivative else None  # d/d their lengths
+    measured_dl, lit = _adjoint_records(mi, setup, length_derivative)  # (_adjoint_records)
     beta = mi.Spectrum(start.ray_weight)  # path throughput
     length = modulation.F(start.camera_offset)  # path length, camera to ray origin (m)
     depth = mi.UInt32(0)  # surface hits so far
@@ -269,7 +274,7 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,
         measured += hit_contribution
         measured += light_contribution
         if dr.hint(length_derivative, mode="scalar"):  # (the plain render has none of it)
-            measured_dl += length_derivatives(modulation, v, t_rel)
+            measured_dl, lit = _recorded(mi, modulation, v, t_rel, depth, measured_dl, lit)
 
         # ---- Continue the path ----
         length = v.length_hit
@@ -280,8 +285,25 @@ def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,
         beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])  # (roulette)
 
     value = _as_colour(mi, measured, wavelengths)
-    return ((value, start.film_offset, _as_colour(mi, measured_dl, wavelengths))
+    return ((value, start.film_offset, _as_colour(mi, measured_dl, wavelengths), lit)
             if length_derivative else (value, start.film_offset))
+
+
+def _adjoint_records(mi, setup, length_derivative: bool):
+    """What the path loop records for the path-replay adjoint, with
+    ``length_derivative``: the sum of d contribution / d its path length, and which of
+    the light samples reached their lights (lit_bits; None where a path is too deep
+    for its bits); else (None, None)."""
+    if not length_derivative:
+        return None, None
+    fits = 0 < setup.params.max_depth <= VISIBILITY_BITS_MAX_DEPTH
+    return mi.Spectrum(0.0), (mi.UInt32(0) if fits else None)
+
+
+def _recorded(mi, modulation, v, t_rel, depth, measured_dl, lit):
+    """_adjoint_records' values after vertex ``v``."""
+    lit = None if lit is None else lit | lit_bits(mi, v, depth)
+    return measured_dl + length_derivatives(modulation, v, t_rel), lit
 
 
 class AttachedOrigin:

@@ -36,7 +36,7 @@ import drjit as dr
 
 from ..scene.bodies import nearest_hit, surface_interaction
 from ..scene.motion import vec3
-from .path_steps import (advance, contributions, length_derivatives, loop_settings,
+from .path_steps import (advance, contributions, length_derivatives, lit_at, loop_settings,
                          sample_light, shade, survive, vertex_numbers)
 
 
@@ -197,12 +197,12 @@ class Followed:
 
 
 @dr.syntax
-def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, motion=True):
-    """Trace each lane's path again and back-propagate ``delta`` (per lane: d loss / d
-    lane value) through each vertex's local terms; ``total``, ``total_dl``: the primal
-    pass's M and M_L; ``motion``: whether any motion is attached. The gradients are the
-    loop's side effects (``dr.eval()`` runs it; evaluating a loop value as well would
-    run the loop a second time)."""
+def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, motion=True,
+                  lit=None):
+    """Trace each lane's path again and back-propagate ``delta`` (d loss / d lane value)
+    through each vertex's local terms; ``total``, ``total_dl``, ``lit``: the primal
+    pass's M, M_L and light sample bits (lit_bits; None: shadow rays are traced). The
+    gradients are the loop's side effects (``dr.eval()`` runs it, once)."""
     static, modulation = setup.scene.static, setup.modulation_weight
     t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
     attached = AttachedLane(mi, setup, start, motion)
@@ -233,7 +233,7 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         numbers = vertex_numbers(streams, depth, *u_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, modulation.F, bsdf_ctx)
+                  hide_direct_emitters, modulation.F, bsdf_ctx, lit_at(lit, depth))
         hit_contribution, light_contribution = contributions(modulation, v, t_rel)
         # ---- Its tangents (where motion is differentiated): its ray's and its own ----
         followed = followed_vertex(mi, attached, (si, winner), ray, depth,

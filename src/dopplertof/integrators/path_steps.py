@@ -221,9 +221,11 @@ class Vertex:
 
 def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
           prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth, hide_direct_emitters, F,
-          bsdf_ctx) -> Vertex:
+          bsdf_ctx, visible=None) -> Vertex:
     """One surface hit of a path (``si``, found for ``ray``) with the decisions'
-    random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type."""
+    random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type;
+    ``visible``: whether its light sample is unoccluded, where that is known (a Bool;
+    None: the shadow ray is traced)."""
     v = Vertex()
     u_em, u_lobe, u_dir, _ = numbers
     valid = active & si.is_valid()
@@ -250,8 +252,10 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
     active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
     ds, em_weight = sample_light(mi, static, light_frames, si, u_em, active_em)
     active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
-    shadow_ray = si.spawn_ray_to(ds.p)
-    active_em &= ~occluded(mi, static, frames, shadow_ray, active_em)
+    if visible is None:
+        active_em &= ~occluded(mi, static, frames, si.spawn_ray_to(ds.p), active_em)
+    else:
+        active_em &= visible
     wo = si.to_local(ds.d)
 
     # ---- BSDF evaluation and sampling ----
@@ -308,6 +312,28 @@ def survive(mi, v, beta, eta, depth, rr_depth, u_rr):
         (v.active_next & (~rr_active | (u_rr < rr_prob)) & (beta_max != 0.0)) | v.through,
         1, 0))
     return beta, going
+
+
+#: the deepest path whose light samples' visibility a UInt32 holds, a bit per depth
+#: (light samples are taken at depths below max_depth - 1; lit_bits)
+VISIBILITY_BITS_MAX_DEPTH = 33
+
+
+def lit_bits(mi, v, depth):
+    """The bit of ``depth`` (UInt32) where vertex ``v``'s light sample reached its light:
+    OR-ed over a path's vertices, the bits the path-replay adjoint reads back
+    (:func:`lit_at`) instead of tracing the shadow rays again (a camera ray's pass
+    through a hidden emitter, at the depth of the hit after it, takes no light
+    sample)."""
+    return dr.select(v.active_em, mi.UInt32(1) << depth, 0)
+
+
+def lit_at(bits, depth):
+    """Whether the light sample at ``depth`` reached its light (lit_bits' ``bits``;
+    None where they were not recorded)."""
+    if bits is None:
+        return None
+    return ((bits >> depth) & 1) != 0
 
 
 def loop_settings(mi, setup):
