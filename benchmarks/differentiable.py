@@ -6,7 +6,10 @@ The demo scene (two moving boxes) at the same resolution, spp and seed:
 * ``plain (importance)``: ``render_derivatives`` with no parameter (the film the
   derivatives accumulate on);
 * one row per parameter kind: ``render_derivatives`` with that one parameter (the
-  render and its derivative: one derivative pass).
+  render and its derivative: one derivative pass);
+* ``gradient (all N)``: ``dopplertof.diff.gradient`` of a linear loss with respect to every
+  differentiable name (reverse mode, ``auto``: path replay), with its peak Dr.Jit memory
+  against the plain render's (benchmarks/gradient.py compares the adjoint methods).
 
 Runs are interleaved after a warm-up that compiles every kernel; the median time of
 each is compared. The last line reads `worst derivative / plain (splat): X`.
@@ -27,7 +30,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from timing import interleaved_medians  # (benchmarks/timing.py, beside this script)
+from timing import interleaved_medians, peak_memory  # (benchmarks/timing.py, beside this script)
 
 PARAMETERS = ("body0.vz", "body0.wy", "camera.vz", "w_g", "hetero_offset", "g_1",
               "white.reflectance.value")
@@ -50,6 +53,7 @@ def main(argv=None) -> None:
     import dopplertof
     from dopplertof.demo import demo_scene_path
     from dopplertof.diff import DifferentiableScene, render_derivatives
+    from dopplertof.diff.render import differentiable_names
 
     dopplertof.set_variant("llvm_ad_rgb")
     scene = dopplertof.load_file(demo_scene_path(), {"res": args.res, "spp": args.spp})
@@ -58,6 +62,8 @@ def main(argv=None) -> None:
             "plain (importance)": lambda: render_derivatives(ds, [], spp=args.spp)}
     for name in PARAMETERS:
         runs[name] = lambda name=name: render_derivatives(ds, [name], spp=args.spp)
+    everything = f"gradient (all {len(differentiable_names(ds))})"
+    runs[everything] = _gradient_run(ds, args.res, args.spp)
     _, times = interleaved_medians(runs, args.repeats)
     plain = times["plain (splat)"]
     print(f"demo scene {args.res}x{args.res}, {args.spp} spp, median of {args.repeats}")
@@ -65,6 +71,22 @@ def main(argv=None) -> None:
         print(f"  {name:<26} {m:8.3f} s   {m / plain:5.2f} x plain (splat)")
     worst = max(times[n] for n in PARAMETERS)
     print(f"worst derivative / plain (splat): {worst / plain:.2f}")
+    memory = peak_memory(runs[everything]) / peak_memory(runs["plain (splat)"])
+    print(f"gradient of every parameter / plain (splat): time {times[everything] / plain:.2f}, "
+          f"memory {memory:.2f}")
+
+
+def _gradient_run(ds, res: int, spp: int):
+    """A gradient of a fixed linear loss with respect to every differentiable name."""
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    from dopplertof.diff import gradient
+
+    weights = mi.TensorXf(np.random.default_rng(1).uniform(0.5, 1.5, (res, res, 3))
+                          .astype(np.float32))
+    return lambda: gradient(ds, lambda image: dr.sum(weights * image, axis=None), spp=spp)
 
 
 def fit_against_capture(res: int, spp: int, fit_spp: int | None, keep=None) -> None:

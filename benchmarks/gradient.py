@@ -23,7 +23,7 @@ included).
 from __future__ import annotations
 
 import argparse
-from timing import interleaved_medians  # (benchmarks/timing.py, beside this script)
+from timing import interleaved_medians, peak_memory  # (benchmarks/timing.py, beside this script)
 
 
 def main(argv=None) -> None:
@@ -40,7 +40,7 @@ def main(argv=None) -> None:
           f"median of {args.repeats} (cold: first run, kernels compiled)")
     for name, m in times.items():
         print(f"  {name:<10} {m:8.3f} s   {m / plain:6.2f} x plain   (cold {cold[name]:.1f} s)")
-    peaks = {kind: _peak_memory(runs[kind]) for kind in ("plain", "trajectory", "path")}
+    peaks = {kind: peak_memory(runs[kind]) for kind in ("plain", "trajectory", "path")}
     print("  peak Dr.Jit memory (MB): " + ", ".join(f"{k} {v:.1f}" for k, v in peaks.items()))
     for method in ("trajectory", "path"):
         print(f"gradient ({method}) / plain: time {times[method] / plain:.2f}, memory "
@@ -74,16 +74,6 @@ def _runs(res: int, spp: int, forward: bool):
     if forward:
         runs["forward"] = lambda: render_derivatives(ds, names, spp=spp)
     return runs, names
-
-
-def _peak_memory(run) -> float:
-    """Peak Dr.Jit memory (MB, the LLVM backend) while ``run`` runs."""
-    import drjit as dr
-
-    dr.flush_malloc_cache()
-    dr.detail.malloc_clear_statistics()
-    run()
-    return dr.detail.malloc_watermark(dr.JitBackend.LLVM) / 2**20
 
 
 if __name__ == "__main__":

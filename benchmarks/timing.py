@@ -21,3 +21,14 @@ def interleaved_medians(runs: dict, repeats: int) -> tuple[dict, dict]:
             run()
             warm[name].append(time.perf_counter() - started)
     return cold, {name: statistics.median(times) for name, times in warm.items()}
+
+
+def peak_memory(run) -> float:
+    """Peak Dr.Jit memory (MB, the LLVM backend) while ``run`` runs (the arrays the
+    kernels read and write, the scene's included)."""
+    import drjit as dr
+
+    dr.flush_malloc_cache()
+    dr.detail.malloc_clear_statistics()
+    run()
+    return dr.detail.malloc_watermark(dr.JitBackend.LLVM) / 2**20
