@@ -78,11 +78,13 @@ def test_interrupt_wrapped_by_drjit_is_the_interrupt_line(tmp_path, monkeypatch,
 @pytest.mark.slow
 def test_sigint_at_any_moment_of_a_render_is_one_line(tmp_path):
     """SIGINT at several moments after the CLI's main starts: while it builds its parser,
-    sets the variant, loads the scene, renders. Always the one line and exit 130."""
+    sets the variant, loads the scene, renders. Always the one line and exit 130. (The
+    render is long, 16384 spp, so that the last moment falls inside it: at 2048 spp a
+    clean-clone run once finished it before 2.5 s and committed x.npy.)"""
     out = tmp_path / "x.npy"
     code = ("import sys, dopplertof.cli as cli; print('ready', flush=True); "
             "sys.exit(cli.main(sys.argv[1:]))")
-    argv = [sys.executable, "-c", code, "render", SPHERE, "-D", "res=128", "--spp", "2048",
+    argv = [sys.executable, "-c", code, "render", SPHERE, "-D", "res=128", "--spp", "16384",
             "-o", str(out), "--quiet"]
     outcomes = []
     for delay in (0.05, 0.2, 0.4, 0.7, 1.0, 1.5, 2.5):
