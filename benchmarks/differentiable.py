@@ -77,16 +77,14 @@ def main(argv=None) -> None:
 
 
 def _gradient_run(ds, res: int, spp: int):
-    """A gradient of a fixed linear loss with respect to every differentiable name."""
-    import drjit as dr
-    import mitsuba as mi
-    import numpy as np
+    """A gradient of benchmarks/gradient.py's linear loss with respect to every
+    differentiable name."""
+    from gradient import linear_loss  # (benchmarks/gradient.py, beside this script)
 
     from dopplertof.diff import gradient
 
-    weights = mi.TensorXf(np.random.default_rng(1).uniform(0.5, 1.5, (res, res, 3))
-                          .astype(np.float32))
-    return lambda: gradient(ds, lambda image: dr.sum(weights * image, axis=None), spp=spp)
+    loss = linear_loss(res)
+    return lambda: gradient(ds, loss, spp=spp)
 
 
 def fit_against_capture(res: int, spp: int, fit_spp: int | None, keep=None) -> None:

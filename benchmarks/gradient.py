@@ -48,10 +48,6 @@ def main(argv=None) -> None:
 
 
 def _runs(res: int, spp: int, forward: bool):
-    import drjit as dr
-    import mitsuba as mi
-    import numpy as np
-
     import dopplertof
     from dopplertof.demo import demo_scene_path
     from dopplertof.diff import DifferentiableScene, gradient, render_derivatives
@@ -61,11 +57,7 @@ def _runs(res: int, spp: int, forward: bool):
     scene = dopplertof.load_file(demo_scene_path(), {"res": res, "spp": spp})
     ds = DifferentiableScene(scene)
     names = differentiable_names(ds)
-    weights = mi.TensorXf(np.random.default_rng(1).uniform(0.5, 1.5, (res, res, 3))
-                          .astype(np.float32))
-
-    def loss(image):
-        return dr.sum(weights * image, axis=None)
+    loss = linear_loss(res)
 
     runs = {"plain": lambda: dopplertof.render(scene, spp=spp, progress=False)}
     for method in ("trajectory", "path"):
@@ -74,6 +66,18 @@ def _runs(res: int, spp: int, forward: bool):
     if forward:
         runs["forward"] = lambda: render_derivatives(ds, names, spp=spp)
     return runs, names
+
+
+def linear_loss(res: int):
+    """A fixed linear loss of a res x res image: the sum of its values times weights
+    drawn once (seed 1) from [0.5, 1.5]."""
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    weights = mi.TensorXf(np.random.default_rng(1).uniform(0.5, 1.5, (res, res, 3))
+                          .astype(np.float32))
+    return lambda image: dr.sum(weights * image, axis=None)
 
 
 if __name__ == "__main__":

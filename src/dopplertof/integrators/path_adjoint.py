@@ -50,7 +50,6 @@ class AttachedLane:
 
     def __init__(self, mi, setup, start, motion: bool):
         self.mi, self.setup = mi, setup
-        self.motion = motion  #: whether anything the vertices' places depend on is attached
         self.time = start.time
         self.camera_origin = dr.detach(start.ray.o)  #: where the camera ray leaves the lens
         self.light_frames = start.light_frames  #: the lights' frames (not differentiated)
@@ -237,7 +236,7 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         hit_contribution, light_contribution = contributions(modulation, v, t_rel)
         # ---- Its tangents (where motion is differentiated): its ray's and its own ----
         followed = followed_vertex(mi, attached, (si, winner), ray, depth,
-                                   (origin_owner, tangents), attached.moving)
+                                   (origin_owner, tangents))
 
         # ---- Its local terms, attached, back-propagated at once ----
         suffix = (total - prefix, total_dl - prefix_dl,
@@ -259,12 +258,12 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
 
 
-def followed_vertex(mi, attached, hit, ray, depth, last, moving: bool):
+def followed_vertex(mi, attached, hit, ray, depth, last):
     """The vertex's Followed tangents (None where nothing moves): its ray is the camera
     ray (from the camera's origin, its direction fixed) or the ray from the last vertex
     (``last``: its owner and tangents), its direction turning with that vertex's body;
     its hit slides along the ray on its moving surface (follow_ray)."""
-    if not moving:
+    if not attached.moving:
         return None
     si, winner = hit
     origin_owner, tangents = last
@@ -313,17 +312,18 @@ def _local_terms(mi, setup, attached, si, ray, v, numbers, beta, t_rel, suffix, 
     terms = mi.Spectrum(0.0)
     here, turns = si, None
     if followed is not None:  # ---- the vertex attached by its tangents ----
-        here, segment = attached_vertex(mi, attached, si, ray, depth, origin, followed)
-        terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
         turns = attached.turn_rates(followed.owner)
+        here, segment = attached_vertex(mi, attached, si, ray, depth, origin, followed, turns)
+        terms += dr.select(v.valid & ~v.through, remaining_dl * segment, 0.0)
     # ---- The BSDF sample that continues the path, its own emitter hit and light sample ----
     terms += _continuation_term(mi, attached, turns, si, here, v, after, bsdf_ctx)
     return terms + _own_terms(mi, setup, attached, si, here, v, numbers, beta, t_rel, bsdf_ctx)
 
 
-def attached_vertex(mi, attached, si, ray, depth, origin, followed):
+def attached_vertex(mi, attached, si, ray, depth, origin, followed, rates):
     """This vertex attached by its tangents: its place (``followed.tangents``), its
-    shading frame turning with its body and, on a curved surface, with the normal's
+    shading frame turning with its body (``rates``: its turn rates, AttachedLane.turn_rates)
+    and, on a curved surface, with the normal's
     change as the hit slides (``followed.slides``), its uv sliding, the direction it is
     seen from (its ray's, turning: ``followed.direction_tangents``); and the length of
     the segment reaching it (from the camera's origin on the camera ray)."""
@@ -333,7 +333,6 @@ def attached_vertex(mi, attached, si, ray, depth, origin, followed):
     here.p = attached.with_tangents(dr.detach(si.p), followed.tangents)
     slid_uv = _uv_slides(mi, si, followed.slides)
     here.uv = attached.with_tangents(dr.detach(si.uv), slid_uv)
-    rates = attached.turn_rates(followed.owner)
     here.n = attached.with_tangents(dr.detach(si.n), turned(rates, dr.detach(si.n)))
     if attached.curved:  # the frame also turns as the hit slides: n x dn
         n = dr.detach(si.sh_frame.n)
