@@ -9,8 +9,16 @@ or a shadow inside; the light excluded).
 
     .venv/bin/python benchmarks/film.py [--res 48] [--spp 16] [--seeds 24]
     .venv/bin/python benchmarks/film.py --timing 7     (throughput of the pixel sets)
+    .venv/bin/python benchmarks/film.py --timing 7 --against 842c696
+                                                       (the default film's throughput
+                                                        against an older commit's)
     .venv/bin/python benchmarks/film.py --depths 2 3 6 (the default film's ratio by max_depth:
                                                         where the variance is)
+    .venv/bin/python benchmarks/film.py --stock-samplers (stock `path` with each of Mitsuba's
+                                                        own samplers: what stratifying every
+                                                        dimension of stock's paths reaches)
+    .venv/bin/python benchmarks/film.py --weights       (the default film's samples weighed
+                                                        again: what the filter's weights cost)
 
 Prints, per filter and film (``splat`` with each normalization and ``pixel_sets``,
 ``importance``), the ratio of our variance to stock's (< 1: less noisy than stock); the
@@ -25,7 +33,8 @@ import argparse
 import numpy as np
 
 WEIGHT = 0.25  #: g1 C(0): the D-ToF image over the radiance at a vanishing frequency
-#: (film_sampling, film_normalization, pixel_sets), side by side; the first is the default
+#: (film_sampling, film_normalization, pixel_sets), side by side; the first is the joint
+#: sets (the last line's worst ratio), the second the default
 PIXEL_SETS = ("independent", "joint")
 FILMS = (("splat", "weights", "joint"), ("splat", "weights", "independent"),
          ("splat", "expected", "joint"), ("importance", "weights", "independent"))
@@ -72,6 +81,50 @@ def throughput(repeats: int) -> None:
           f"{warm['joint'] / warm['independent']:.3f}")
 
 
+#: one process's warm render time of the published scene (128x128, 64 spp, ``auto``,
+#: the default film), median of argv[1] after a warm-up: run with another tree's src
+TIMED_RENDER = """
+import os, statistics, sys, time
+import dopplertof
+dopplertof.set_variant("llvm_ad_rgb")
+scene = dopplertof.load_file(sys.argv[2], {"resx": 128, "resy": 128})
+times = []
+for _ in range(int(sys.argv[1]) + 1):
+    started = time.perf_counter()
+    dopplertof.render(scene, spp=64, seed=1, params={"time_sampling_method": "auto"})
+    times.append(time.perf_counter() - started)
+print(statistics.median(times[1:]))
+"""
+
+
+def throughput_against(commit: str, repeats: int) -> None:
+    """Warm seconds per render of the published scene, default film, in this tree and
+    in ``commit``'s sources (same venv), in alternating processes: ``repeats`` rounds of
+    one process each, 3 renders a process (after a warm-up), medians."""
+    import os
+    import statistics
+    import subprocess
+    import sys
+    import tempfile
+
+    from startup import ROOT, baseline_sources
+
+    xml = os.path.join(ROOT, "tests", "fixtures", "cornell_box_moving.xml")
+    with tempfile.TemporaryDirectory() as tmp:
+        trees = {"this tree": os.path.join(ROOT, "src"), commit: baseline_sources(commit, tmp)}
+        seconds = {name: [] for name in trees}
+        for _ in range(repeats):
+            for name, src in trees.items():
+                out = subprocess.run([sys.executable, "-c", TIMED_RENDER, "3", xml],
+                                     env={**os.environ, "PYTHONPATH": src}, check=True,
+                                     capture_output=True, text=True)
+                seconds[name].append(float(out.stdout.split()[-1]))
+    median = {name: statistics.median(v) for name, v in seconds.items()}
+    for name, value in median.items():
+        print(f"  {name:12s} {value:.3f} s (median of {repeats} processes)")
+    print(f"throughput ratio (this tree / {commit}): {median['this tree'] / median[commit]:.3f}")
+
+
 def by_depth(res: int, spp: int, seeds: int, depths) -> None:
     """Per filter (box, tent) and max_depth, stock's per-pixel variance, ours (the default
     film) and their ratio, on the smooth pixels of the depth-6 reference: how much of the
@@ -98,6 +151,162 @@ def by_depth(res: int, spp: int, seeds: int, depths) -> None:
                   f"ratio {v_ours / v_stock:.2f}", flush=True)
 
 
+#: Mitsuba's samplers that take any sample count (``orthogonal`` needs a prime's square)
+STOCK_SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler")
+
+
+def stock_images(stock_scene, spp: int, seeds: int) -> np.ndarray:
+    """(seeds, H, W): stock renders of ``stock_scene``, channels averaged."""
+    import mitsuba as mi
+
+    return np.array([np.array(mi.render(stock_scene, spp=spp, seed=s))[..., :3].mean(-1)
+                     for s in range(seeds)])
+
+
+def our_images(ours_scene, seeds: int) -> np.ndarray:
+    """(seeds, H, W): our renders of ``ours_scene``, as radiance (divided by WEIGHT)."""
+    import dopplertof
+
+    return np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
+                     for s in range(seeds)])
+
+
+def stock_samplers(res: int, spp: int, seeds: int) -> None:
+    """Per filter: stock `path` with each of Mitsuba's samplers (every 2-D decision of
+    the path stratified per pixel by ``stratified``, ``multijitter`` and ``ldsampler``)
+    and our default film, each over stock `path` with the independent sampler."""
+    import mitsuba as mi
+
+    import dopplertof
+
+    for rfilter in ("box", "tent", "gaussian"):
+        variances = {}
+        for name in STOCK_SAMPLERS:
+            d = scene({"type": "path", "max_depth": 6}, rfilter, res, spp)
+            d["sensor"]["sampler"] = {"type": name, "sample_count": spp}
+            stock_scene = mi.load_dict(d)
+            if name == "independent":
+                mask = smooth_pixels(np.array(mi.render(stock_scene, spp=256 * spp,
+                                                        seed=10_000))[..., :3].mean(-1))
+            variances[name] = stock_images(stock_scene, spp, seeds).var(0, ddof=1)[mask].mean()
+        ours = our_images(dopplertof.load_dict(scene(
+            {"type": "dopplertof", "max_depth": 6, "w_g": 1e-6}, rfilter, res, spp)), seeds)
+        variances["dopplertof (default film)"] = ours.var(0, ddof=1)[mask].mean()
+        print(f"{rfilter:9s} " + "  ".join(f"{name} {v / variances['independent']:.3f}"
+                                           for name, v in variances.items()), flush=True)
+
+
+def filter_axis(rfilter: str, d):
+    """Mitsuba's filter on one axis at offsets ``d`` (pixels; NumPy): box, the tent of
+    radius 1, the gaussian of sigma 0.5 lowered to zero at radius 2."""
+    d = np.abs(d)
+    if rfilter == "box":
+        return (d < 0.5).astype(np.float64)
+    if rfilter == "tent":
+        return np.maximum(0.0, 1.0 - d)
+    return np.maximum(0.0, np.exp(-2.0 * d * d) - np.exp(-8.0))
+
+
+def cell_integral(rfilter: str, lo: float, hi: float, o: int) -> float:
+    """The integral of the filter on one axis over offsets [lo, hi] + o (midpoint rule,
+    4096 steps: far below the renders' noise)."""
+    x = lo + (np.arange(4096) + 0.5) * ((hi - lo) / 4096)
+    return float(filter_axis(rfilter, x + o).mean() * (hi - lo))
+
+
+def weighed(rfilter: str, res: int, pixel, offset, value, cells: int) -> np.ndarray:
+    """The (res, res) image from samples (source pixel, film offset from its centre,
+    value). ``cells`` 0: Mitsuba's ratio, sum w f / sum w over every sample a pixel's
+    filter reaches (the film's own estimate); c >= 1: the ratio within each c x c cell
+    of each source pixel, the cells weighted by their exact filter integrals (c = 1: one
+    weight per source pixel, w's variation within the pixel kept inside the ratio);
+    -1: each source pixel's plain mean, weighted by its pixel's filter integral (a
+    coarser filter, not Mitsuba's: what the image would cost if a sample's weight did
+    not vary within its pixel)."""
+    reach = {"box": 0, "tent": 1, "gaussian": 2}[rfilter]
+    qx, qy = pixel % res, pixel // res
+    split = max(cells, 1)
+    cell = (np.minimum(((offset + 0.5) * split).astype(int), split - 1) * [1, split]).sum(1)
+    if cells < 0:
+        value = (np.bincount(pixel, value, res * res) / np.bincount(pixel, None, res * res))
+        qx, qy, cell = np.arange(res * res) % res, np.arange(res * res) // res, 0
+    num, den = np.zeros(res * res), np.zeros(res * res)
+    for oy in range(-reach, reach + 1):
+        for ox in range(-reach, reach + 1):
+            px, py = qx - ox, qy - oy  # the pixel reached, its centre -o from the source's
+            inside = (px >= 0) & (px < res) & (py >= 0) & (py < res)
+            target = (py * res + px)[inside]
+            if cells == 0:
+                w = (filter_axis(rfilter, offset[:, 0] + ox)
+                     * filter_axis(rfilter, offset[:, 1] + oy))[inside]
+                np.add.at(num, target, w * value[inside])
+                np.add.at(den, target, w)
+                continue
+            for k in range(split * split):
+                kx, ky = k % split, k // split
+                W = (cell_integral(rfilter, kx / split - 0.5, (kx + 1) / split - 0.5, ox)
+                     * cell_integral(rfilter, ky / split - 0.5, (ky + 1) / split - 0.5, oy))
+                if W <= 0.0:
+                    continue
+                if cells < 0:
+                    np.add.at(num, target, W * value[inside])
+                    np.add.at(den, target, W)
+                    continue
+                mine = inside & (cell == k)
+                w = (filter_axis(rfilter, offset[mine, 0] + ox)
+                     * filter_axis(rfilter, offset[mine, 1] + oy))
+                sums = np.bincount((py * res + px)[mine], w * value[mine], res * res)
+                weights = np.bincount((py * res + px)[mine], w, res * res)
+                seen = weights > 0
+                num[seen] += W * sums[seen] / weights[seen]
+                den[seen] += W
+    return (num / np.maximum(den, 1e-300)).reshape(res, res)
+
+
+def filter_weights(res: int, spp: int, seeds: int) -> None:
+    """Per filter: the default film's own samples (captured as the render adds them),
+    weighed again in NumPy by ``weighed``'s estimators, each image's per-pixel variance
+    over stock `path`'s (independent sampler). The first column must equal the render's."""
+    import mitsuba as mi
+
+    import dopplertof
+    from dopplertof.integrators import pipeline
+
+    captured = []
+    add = pipeline.Accumulator.add
+
+    def capture(self, value, film_offset, chunk_size, threads, pilot):
+        pixels, _, lanes = threads  # lanes are pixel-major (path_steps.PassLayout)
+        captured.append((np.repeat(pixels, lanes), np.asarray(film_offset).reshape(2, -1).T,
+                         np.asarray(value).reshape(3, -1).mean(0) / WEIGHT))
+        return add(self, value, film_offset, chunk_size, threads, pilot)
+
+    pipeline.Accumulator.add = capture  # (measurement only: the sums are the render's)
+    estimators = {"Mitsuba's ratio": 0, "ratio per source pixel": 1,
+                  "ratio per quadrant": 2, "ratio per 1/16 cell": 4,
+                  "one weight per source pixel (another filter)": -1}
+    for rfilter in ("box", "tent", "gaussian"):
+        stock_scene = mi.load_dict(scene({"type": "path", "max_depth": 6}, rfilter, res, spp))
+        mask = smooth_pixels(np.array(mi.render(stock_scene, spp=256 * spp, seed=10_000))
+                             [..., :3].mean(-1))
+        stock_var = stock_images(stock_scene, spp, seeds).var(0, ddof=1)[mask].mean()
+        ours_scene = dopplertof.load_dict(scene(
+            {"type": "dopplertof", "max_depth": 6, "w_g": 1e-6}, rfilter, res, spp))
+        images, rendered = {name: [] for name in estimators}, []
+        for seed in range(seeds):
+            captured.clear()
+            rendered.append(dopplertof.render(ours_scene, seed=seed).mean(-1) / WEIGHT)
+            pixel, offset, value = (np.concatenate(part) for part in zip(*captured))
+            for name, cells in estimators.items():
+                images[name].append(weighed(rfilter, res, pixel, offset, value, cells))
+        agree = np.abs(np.array(images["Mitsuba's ratio"]) - np.array(rendered)).max()
+        print(f"{rfilter:9s} render {np.var(rendered, 0, ddof=1)[mask].mean() / stock_var:.3f} "
+              f"(NumPy's ratio within {agree:.1e} of it)  " + "  ".join(
+                  f"{name} {np.var(images[name], 0, ddof=1)[mask].mean() / stock_var:.3f}"
+                  for name in estimators), flush=True)
+    pipeline.Accumulator.add = add
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--res", type=int, default=48)
@@ -108,6 +317,12 @@ def main(argv=None) -> int:
     p.add_argument("--depths", type=int, nargs="+", metavar="MAX_DEPTH",
                    help="only the default film against stock at each max_depth (box, tent): "
                    "2 is direct light, the rest adds bounces")
+    p.add_argument("--against", metavar="COMMIT",
+                   help="with --timing: this tree's default film against COMMIT's sources")
+    p.add_argument("--stock-samplers", action="store_true",
+                   help="only stock `path` with each of Mitsuba's samplers, and our film")
+    p.add_argument("--weights", action="store_true",
+                   help="only the default film's samples weighed again by other estimators")
     args = p.parse_args(argv)
 
     import mitsuba as mi
@@ -115,11 +330,20 @@ def main(argv=None) -> int:
     import dopplertof
 
     dopplertof.set_variant("llvm_ad_rgb")
+    if args.timing and args.against:
+        throughput_against(args.against, args.timing)
+        return 0
     if args.timing:
         throughput(args.timing)
         return 0
     if args.depths:
         by_depth(args.res, args.spp, args.seeds, args.depths)
+        return 0
+    if args.stock_samplers:
+        stock_samplers(args.res, args.spp, args.seeds)
+        return 0
+    if args.weights:
+        filter_weights(args.res, args.spp, args.seeds)
         return 0
     worst = 0.0
     for rfilter in ("box", "tent", "gaussian"):

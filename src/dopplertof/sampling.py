@@ -6,8 +6,9 @@ stream. Every random number is a function of (seed, pixel, stream, dimension), n
 drawn from a sequential generator: a hash of them for the *shared* stream of a group
 (keyed by the group index) or the sample's *own* stream (keyed by its global sample
 index); the film position, the time and the first hit's light and BSDF samples are
-points of the pixel's scrambled Sobol set instead (indexed by the sample's number in
-the pixel; see :meth:`CorrelatedStreams.film_2d`). Stage ``k`` of a path (0: camera
+points of the pixel's low-discrepancy sets instead (scrambled Sobol sequences, a shifted
+lattice for the BSDF sample; indexed by the sample's number in the pixel, see
+:meth:`CorrelatedStreams.film_2d`). Stage ``k`` of a path (0: camera
 ray; k >= 1: the decisions at the k-th surface hit) draws from its path group's shared
 stream when ``k < path_correlation_depth``. Because dimensions are fixed per stage,
 the two streams stay aligned whatever is selected, and a sample replays exactly for
@@ -264,6 +265,27 @@ def owen_sobol(mi, index, dim: int, seed):
 
 def _unit(mi, bits):
     return mi.Float(bits >> 8) * (1.0 / (1 << 24))  # 24 bits: exact and below 1
+
+
+#: the generator g of the first hit's BSDF samples' rank-1 lattice sequence (lattice_2d):
+#: an odd 32-bit integer whose every lattice of 2^m points, m = 3 to 27, has its closest
+#: two points at least 0.71 of the hexagonal packing's distance apart (chosen by a search
+#: over g mod 2^17, then bit by bit; tests/test_sampling.py measures it)
+LATTICE_GENERATOR = 0x2B204613
+
+
+def lattice_2d(mi, index, shift_x, shift_y):
+    """Point ``index`` of a rank-1 lattice sequence in base 2, shifted on the torus by
+    (``shift_x``, ``shift_y``) (Cranley-Patterson: every point uniform on [0,1)^2):
+    phi(index) (1, g) mod 1, phi the radical inverse. Aligned runs of 2^m points are the
+    lattice {(k, k g) / 2^m}: one point in every 1-D stratum of width 2^-m on either
+    axis, and the points far apart on the torus, like a jittered grid whose rows are
+    sheared (more even than a scrambled (0,2)-net's 2-D strata: 3% less variance on
+    the walls of a Cornell box, docs/benchmarks.md)."""
+    import drjit as dr
+
+    x = dr.brev(index)
+    return mi.Point2f(_unit(mi, x + shift_x), _unit(mi, x * LATTICE_GENERATOR + shift_y))
 
 
 def sobol_2d(mi, index, shift_x, shift_y):
@@ -576,10 +598,13 @@ class CorrelatedStreams:
         return (mi.Float64(bits) + mi.Float64(low)) * (1.0 / (1 << 32))
 
     def first_hit_2d(self, dim: int, group, index_in_group, groups_per_pixel: int):
-        """The first surface hit's 2-D decision ``dim`` from the pixel's own
-        low-discrepancy set: Sobol's (0,2)-sequence at an index shuffled per dimension
-        (so that film, time and each decision are paired at random, not by index), its
-        values Owen-scrambled. The index is the path group's when stage 1 is shared."""
+        """The first surface hit's 2-D decision ``dim`` (0: the light sample, 1: the
+        BSDF sample) from the pixel's own low-discrepancy set, at an index shuffled per
+        dimension (so that film, time and each decision are paired at random, not by
+        index): for the light sample Sobol's (0,2)-sequence, its values Owen-scrambled;
+        for the BSDF sample the shifted rank-1 lattice sequence (:func:`lattice_2d`),
+        whose even spread suits the directions of the first bounce. The index is the
+        path group's when stage 1 is shared."""
         import drjit as dr
 
         mi = self.mi
@@ -589,6 +614,8 @@ class CorrelatedStreams:
                           index_in_group * groups_per_pixel + group)
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
         shuffled = _reverse_permute(mi, index, seed_index)
+        if dim == 1:
+            return lattice_2d(mi, shuffled, seed_x, seed_y)
         return mi.Point2f(
             _unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
             _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
@@ -681,4 +708,6 @@ __all__ = [
     "bounce_dim",
     "seed_words",
     "SEED_LIMIT",
+    "lattice_2d",
+    "LATTICE_GENERATOR",
 ]
