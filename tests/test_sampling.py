@@ -347,9 +347,10 @@ def test_joint_film_positions_are_one_net_over_the_image():
 
 
 def test_joint_decisions_stratify_each_2x2_block_of_pixels():
-    """The BSDF samples of a 2x2 block of pixels (4 x 16) form a (0,6,2)-net, as do
-    the second hit's light and BSDF samples; each pixel's first light samples are
-    stratified in 4x4 cells at least twice over (Sobol's dimensions 3 and 4: t = 1)."""
+    """The BSDF samples of a 2x2 block of pixels (4 x 16), at the first hit and the
+    second, form a shifted lattice of 64, and the second hit's light samples a
+    (0,6,2)-net; each pixel's first light samples are stratified in 4x4 cells at least
+    twice over (Sobol's dimensions 3 and 4: t = 1)."""
     import mitsuba as mi
 
     s, pixel, sample = joint_streams(4, 4, 16)
@@ -358,8 +359,9 @@ def test_joint_decisions_stratify_each_2x2_block_of_pixels():
     light0, direction0 = (s.first_hit_2d(d, group, index, 8) for d in (0, 1))
     second = mi.UInt32(np.ones(len(pixel), int))
     light1, direction1 = (s.joint_decision(second, k) for k in (0, 1))
-    for p in (direction0, light1, direction1):
-        assert is_net(np.asarray(p.x)[block], np.asarray(p.y)[block])
+    for p in (direction0, direction1):
+        assert_shifted_lattice(np.asarray(p.x)[block], np.asarray(p.y)[block], 64)
+    assert is_net(np.asarray(light1.x)[block], np.asarray(light1.y)[block])
     x, y = np.asarray(light0.x)[pixel == 5], np.asarray(light0.y)[pixel == 5]
     assert len(set(zip(np.floor(x * 4).astype(int), np.floor(y * 4).astype(int)))) >= 8
     # decisions are paired at random: the first light is not the BSDF sample

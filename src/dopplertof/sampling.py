@@ -545,14 +545,19 @@ class CorrelatedStreams:
     def joint_decision(self, depth, which: int):
         """A 2-D decision at surface hit ``depth`` (0-based; int or per lane; ``which``
         0: the light sample, 1: the BSDF sample) from the tile's joint sets
-        (pixel_sets="joint"): Sobol's (0,2)-sequence at the lane's point shuffled per
-        decision (decisions paired at random, not by index), values Owen-scrambled.
-        The first hit's light sample comes from :meth:`first_hit_2d` instead."""
+        (pixel_sets="joint"), at the lane's point shuffled per decision (decisions
+        paired at random, not by index): for a light sample Sobol's (0,2)-sequence, its
+        values Owen-scrambled; for a BSDF sample the shifted lattice sequence
+        (:func:`lattice_2d`; a pixel's block of it, and every 2x2, 4x4, ... block of
+        pixels' in Z order, is a lattice shifted on the torus). The first hit's light
+        sample comes from :meth:`first_hit_2d` instead."""
         mi = self.mi
         point, key = self._lane_point(depth + 1)[:2]
         hop = depth * 2 + which
         seed_index, seed_x, seed_y = (_mix32(key ^ _hop_tag(mi, hop, k)) for k in range(3))
         shuffled = _reverse_permute(mi, point, seed_index)
+        if which == 1:
+            return lattice_2d(mi, shuffled, seed_x, seed_y)
         return mi.Point2f(_unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
                           _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
 
