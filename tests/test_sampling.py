@@ -125,18 +125,13 @@ def elementary_cells(x, y, n, cols, rows):
     return sorted(np.floor(x * cols).astype(int) * rows + np.floor(y * rows).astype(int))
 
 
-def lattice_offsets(x, y, n):
-    """Per point, (its offset from point 0 on the torus) x n: integers for a lattice of n."""
-    return np.mod(x - x[0], 1.0) * n, np.mod(y - y[0], 1.0) * n
-
-
 def assert_shifted_lattice(x, y, n):
     """(x, y) are the rank-1 lattice {(k, k g) / n}, shifted on the torus: every point k/n
     from the first on the x axis sits k g / n from it on the y axis (to the 24 bits kept),
     one point in every 1-D stratum of width 1/n on each axis."""
     for axis in (x, y):
         assert sorted(np.floor(axis * n).astype(int)) == list(range(n))
-    dx, dy = lattice_offsets(x, y, n)
+    dx, dy = np.mod(x - x[0], 1.0) * n, np.mod(y - y[0], 1.0) * n  # offsets from point 0
     k = np.rint(dx).astype(np.int64)
     assert np.abs(dx - k).max() < 1e-4
     expected = np.mod(k * sampling.LATTICE_GENERATOR, n)

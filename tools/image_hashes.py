@@ -7,10 +7,10 @@ unchanged (same machine, same Dr.Jit and Mitsuba).
 
 ``-P name=value`` adds a render parameter to every configuration (e.g.
 ``-P film_sampling=importance``: tests/fixtures/images_importance_film.json holds those
-hashes, which tests/test_film.py compares on the machine that recorded them). The set covers every time-sampling method, the waveforms and
-the full-waveform mode, the variant families (RGB, spectral, mono), body, camera and
-light motion, the three filters, adaptive counts, a crop window, the motion mapping and
-a camera capture. About a minute on 2 cores.
+hashes, which tests/test_film.py compares on the machine that recorded them). The set
+covers every time-sampling method, the waveforms and the full-waveform mode, the variant
+families (RGB, spectral, mono), body, camera and light motion, the three filters,
+adaptive counts, a crop window, the motion mapping and a camera capture. About a minute on 2 cores.
 """
 
 from __future__ import annotations

@@ -288,6 +288,17 @@ def lattice_2d(mi, index, shift_x, shift_y):
     return mi.Point2f(_unit(mi, x + shift_x), _unit(mi, x * LATTICE_GENERATOR + shift_y))
 
 
+def decision_2d(mi, index, which: int, seed_x, seed_y):
+    """A 2-D decision of a pixel's (or tile's) low-discrepancy sets at its shuffled
+    ``index``: ``which`` 0, a light sample, is Sobol's (0,2)-sequence Owen-scrambled
+    with the two seeds; 1, a BSDF sample, the lattice sequence shifted by them
+    (:func:`lattice_2d`)."""
+    if which == 1:
+        return lattice_2d(mi, index, seed_x, seed_y)
+    return mi.Point2f(_unit(mi, owen_sobol(mi, index, 0, seed_x)),
+                      _unit(mi, owen_sobol(mi, index, 1, seed_y)))
+
+
 def sobol_2d(mi, index, shift_x, shift_y):
     """Point ``index`` of the (0,2)-sequence in base 2 (Sobol's first two dimensions)
     with a random digital shift: every point is uniform on [0,1)^2, and aligned runs of
@@ -555,11 +566,7 @@ class CorrelatedStreams:
         point, key = self._lane_point(depth + 1)[:2]
         hop = depth * 2 + which
         seed_index, seed_x, seed_y = (_mix32(key ^ _hop_tag(mi, hop, k)) for k in range(3))
-        shuffled = _reverse_permute(mi, point, seed_index)
-        if which == 1:
-            return lattice_2d(mi, shuffled, seed_x, seed_y)
-        return mi.Point2f(_unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
-                          _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
+        return decision_2d(mi, _reverse_permute(mi, point, seed_index), which, seed_x, seed_y)
 
     def _joint_first_light(self):
         """The first hit's light sample with joint sets: Sobol's dimensions 3 and 4 at
@@ -618,12 +625,7 @@ class CorrelatedStreams:
         index = dr.select(1 < self.correlation_depth, self.path_group,
                           index_in_group * groups_per_pixel + group)
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
-        shuffled = _reverse_permute(mi, index, seed_index)
-        if dim == 1:
-            return lattice_2d(mi, shuffled, seed_x, seed_y)
-        return mi.Point2f(
-            _unit(mi, owen_sobol(mi, shuffled, 0, seed_x)),
-            _unit(mi, owen_sobol(mi, shuffled, 1, seed_y)))
+        return decision_2d(mi, _reverse_permute(mi, index, seed_index), dim, seed_x, seed_y)
 
     def get_2d(self, stage, dim):
         key = self.key(stage)
