@@ -125,6 +125,22 @@ def throughput_against(commit: str, repeats: int) -> None:
     print(f"throughput ratio (this tree / {commit}): {median['this tree'] / median[commit]:.3f}")
 
 
+def stock_images(stock_scene, spp: int, seeds: int) -> np.ndarray:
+    """(seeds, H, W): stock renders of ``stock_scene``, channels averaged."""
+    import mitsuba as mi
+
+    return np.array([np.array(mi.render(stock_scene, spp=spp, seed=s))[..., :3].mean(-1)
+                     for s in range(seeds)])
+
+
+def our_images(ours_scene, seeds: int) -> np.ndarray:
+    """(seeds, H, W): our renders of ``ours_scene``, as radiance (divided by WEIGHT)."""
+    import dopplertof
+
+    return np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
+                     for s in range(seeds)])
+
+
 def by_depth(res: int, spp: int, seeds: int, depths) -> None:
     """Per filter (box, tent) and max_depth, stock's per-pixel variance, ours (the default
     film) and their ratio, on the smooth pixels of the depth-6 reference: how much of the
@@ -142,10 +158,7 @@ def by_depth(res: int, spp: int, seeds: int, depths) -> None:
                                              res, spp))
             ours_scene = dopplertof.load_dict(scene(
                 {"type": "dopplertof", "max_depth": depth, "w_g": 1e-6}, rfilter, res, spp))
-            stock = np.array([np.array(mi.render(stock_scene, spp=spp, seed=s))[..., :3]
-                              .mean(-1) for s in range(seeds)])
-            ours = np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
-                             for s in range(seeds)])
+            stock, ours = stock_images(stock_scene, spp, seeds), our_images(ours_scene, seeds)
             v_stock, v_ours = (a.var(0, ddof=1)[mask].mean() for a in (stock, ours))
             print(f"  {rfilter:5s} max_depth {depth}: stock {v_stock:.3e}, ours {v_ours:.3e}, "
                   f"ratio {v_ours / v_stock:.2f}", flush=True)
@@ -153,22 +166,6 @@ def by_depth(res: int, spp: int, seeds: int, depths) -> None:
 
 #: Mitsuba's samplers that take any sample count (``orthogonal`` needs a prime's square)
 STOCK_SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler")
-
-
-def stock_images(stock_scene, spp: int, seeds: int) -> np.ndarray:
-    """(seeds, H, W): stock renders of ``stock_scene``, channels averaged."""
-    import mitsuba as mi
-
-    return np.array([np.array(mi.render(stock_scene, spp=spp, seed=s))[..., :3].mean(-1)
-                     for s in range(seeds)])
-
-
-def our_images(ours_scene, seeds: int) -> np.ndarray:
-    """(seeds, H, W): our renders of ``ours_scene``, as radiance (divided by WEIGHT)."""
-    import dopplertof
-
-    return np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
-                     for s in range(seeds)])
 
 
 def stock_samplers(res: int, spp: int, seeds: int) -> None:
@@ -196,70 +193,55 @@ def stock_samplers(res: int, spp: int, seeds: int) -> None:
                                            for name, v in variances.items()), flush=True)
 
 
-def filter_axis(rfilter: str, d):
-    """Mitsuba's filter on one axis at offsets ``d`` (pixels; NumPy): box, the tent of
-    radius 1, the gaussian of sigma 0.5 lowered to zero at radius 2."""
-    d = np.abs(d)
-    if rfilter == "box":
-        return (d < 0.5).astype(np.float64)
-    if rfilter == "tent":
-        return np.maximum(0.0, 1.0 - d)
-    return np.maximum(0.0, np.exp(-2.0 * d * d) - np.exp(-8.0))
+def axis_weights(splat, d) -> dict:
+    """e(d - k) for every neighbour k of the film's filter (SplatFilter.axis_weights, the
+    weights the render splats with), ``d`` offsets on one axis (NumPy), as NumPy."""
+    import mitsuba as mi
+
+    return {k: np.asarray(w, np.float64) for k, w in splat.axis_weights(mi.Float(d)).items()}
 
 
-def cell_integral(rfilter: str, lo: float, hi: float, o: int) -> float:
-    """The integral of the filter on one axis over offsets [lo, hi] + o (midpoint rule,
-    4096 steps: far below the renders' noise)."""
-    x = lo + (np.arange(4096) + 0.5) * ((hi - lo) / 4096)
-    return float(filter_axis(rfilter, x + o).mean() * (hi - lo))
-
-
-def weighed(rfilter: str, res: int, pixel, offset, value, cells: int) -> np.ndarray:
+def weighed(splat, res: int, pixel, offset, value, cells: int) -> np.ndarray:
     """The (res, res) image from samples (source pixel, film offset from its centre,
-    value). ``cells`` 0: Mitsuba's ratio, sum w f / sum w over every sample a pixel's
-    filter reaches (the film's own estimate); c >= 1: the ratio within each c x c cell
-    of each source pixel, the cells weighted by their exact filter integrals (c = 1: one
-    weight per source pixel, w's variation within the pixel kept inside the ratio);
-    -1: each source pixel's plain mean, weighted by its pixel's filter integral (a
-    coarser filter, not Mitsuba's: what the image would cost if a sample's weight did
-    not vary within its pixel)."""
-    reach = {"box": 0, "tent": 1, "gaussian": 2}[rfilter]
-    qx, qy = pixel % res, pixel // res
+    value), with the film's filter ``splat`` (integrators/film.SplatFilter). ``cells``
+    0: Mitsuba's ratio, sum w f / sum w over every sample a pixel's filter reaches (the
+    film's own estimate); c >= 1: the ratio within each c x c cell of each source
+    pixel, the cells weighted by their exact filter integrals (c = 1: one weight per
+    source pixel, w's variation within the pixel kept inside the ratio); -1: each
+    source pixel's plain mean, weighted by its pixel's filter integral (a coarser
+    filter, not Mitsuba's: what the image would cost if a sample's weight did not vary
+    within its pixel)."""
     split = max(cells, 1)
+    if cells < 0:  # one sample per source pixel: its mean, at the centre
+        value = np.bincount(pixel, value, res * res) / np.bincount(pixel, None, res * res)
+        pixel, offset = np.arange(res * res), np.zeros((res * res, 2))
+    wx, wy = axis_weights(splat, offset[:, 0]), axis_weights(splat, offset[:, 1])
     cell = (np.minimum(((offset + 0.5) * split).astype(int), split - 1) * [1, split]).sum(1)
-    if cells < 0:
-        value = (np.bincount(pixel, value, res * res) / np.bincount(pixel, None, res * res))
-        qx, qy, cell = np.arange(res * res) % res, np.arange(res * res) // res, 0
     num, den = np.zeros(res * res), np.zeros(res * res)
-    for oy in range(-reach, reach + 1):
-        for ox in range(-reach, reach + 1):
-            px, py = qx - ox, qy - oy  # the pixel reached, its centre -o from the source's
-            inside = (px >= 0) & (px < res) & (py >= 0) & (py < res)
-            target = (py * res + px)[inside]
-            if cells == 0:
-                w = (filter_axis(rfilter, offset[:, 0] + ox)
-                     * filter_axis(rfilter, offset[:, 1] + oy))[inside]
-                np.add.at(num, target, w * value[inside])
-                np.add.at(den, target, w)
+    for ox, oy in splat.offsets:
+        px, py = pixel % res - ox, pixel // res - oy  # the pixel reached: its centre o away
+        inside = (px >= 0) & (px < res) & (py >= 0) & (py < res)
+        target, w = py * res + px, wx[-ox] * wy[-oy]  # e(offset + o): axis_weights' k = -o
+        if cells == 0:
+            np.add.at(num, target[inside], (w * value)[inside])
+            np.add.at(den, target[inside], w[inside])
+            continue
+        for k in range(split * split):
+            lo_x, lo_y = (k % split) / split - 0.5, (k // split) / split - 0.5
+            W = (splat.integral(lo_x + ox, lo_x + 1 / split + ox)
+                 * splat.integral(lo_y + oy, lo_y + 1 / split + oy))
+            mine = inside & (cell == k)
+            if W <= 0.0 or not mine.any():
                 continue
-            for k in range(split * split):
-                kx, ky = k % split, k // split
-                W = (cell_integral(rfilter, kx / split - 0.5, (kx + 1) / split - 0.5, ox)
-                     * cell_integral(rfilter, ky / split - 0.5, (ky + 1) / split - 0.5, oy))
-                if W <= 0.0:
-                    continue
-                if cells < 0:
-                    np.add.at(num, target, W * value[inside])
-                    np.add.at(den, target, W)
-                    continue
-                mine = inside & (cell == k)
-                w = (filter_axis(rfilter, offset[mine, 0] + ox)
-                     * filter_axis(rfilter, offset[mine, 1] + oy))
-                sums = np.bincount((py * res + px)[mine], w * value[mine], res * res)
-                weights = np.bincount((py * res + px)[mine], w, res * res)
-                seen = weights > 0
-                num[seen] += W * sums[seen] / weights[seen]
-                den[seen] += W
+            if cells < 0:  # the plain mean, weighted by the pixel's integral
+                np.add.at(num, target[mine], W * value[mine])
+                np.add.at(den, target[mine], W)
+                continue
+            sums = np.bincount(target[mine], (w * value)[mine], res * res)
+            weights = np.bincount(target[mine], w[mine], res * res)
+            seen = weights > 0
+            num[seen] += W * sums[seen] / weights[seen]
+            den[seen] += W
     return (num / np.maximum(den, 1e-300)).reshape(res, res)
 
 
@@ -271,6 +253,7 @@ def filter_weights(res: int, spp: int, seeds: int) -> None:
 
     import dopplertof
     from dopplertof.integrators import pipeline
+    from dopplertof.integrators.film import SplatFilter
 
     captured = []
     add = pipeline.Accumulator.add
@@ -292,13 +275,14 @@ def filter_weights(res: int, spp: int, seeds: int) -> None:
         stock_var = stock_images(stock_scene, spp, seeds).var(0, ddof=1)[mask].mean()
         ours_scene = dopplertof.load_dict(scene(
             {"type": "dopplertof", "max_depth": 6, "w_g": 1e-6}, rfilter, res, spp))
+        splat = SplatFilter(ours_scene.sensor.film())
         images, rendered = {name: [] for name in estimators}, []
         for seed in range(seeds):
             captured.clear()
             rendered.append(dopplertof.render(ours_scene, seed=seed).mean(-1) / WEIGHT)
             pixel, offset, value = (np.concatenate(part) for part in zip(*captured))
             for name, cells in estimators.items():
-                images[name].append(weighed(rfilter, res, pixel, offset, value, cells))
+                images[name].append(weighed(splat, res, pixel, offset, value, cells))
         agree = np.abs(np.array(images["Mitsuba's ratio"]) - np.array(rendered)).max()
         print(f"{rfilter:9s} render {np.var(rendered, 0, ddof=1)[mask].mean() / stock_var:.3f} "
               f"(NumPy's ratio within {agree:.1e} of it)  " + "  ".join(
@@ -349,8 +333,7 @@ def main(argv=None) -> int:
     for rfilter in ("box", "tent", "gaussian"):
         stock_scene = mi.load_dict(scene({"type": "path", "max_depth": 6}, rfilter, args.res,
                                          args.spp))
-        stock = np.array([np.array(mi.render(stock_scene, spp=args.spp, seed=s))[..., :3]
-                          .mean(-1) for s in range(args.seeds)])
+        stock = stock_images(stock_scene, args.spp, args.seeds)
         reference = np.array(mi.render(stock_scene, spp=256 * args.spp, seed=10_000))
         mask = smooth_pixels(reference[..., :3].mean(-1))
         stock_var = stock.var(0, ddof=1)[mask].mean()
@@ -360,8 +343,7 @@ def main(argv=None) -> int:
                 {"type": "dopplertof", "max_depth": 6, "w_g": 1e-6, "film_sampling": film,
                  "film_normalization": normalization, "pixel_sets": sets}, rfilter,
                 args.res, args.spp))
-            ours = np.array([dopplertof.render(ours_scene, seed=s).mean(-1) / WEIGHT
-                             for s in range(args.seeds)])
+            ours = our_images(ours_scene, args.seeds)
             ratio = ours.var(0, ddof=1)[mask].mean() / stock_var
             row.append(f"{film}/{normalization}/{sets} {ratio:.2f}")
             if (film, normalization, sets) == FILMS[0]:

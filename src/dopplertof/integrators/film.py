@@ -168,10 +168,14 @@ class SplatFilter:
         return (s * math.sqrt(math.pi / 2.0) * math.erf(x / (s * math.sqrt(2.0)))
                 - self._bias * x)
 
+    def integral(self, lo: float, hi: float) -> float:
+        """The integral of e over [lo, hi] (float64)."""
+        return self._antiderivative(hi) - self._antiderivative(lo)
+
     def cell_integral(self, k: int) -> float:
         """The integral of e(delta - k) over a pixel, delta in [-1/2, 1/2]: the expected
         weight, on one axis, of a sample of pixel j in pixel j + k."""
-        return self._antiderivative(k + 0.5) - self._antiderivative(k - 0.5)
+        return self.integral(k - 0.5, k + 0.5)
 
     # ---- Kernel side ----
 
