@@ -26,7 +26,7 @@ from .inputs import Resolver, dict_inputs
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, MOVABLE_EMITTERS,
                     SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
-                    correlated_sampler_params)
+                    correlated_sampler_params, mitsuba_load)
 
 SENSOR_TYPES = ("perspective", "thinlens", "orthographic")
 
@@ -239,7 +239,7 @@ def _load(mi, d: dict, what: str):
         if problem:
             raise SceneError(f"<dict> {what}: {key!r}: {problem}")
     try:
-        return mi.load_dict(d)
+        return mitsuba_load(mi.load_dict, d)
     except Exception as e:
         lines = [x for x in str(e).strip().splitlines() if x.strip()]
         detail = with_plugin_hint(lines[-1], DTOF_PLUGINS) if lines else "load failed"

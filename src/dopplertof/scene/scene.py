@@ -321,6 +321,18 @@ def _check_sensor(sensor, source: str, shutter_given: str | None,
                      "shutter_close > shutter_open, or the integrator's time")
 
 
+def mitsuba_load(load, scene):
+    """``load(scene)`` (``mi.load_string`` or ``mi.load_dict``), on Mitsuba's threads; if
+    that fails, once more on this thread alone, whose error is the one raised. A child
+    that fails on a loader thread can surface as another child's "has not been
+    instantiated yet" (seen for a missing mesh file under a loaded test suite), which
+    names neither the child nor its problem; the serial load names both."""
+    try:
+        return load(scene)
+    except Exception:
+        return load(scene, parallel=False)
+
+
 def _load_checked(mi, load_part, part, what: str, source: str):
     """``load_part(part, what)``, its meshes checked (no faces, indices past the last
     vertex, non-finite positions: Mitsuba loads some of these)."""

@@ -31,7 +31,7 @@ from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
                     MotionClaim, SceneDescription, SceneError, build,
-                    correlated_sampler_params)
+                    correlated_sampler_params, mitsuba_load)
 from .transforms import TransformError, compose
 
 PROPERTY_TAGS = ("float", "integer", "string", "boolean")
@@ -409,7 +409,7 @@ def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
     folders = [resolver[i] for i in range(len(resolver))]
     resolver.prepend(base_dir)
     try:
-        return mi.load_string(text), text
+        return mitsuba_load(mi.load_string, text), text
     except Exception as e:  # Mitsuba reports XML problems as RuntimeError
         raise SceneError(_mitsuba_error(doc, root, text, e)) from None
     finally:
