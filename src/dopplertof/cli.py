@@ -119,6 +119,10 @@ def _add_capture_command(sub) -> None:
     c.add_argument("--min-signal", type=float, metavar="FRACTION",
                    help="velocity/depth are NaN where the homodyne signal is below this "
                    "fraction of the image's 99th percentile (default 0.01)")
+    c.add_argument("--ambient-irradiance", type=float, metavar="UW_CM2_NM",
+                   help="with --camera (an absolute preset): ambient light on every surface, "
+                   "uW/cm^2/nm at the illuminator's wavelength (indoor 2.2, sunlight at "
+                   "850 nm about 90; default: the preset's documented condition)")
     c.add_argument("--keep-mixed-pixels", action="store_true",
                    help="reconstruct the pixels whose footprint mixes surfaces (silhouettes: "
                    "a mixture of two surfaces' velocities) instead of NaN")

@@ -15,6 +15,7 @@ middle of the sequence.
 
 from __future__ import annotations
 
+import math
 import os
 import time as _time
 from dataclasses import dataclass, field, replace
@@ -25,6 +26,7 @@ from ..params import RenderParams
 from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
                            error_stats)
 from ..tof.ground_truth import camera_forward, ground_truth, mixed_footprints
+from . import radiometry
 from . import sensor as camera_sensor
 from .preset import CameraPreset, load_preset
 from .reconstruct import CameraReconstruction, reconstruct
@@ -45,6 +47,14 @@ class CameraResult:
     summary: dict = field(default_factory=dict)
     #: (H, W) bool: the footprints that mix surfaces during the sequence (masked unless kept)
     mixed_footprints: np.ndarray | None = None
+    #: what reaches the pixels (for :meth:`read_again`)
+    light: "PixelLight | None" = None
+
+    def read_again(self, noise_seed: int | None, keep_mixed_pixels: bool = False):
+        """(Readout, CameraReconstruction) of the same renders with another noise draw
+        (``noise_seed`` None: no noise): the sensor and the depth engine only."""
+        mixed = None if keep_mixed_pixels else self.mixed_footprints
+        return self.light.read(self.preset, noise_seed, mixed)
 
     @property
     def raw(self):
@@ -89,8 +99,8 @@ def _base_params(scene, preset: CameraPreset, params) -> RenderParams:
 
 def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, params=None,
                    noise: bool = True, noise_seed: int = 0, progress: bool | None = None,
-                   on_frame=None, checkpoint=None,
-                   keep_mixed_pixels: bool = False) -> CameraResult:
+                   on_frame=None, checkpoint=None, keep_mixed_pixels: bool = False,
+                   ambient_irradiance: float | None = None) -> CameraResult:
     """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
     .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
     resolution; :func:`load_scene_for_camera` gives a scene file the preset's).
@@ -101,34 +111,145 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     every render (:mod:`dopplertof.tof.checkpoint`): run again, only the missing ones
     render, bitwise as uninterrupted. keep_mixed_pixels: the pixels whose footprint
     mixes surfaces during the sequence are reconstructed, not NaN (as
-    :func:`dopplertof.capture`'s)."""
+    :func:`dopplertof.capture`'s). ambient_irradiance: ambient light in uW/cm^2/nm at
+    the illuminator's wavelength falling on every surface (an absolute preset only;
+    None: the preset's documented condition, [conditions] in its file, else 0)."""
     started = _time.perf_counter()
     if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
         raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_scene_for_camera(scene, preset)
+    ambient = _ambient_irradiance(preset, ambient_irradiance)
     base = _base_params(scene, preset, params)
+    photons = (radiometry.photons_per_unit(preset, scene_light_intensity(scene, preset),
+                                           base.g_0) if preset.absolute else None)
     spp = scene.spp if spp is None else spp
     check_spp_seed(base, spp, seed)
     rendered, radiance, records, truth_scene, truth_params = _render_frames(
         scene, preset, base, int(spp), int(seed), progress, on_frame, checkpoint)
-    # ---- The sensor, then the camera's own reconstruction ----
-    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
-    rng = np.random.Generator(np.random.PCG64(int(noise_seed))) if noise else None
-    readout = camera_sensor.read_frames(rendered, unmodulated,
-                                        [f.integration_s for f in preset.frames],
-                                        preset.sensor, preset.contrast, rng)
-    mixed = mixed_footprints(truth_scene, truth_params)
-    recon = reconstruct(readout, preset, None if keep_mixed_pixels else mixed)
-    # ---- Truth at mid-sequence, and z from the radial range ----
+    # ---- Truth at mid-sequence (z from the radial range, each pixel's angle) ----
     truth = ground_truth(truth_scene, truth_params)
     forward = camera_forward(truth_scene, truth_scene.sensor_motion, truth.time)
     cosine = truth.direction @ forward
+    # ---- The sensor, then the camera's own reconstruction ----
+    unmodulated = base.g_0 * radiance.mean(axis=-1, dtype=np.float64)
+    light = _light_at_pixels(preset, rendered, unmodulated, truth_scene, truth_params,
+                             ambient, cosine, photons)
+    mixed = mixed_footprints(truth_scene, truth_params)
+    readout, recon = light.read(preset, noise_seed if noise else None,
+                                None if keep_mixed_pixels else mixed)
     result = CameraResult(preset, rendered, radiance, readout, recon, truth.depth,
-                          truth.depth * cosine, truth.velocity, mixed_footprints=mixed)
+                          truth.depth * cosine, truth.velocity, mixed_footprints=mixed,
+                          light=light)
     recon.depth_z = recon.depth * cosine
     result.summary = _summary(scene, preset, result, records, spp, seed, noise, noise_seed,
                               _time.perf_counter() - started, keep_mixed_pixels)
+    if preset.absolute:
+        result.summary["noise"]["radiometry"] = {
+            "exposure": "absolute: photons from the illuminator's power, the lens and the "
+                        "pixel (cameras/radiometry.py)",
+            "illuminator_intensity_W_sr": radiometry.radiant_intensity(preset.illuminator),
+            "ambient_irradiance_uW_cm2_nm": ambient,
+            "signal_electrons_p50": light.electrons_percentile(result.readout, preset, 50),
+            "signal_electrons_p99": light.electrons_percentile(result.readout, preset, 99)}
     return result
+
+
+# ---- Absolute radiometry ---------------------------------------------------------------
+
+@dataclass
+class PixelLight:
+    """What reaches each pixel: the renders times the lens's cos^4 falloff, and the
+    ambient photon rate (None through an auto-exposed preset)."""
+
+    rendered: np.ndarray  #: (K, H, W)
+    unmodulated: np.ndarray  #: (H, W) g0 R
+    ambient_photons: np.ndarray | None  #: (H, W) photons/s
+    photons_per_unit: float | None  #: K (None: auto exposure)
+
+    def read(self, preset, noise_seed: int | None, mixed=None):
+        """(Readout, CameraReconstruction): the sensor's readout (shot and read noise
+        from numpy's PCG64 seeded ``noise_seed``; None: mean electrons) and the camera's
+        reconstruction, ``mixed`` footprints masked."""
+        rng = (None if noise_seed is None
+               else np.random.Generator(np.random.PCG64(int(noise_seed))))
+        readout = camera_sensor.read_frames(self.rendered, self.unmodulated,
+                                            [f.integration_s for f in preset.frames],
+                                            preset.sensor, preset.contrast, rng,
+                                            photons_per_unit=self.photons_per_unit,
+                                            ambient_photons=self.ambient_photons)
+        return readout, reconstruct(readout, preset, mixed)
+
+    def electrons_percentile(self, readout, preset, q: float) -> float:
+        """A percentile of the unmodulated signal electrons (both taps) of the longest
+        frame, over the lit pixels."""
+        longest = max(f.integration_s for f in preset.frames)
+        per = preset.sensor["quantum_efficiency"] * readout.photons_per_unit * longest
+        values = per * self.unmodulated[np.isfinite(self.unmodulated) & (self.unmodulated > 0)]
+        return float(np.percentile(values, q)) if values.size else 0.0
+
+
+def _ambient_irradiance(preset: CameraPreset, value) -> float:
+    """The ambient irradiance a capture uses (uW/cm^2/nm), checked."""
+    if value is None:
+        return preset.default_ambient
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+            or not (math.isfinite(value) and 0 <= value <= 1000):
+        raise CaptureError(f"ambient_irradiance must be a number of uW/cm^2/nm in [0, 1000] "
+                           f"(indoor 2.2, sunlight at 850 nm about "
+                           f"{radiometry.SUNLIGHT_850NM_UW_CM2_NM:g}), got {value!r}")
+    if value > 0 and not preset.absolute:
+        raise CaptureError(f"ambient_irradiance needs an absolute preset (sensor.auto_exposure "
+                           f"= false); {preset.name} is auto-exposed: set its "
+                           "sensor.ambient_photons_per_s instead")
+    return float(value)
+
+
+def _light_at_pixels(preset, rendered, unmodulated, scene, params, ambient, cosine,
+                     photons_per_unit) -> PixelLight:
+    """The renders as the pixels receive them: unchanged through an auto-exposed preset;
+    through an absolute one, times cos^4 of each pixel's angle off the axis (``cosine``:
+    (H, W) of each pixel's ray with the optical axis), with the ambient light reflected
+    by each pixel's surface."""
+    if not preset.absolute:
+        return PixelLight(rendered, unmodulated, None, None)
+    from ..tof.ground_truth import surface_albedo
+
+    falloff = np.asarray(cosine, np.float64) ** 4
+    photons = None
+    if ambient > 0:
+        albedo = np.nan_to_num(surface_albedo(scene, params), nan=0.0)
+        photons = radiometry.ambient_photon_rate(preset, ambient, albedo) * falloff
+    return PixelLight(rendered * falloff, unmodulated * falloff, photons, photons_per_unit)
+
+
+def scene_light_intensity(scene, preset: CameraPreset) -> float:
+    """I_s (W/sr): the radiant intensity of the scene's brightest point or spot light
+    (mean over channels), which stands for the camera's illuminator through an absolute
+    preset (cameras/radiometry.py); a CaptureError for a scene whose lights are not
+    point or spot lights, or that has none."""
+    import mitsuba as mi
+
+    emitters = list(scene.static.emitters())
+    if not emitters:
+        raise CaptureError(f"{scene.source}: the scene has no light; through {preset.name} "
+                           "it is lit by the camera's illuminator: load it with "
+                           "dopplertof.cameras.load_scene_for_camera(path, preset), which "
+                           "adds it, or pass the scene file's path")
+    intensities = []
+    for emitter in emitters:
+        kind = emitter.class_name()
+        values = mi.traverse(emitter)
+        if kind not in ("PointLight", "SpotLight") or "intensity.value" not in values:
+            raise CaptureError(f"{scene.source}: a {kind} cannot stand for {preset.name}'s "
+                               "illuminator (absolute radiometry takes point and spot "
+                               "lights, or none): the camera sees only its own modulated "
+                               "light; give room light as ambient_irradiance")
+        intensities.append(float(np.mean(np.asarray(values["intensity.value"], np.float64))))
+    if not max(intensities) > 0:
+        raise CaptureError(f"{scene.source}: every light has zero intensity")
+    return max(intensities)
 
 
 def _frame_renders(scene, preset: CameraPreset, base: RenderParams):
@@ -249,6 +370,29 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
         source, "a camera preset", CaptureError)
 
 
+def with_illuminator(text: str, preset: CameraPreset) -> str:
+    """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`)
+    added when it has no light at all (a scene's own point and spot lights stand for it
+    otherwise): at the preset's offset from the lens, riding with the camera. The offset
+    is in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left
+    and y up, so the light is translated by (-x, -y, z) in the camera's frame."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(text)
+    if next(root.iter("emitter"), None) is not None:
+        return text
+    light = ET.fromstring(radiometry.illuminator_xml(preset))
+    sensor = root.find("sensor")
+    placed = next((t for t in sensor.findall("transform") if t.get("name") == "to_world"),
+                  None) if sensor is not None else None
+    transform = light.find("transform")
+    if placed is not None:
+        for step in placed:  # after the offset: the camera's own placement
+            transform.append(step)
+    root.append(light)
+    return ET.tostring(root, encoding="unicode")
+
+
 def parse_resolution(text: str) -> tuple:
     """``WIDTHxHEIGHT`` as (width, height), or a CaptureError naming --res."""
     try:
@@ -269,6 +413,8 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
         text = f.read()
     width, height = resolution or preset.resolution
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
+    if preset.absolute:
+        text = with_illuminator(text, preset)
     return load_string(text, dict(defines or {}), source=os.fspath(path),
                        base_dir=os.path.dirname(os.path.abspath(path)))
 

@@ -120,9 +120,9 @@ def check_capture_options(args) -> None:
     from ..tof.capture import CaptureError
 
     if args.camera is None:
-        for option in ("res", "noiseless"):
-            if getattr(args, option):
-                raise CaptureError(f"--{option} needs --camera")
+        for option in ("res", "noiseless", "ambient_irradiance"):
+            if getattr(args, option, None) not in (None, False):
+                raise CaptureError(f"--{option.replace('_', '-')} needs --camera")
         return
     given = [o for o in PRESET_OWNS if getattr(args, o, None) is not None]
     given += ["noise"] if args.noise else []
@@ -159,7 +159,8 @@ def run_camera_capture(args, load_defines) -> int:
                             noise_seed=args.noise_seed if args.noise_seed is not None else 0,
                             progress=False if args.quiet else None, on_frame=report,
                             checkpoint=args.checkpoint,
-                            keep_mixed_pixels=args.keep_mixed_pixels)
+                            keep_mixed_pixels=args.keep_mixed_pixels,
+                            ambient_irradiance=args.ambient_irradiance)
     result.write(args.output)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         from ..tof.checkpoint import remove_checkpoint

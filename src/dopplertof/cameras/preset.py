@@ -49,15 +49,45 @@ def _fraction(x):
     return 0 < x <= 1
 
 
+def _finite_list(n, check=None):
+    """A list of ``n`` finite numbers (each passing ``check``)."""
+    def ok(x):
+        return (len(x) == n and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                    and math.isfinite(v) and (check is None or check(v))
+                                    for v in x))
+    return ok
+
+
 SCHEMA = {
     "": {"name": (str, None, "the preset's name"),
          "description": (str, None, "one line"),
          "sources": (list, None, "the documents its numbers come from")},
     "optics": {"resolution": (list, None, "[width, height] pixels"),
                "fov_deg": (float, lambda x: 0 < x < 180, "horizontal field of view, degrees"),
-               "pixel_pitch_um": (float, _positive, "micrometres")},
+               "pixel_pitch_um": (float, _positive, "micrometres"),
+               "f_number": (float, lambda x: 0.3 <= x <= 64, "the lens's f-number N"),
+               "transmission": (float, _fraction, "lens and band-pass filter transmission at "
+                                "the illuminator's wavelength"),
+               "filter_width_nm": (float, lambda x: 0.1 <= x <= 1000, "the band-pass "
+                                   "filter's width (nm): the ambient light it lets through"),
+               "fill_factor": (float, _fraction, "light-sensitive fraction of a pixel "
+                               "(microlenses included)"),
+               "binning": (int, lambda x: 1 <= x <= 8, "pixels summed per side (NFOV binned: 2)"),
+               "distortion": (list, _finite_list(5, lambda v: abs(v) < 10),
+                              "Brown-Conrady [k1, k2, p1, p2, k3] (OpenCV's order)")},
+    "illuminator": {"power_w": (float, lambda x: 0 < x <= 100, "mean optical power (W)"),
+                    "wavelength_nm": (float, lambda x: 300 <= x <= 2000, "nm"),
+                    "fov_deg": (list, _finite_list(2, lambda v: 0 < v < 180),
+                                "[horizontal, vertical] full angles lit, degrees"),
+                    "offset_m": (list, _finite_list(3, lambda v: abs(v) < 1),
+                                 "[x, y, z] of the emitter from the lens centre, camera axes "
+                                 "(m)")},
+    "conditions": {"ambient_irradiance_uw_cm2_nm": (float, lambda x: 0 <= x <= 1000,
+                                                    "the maker's ambient light condition "
+                                                    "(uW/cm^2/nm at the wavelength)")},
     "modulation": {"waveform": (str, lambda x: x in WAVEFORMS, "one of " + ", ".join(WAVEFORMS)),
-                   "contrast": (float, _fraction, "demodulation contrast in (0, 1]")},
+                   "contrast": (float, lambda x: 0.01 <= x <= 1,
+                                "demodulation contrast in [0.01, 1]")},
     "sensor": {"quantum_efficiency": (float, _fraction, "electrons per photon"),
                "full_well_electrons": (float, _positive, "electrons per tap"),
                "read_noise_electrons": (float, _non_negative, "electrons rms per tap"),
@@ -67,23 +97,42 @@ SCHEMA = {
                "offset_dn": (float, _non_negative, "DN of a zero differential signal"),
                "well_fill": (float, _fraction, "auto photon scale: the brightest unmodulated "
                              "signal fills this fraction of the full well"),
-               "ambient_photons_per_s": (float, _non_negative, "per pixel")},
+               "ambient_photons_per_s": (float, _non_negative, "per pixel (auto exposure "
+                                         "only: an absolute preset takes the ambient "
+                                         "irradiance)"),
+               "auto_exposure": (bool, None, "true: the photon scale is chosen per capture "
+                                 "(well_fill); false: absolute radiometry from the "
+                                 "[illuminator] and the optics")},
     "reconstruction": {"unwrapping": (str, lambda x: x in UNWRAPPING,
                                       "one of " + ", ".join(UNWRAPPING)),
-                       "max_range_m": (float, _positive, "the range the camera reports"),
+                       "max_range_m": (float, lambda x: 0.05 <= x <= 1e4,
+                                       "the range the camera reports (m)"),
+                       "min_range_m": (float, lambda x: 0 <= x < 1e4,
+                                       "the nearest depth the camera reports (m)"),
+                       "min_snr": (float, lambda x: 0 <= x <= 1e3,
+                                   "invalid below this amplitude-to-noise ratio"),
                        "wiggling_calibration": (bool, None, "whether the camera removes the "
                                                 "wiggling error with a calibration table"),
                        "min_amplitude_dn": (float, _non_negative, "confidence threshold")},
-    "frames": {"frequency_mhz": (float, _positive, "modulation frequency"),
+    "frames": {"frequency_mhz": (float, lambda x: 0.1 <= x <= 2000,
+                                 "modulation frequency, 0.1 to 2000 MHz"),
                "phase_deg": (float, lambda x: math.isfinite(x), "sensor phase step"),
-               "integration_s": (float, _positive, "integration time"),
-               "start_s": (float, _non_negative, "start within the depth frame"),
+               "integration_s": (float, lambda x: 1e-7 <= x <= 1,
+                                 "integration time, 0.1 us to 1 s"),
+               "start_s": (float, lambda x: 0 <= x <= 10, "start within the depth frame"),
                "hetero_frequency": (float, lambda x: math.isfinite(x),
                                     "beat periods per integration (0: homodyne)")},
 }
 
 #: keys with a default
-OPTIONAL = {("frames", "hetero_frequency"): 0.0}
+OPTIONAL = {("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): True,
+            ("optics", "f_number"): None, ("optics", "transmission"): None,
+            ("optics", "filter_width_nm"): None, ("optics", "fill_factor"): None,
+            ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
+            ("reconstruction", "min_range_m"): 0.0, ("reconstruction", "min_snr"): 0.0,
+            ("conditions", "ambient_irradiance_uw_cm2_nm"): 0.0}
+#: the optics keys absolute radiometry needs
+RADIOMETRIC_OPTICS = ("f_number", "transmission", "filter_width_nm", "fill_factor")
 
 
 @dataclass(frozen=True)
@@ -122,6 +171,24 @@ class CameraPreset:
     sensor: dict  #: the [sensor] section
     reconstruction: dict  #: the [reconstruction] section
     frames: tuple  #: RawFrame, in read-out order
+    optics: dict = None  #: the [optics] section (radiometry, binning, distortion)
+    illuminator: dict | None = None  #: the [illuminator] section (None: auto exposure)
+    conditions: dict = None  #: the [conditions] section (the maker's ambient light)
+
+    @property
+    def absolute(self) -> bool:
+        """Whether photons follow from the illuminator and optics (no auto exposure)."""
+        return not self.sensor["auto_exposure"]
+
+    @property
+    def distortion(self) -> tuple:
+        """(k1, k2, p1, p2, k3), OpenCV's order."""
+        return tuple((self.optics or {}).get("distortion", (0.0,) * 5))
+
+    @property
+    def default_ambient(self) -> float:
+        """The maker's ambient irradiance condition, uW/cm^2/nm (0 when not given)."""
+        return float((self.conditions or {}).get("ambient_irradiance_uw_cm2_nm", 0.0))
 
     @property
     def frequencies_mhz(self) -> tuple:
@@ -140,7 +207,13 @@ class CameraPreset:
                            "pixel_pitch_um": self.pixel_pitch_um},
                 "modulation": {"waveform": self.waveform, "contrast": self.contrast},
                 "sensor": dict(self.sensor), "reconstruction": dict(self.reconstruction),
-                "frames": [vars(f).copy() for f in self.frames]}
+                "frames": [vars(f).copy() for f in self.frames],
+                **({"illuminator": dict(self.illuminator)} if self.illuminator else {}),
+                **({"optics_radiometry": {k: v for k, v in self.optics.items()
+                                          if k not in ("resolution", "fov_deg",
+                                                       "pixel_pitch_um")}}
+                   if self.optics else {}),
+                **({"conditions": dict(self.conditions)} if self.conditions else {})}
 
 
 # ---- Loading -------------------------------------------------------------------------
@@ -172,9 +245,14 @@ def load_preset(name_or_path) -> CameraPreset:
 def _preset_from(data: dict, path: str) -> CameraPreset:
     """The checked preset of a parsed TOML document."""
     top = _section(data, "", path, extra=("optics", "modulation", "sensor",
-                                          "reconstruction", "frames"))
+                                          "reconstruction", "frames", "illuminator",
+                                          "conditions"))
     sections = {name: _section(_table(data, name, path), name, path)
                 for name in ("optics", "modulation", "sensor", "reconstruction")}
+    illuminator = (None if "illuminator" not in data else
+                   _section(_table(data, "illuminator", path), "illuminator", path))
+    conditions = _section(_table(data, "conditions", path) if "conditions" in data else {},
+                          "conditions", path)
     frames = data.get("frames")
     if not isinstance(frames, list) or not frames:
         raise PresetError(f"{path}: frames: a non-empty array of raw frames is required "
@@ -191,7 +269,9 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
     preset = CameraPreset(top["name"], top["description"], tuple(top["sources"]), path,
                           resolution, optics["fov_deg"], optics["pixel_pitch_um"],
                           sections["modulation"]["waveform"], sections["modulation"]["contrast"],
-                          sections["sensor"], sections["reconstruction"], raw)
+                          sections["sensor"], sections["reconstruction"], raw, optics,
+                          illuminator, conditions)
+    _check_radiometry(preset)
     _check_sequence(preset)
     return preset
 
@@ -250,6 +330,26 @@ def _check_sources(sources, path: str) -> None:
         raise PresetError(f"{path}: sources must be a non-empty list of citations")
 
 
+def _check_radiometry(preset: CameraPreset) -> None:
+    """An absolute preset (auto_exposure = false) needs its illuminator and optics; the
+    ADC's offset must lie inside its range."""
+    path, sensor = preset.source_file, preset.sensor
+    if sensor["offset_dn"] >= (1 << sensor["adc_bits"]) - 1:
+        raise PresetError(f"{path}: sensor.offset_dn = {sensor['offset_dn']:g} is past the "
+                          f"{sensor['adc_bits']}-bit ADC's largest value "
+                          f"{(1 << sensor['adc_bits']) - 1}")
+    if not preset.absolute:
+        return
+    if preset.illuminator is None:
+        raise PresetError(f"{path}: sensor.auto_exposure = false needs an [illuminator] "
+                          "section (power_w, wavelength_nm, fov_deg, offset_m)")
+    for key in RADIOMETRIC_OPTICS:
+        if preset.optics.get(key) is None:
+            meaning = SCHEMA["optics"][key][2]
+            raise PresetError(f"{path}: missing key optics.{key} ({meaning}; "
+                              "sensor.auto_exposure = false needs it)")
+
+
 def _check_sequence(preset: CameraPreset) -> None:
     """What the reconstruction needs of the frames: three phase steps per frequency,
     integer beat counts, unwrapping only with two frequencies or more."""
@@ -260,6 +360,12 @@ def _check_sequence(preset: CameraPreset) -> None:
         if len(steps) < 3:
             raise PresetError(f"{path}: frames: {f:g} MHz has {len(steps)} distinct phase "
                               "step(s); depth needs at least 3")
+        condition = _phase_condition(sorted(steps))
+        if condition > 20:
+            raise PresetError(f"{path}: frames: the phase steps of {f:g} MHz "
+                              f"({', '.join(f'{x:g}' for x in sorted(steps))} deg) are too close "
+                              f"together to give a phase (condition number {condition:.3g}; "
+                              "spread them over the period, e.g. 0, 120, 240)")
     if not preset.frequencies_mhz:
         raise PresetError(f"{path}: frames: no homodyne frame (hetero_frequency = 0)")
     for i, fr in enumerate(preset.frames):
@@ -294,6 +400,16 @@ def _check_heterodyne(preset: CameraPreset) -> None:
              first.frequency_mhz and f.integration_s == first.integration_s}
     if not {0.0, 90.0, 180.0, 270.0} <= steps:
         raise PresetError(fail)
+
+
+def _phase_condition(steps_deg) -> float:
+    """The condition number of the N-phase fit's design matrix [1, cos, sin] (3 equally
+    spaced steps: 1.41)."""
+    a = [[1.0, math.cos(math.radians(x)), math.sin(math.radians(x))] for x in steps_deg]
+    import numpy as np
+
+    values = np.linalg.svd(np.array(a), compute_uv=False)
+    return float(values[0] / values[-1]) if values[-1] > 0 else math.inf
 
 
 def format_preset(preset: CameraPreset) -> str:

@@ -26,7 +26,7 @@ from ..modulation import SPEED_OF_LIGHT
 from ..tof import reconstruct as tof_rec
 from . import demodulate
 from .sensor import to_rendered_units
-from .unwrap import unwrap_depths
+from .unwrap import LIKELIHOOD_GAP, unwrap_likelihood
 
 
 @dataclass
@@ -57,11 +57,16 @@ class CameraReconstruction:
     depth_z: np.ndarray | None = field(default=None)  #: (H, W), set by the capture
     #: (H, W) bool: footprints that mix surfaces, masked (all False when kept)
     mixed: np.ndarray | None = None
+    #: (H, W) bool: nearer than the camera's operating range (reconstruction.min_range_m)
+    #: by more than three predicted standard deviations
+    out_of_range: np.ndarray | None = None
 
     @property
     def masked(self) -> np.ndarray:
         """(H, W) bool: the pixels under any mask (NaN in depth and velocity)."""
         masked = self.saturated | self.low_confidence | self.unwrap_failed
+        if self.out_of_range is not None:
+            masked = masked | self.out_of_range
         return masked if self.mixed is None else masked | self.mixed
 
     def describe(self) -> dict:
@@ -72,6 +77,8 @@ class CameraReconstruction:
                 "masked_pixels": {"saturated": int(self.saturated.sum()),
                                   "low confidence": int(self.low_confidence.sum()),
                                   "unwrapping failed": int(self.unwrap_failed.sum()),
+                                  "nearer than the operating range": 0 if self.out_of_range
+                                  is None else int(self.out_of_range.sum()),
                                   tof_rec.reason_name(tof_rec.MIXED_FOOTPRINT): mixed},
                 "units": "radial range in m from the camera centre (depth_z.npy: along the "
                          "optical axis); amplitude in DN"}
@@ -107,17 +114,22 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
     saturated = readout.saturated.any(axis=0)
     amplitude = np.min([g.amplitude for g in groups], axis=0)
     low_confidence = ~(amplitude >= max(preset.reconstruction["min_amplitude_dn"], 1e-12))
+    min_snr = preset.reconstruction["min_snr"]
+    if min_snr > 0:  # an amplitude under min_snr of its noise: the phase noise > 1 / min_snr
+        phase_std = np.max([np.sqrt(g.depth_variance) * 4 * math.pi * g.frequency_mhz * 1e6
+                            / SPEED_OF_LIGHT for g in groups], axis=0)
+        low_confidence |= ~(phase_std * min_snr <= 1.0)
     tolerance = None
     if len(groups) >= 2:
-        unwrapped = unwrap_depths([g.depth for g in groups],
-                                  [g.frequency_mhz * 1e6 for g in groups], max_range)
-        depth, failed, tolerance = unwrapped.depth, unwrapped.failed, unwrapped.tolerance
+        unwrapped = unwrap_likelihood([g.depth for g in groups],
+                                      [g.depth_variance for g in groups],
+                                      [g.frequency_mhz * 1e6 for g in groups], max_range)
+        depth, failed, variance = unwrapped.depth, unwrapped.failed, unwrapped.variance
         range_m = unwrapped.unambiguous_range
-        weights = np.array([g.frequency_mhz**2 for g in groups])
-        weights = weights / weights.sum()
-        variance = sum(w**2 * g.depth_variance for w, g in zip(weights, groups))
-        method = (f"N-phase least-squares fit per frequency, unwrapped by a search over "
-                  f"wrap counts of {len(groups)} frequencies (f^2-weighted mean)")
+        method = (f"N-phase least-squares fit per frequency, unwrapped by maximum likelihood "
+                  f"over wrap counts of {len(groups)} frequencies (inverse-variance mean; "
+                  f"flagged where a wrong wrap comes within chi^2 {LIKELIHOOD_GAP:g} or the "
+                  "frequencies disagree beyond their noise)")
     else:
         depth, failed = groups[0].depth, np.zeros(saturated.shape, bool)
         range_m = min(max_range, tof_rec.wrap_distance(groups[0].frequency_mhz * 1e6))
@@ -129,6 +141,9 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
     result = CameraReconstruction(depth, amplitude, saturated, low_confidence, failed,
                                   variance, groups, float(range_m), method, tolerance,
                                   mixed=mixed)
+    # nearer than the operating range by more than three predicted standard deviations
+    nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
+    result.out_of_range = ~(np.isnan(depth) | ~(depth < nearest))
     masked = result.masked
     result.depth = np.where(masked, np.nan, depth)
     if preset.heterodyne:

@@ -10,7 +10,8 @@ photon scale and the taps' mean electrons) collects over the integration time T_
     e_B = QE K T_k (g0 R - c V_k) / 2 + QE a T_k / 2 + D T_k
 
 (c the demodulation contrast, K photons per second per rendered unit, a the ambient
-photon rate, D the dark current per tap). With noise, each tap draws Poisson(e) electrons
+photon rate, per pixel through an absolute preset (:mod:`.radiometry`), D the dark
+current per tap). With noise, each tap draws Poisson(e) electrons
 and is clipped at the full well, then Gaussian read noise is added; the ADC digitizes the
 difference:
 
@@ -60,12 +61,18 @@ def raw_dtype(bits: int):
 
 def read_frames(rendered, unmodulated, integration_s, sensor: dict, contrast: float,
                 rng: np.random.Generator | None = None,
-                photons_per_unit: float | None = None) -> Readout:
+                photons_per_unit: float | None = None, ambient_photons=None) -> Readout:
     """The sensor's readout of rendered raw frames (K, H, W) with the unmodulated light
     g0 R (H, W); ``rng`` None: no shot or read noise (rounding and clipping stay).
     ``photons_per_unit``: the photon scale (default: the brightest unmodulated pixel
-    fills well_fill of the well at the longest integration)."""
+    fills well_fill of the well at the longest integration). ``ambient_photons``: (H, W)
+    unmodulated photons per second at each pixel (ambient light, :mod:`.radiometry`),
+    shared by the two taps; with it the [sensor] section's scalar
+    ambient_photons_per_s is not used."""
     model = noise_model(sensor)
+    if ambient_photons is not None:
+        model = replace(model, ambient=0.0)
+        ambient_photons = np.asarray(ambient_photons, np.float64)
     integration_s = np.asarray(integration_s, np.float64)
     if photons_per_unit is None:
         model = model.scaled_for(unmodulated, float(integration_s.max()))
@@ -80,6 +87,8 @@ def read_frames(rendered, unmodulated, integration_s, sensor: dict, contrast: fl
         e_a, e_b = model.tap_means(contrast * np.asarray(value, np.float64), unmodulated,
                                    float(exposure))
         dark = sensor["dark_current_electrons_per_s"] * exposure
+        if ambient_photons is not None:
+            dark = dark + 0.5 * model.quantum_efficiency * ambient_photons * exposure
         e_a, e_b = e_a + dark, e_b + dark
         ideal[k] = (e_a - e_b) / gain + offset
         variance[k] = (e_a + e_b + 2 * model.read_noise**2) / gain**2 + 1.0 / 12.0

@@ -115,3 +115,160 @@ def unwrap_depths(depths, frequencies_hz, max_range: float | None = None,
     failed = finite & (deviation > tolerance)
     depth = np.where(finite & ~failed, mean, np.nan)
     return Unwrapped(depth, failed, deviation, searched, float(tolerance))
+
+
+# ---- Maximum likelihood over wrap counts, weighted by each frequency's noise -------------
+
+#: a pixel is reported only where its best wrap-count candidate is this much more likely
+#: (in chi^2 = -2 log-likelihood) than any candidate whose depth differs by more than a
+#: quarter of the finest wrap: exp(18.4 / 2) = 9900, the best wrap about 10 000 times as
+#: likely as any other (ambiguous pixels may still be settled by their neighbours)
+LIKELIHOOD_GAP = 18.4
+
+#: a pixel whose best candidate still leaves a chi^2 this far in the tail (N - 1 degrees
+#: of freedom) is flagged: its frequencies disagree beyond their noise by more than the
+#: tail allows (about 1e-6 under noise alone), as strong multipath or motion makes them
+INCONSISTENCY_P = 1e-6
+
+
+@dataclass
+class UnwrappedML:
+    """The result of :func:`unwrap_likelihood`."""
+
+    depth: np.ndarray  #: (H, W) m, NaN where flagged or an input is NaN
+    variance: np.ndarray  #: (H, W) m^2, the inverse-variance mean's predicted variance
+    ambiguous: np.ndarray  #: (H, W) bool: a wrong wrap is within LIKELIHOOD_GAP of the best
+    inconsistent: np.ndarray  #: (H, W) bool: even the best candidate disagrees beyond noise
+    chi2: np.ndarray  #: (H, W) the best candidate's chi^2
+    gap: np.ndarray  #: (H, W) chi^2 of the best other-depth candidate minus the best's
+    unambiguous_range: float  #: m, the range searched
+
+    @property
+    def failed(self) -> np.ndarray:
+        return self.ambiguous | self.inconsistent
+
+
+def _chi2_quantile(p: float, dof: int) -> float:
+    """The chi^2 value exceeded with probability ``p`` at ``dof`` degrees of freedom."""
+    from scipy.stats import chi2
+
+    return float(chi2.isf(p, dof))
+
+
+def _resolve_by_neighbours(best, best_chi2, runner, runner_chi2, threshold, confident,
+                           ambiguous, radius: int, separation: float):
+    """((H, W) depths, (H, W) bool resolved): an ambiguous pixel takes whichever of its
+    two candidates (each only where its chi^2 is consistent) lies within
+    ``separation`` / 2 of the median of the confident pixels in its (2 radius + 1)^2
+    neighbourhood (at least 3 of them), as multi-frequency unwrapping with spatial
+    support does (Lawin et al. 2016, arXiv 1608.05209: hypotheses weighted by their
+    neighbours); otherwise it stays flagged."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    ys, xs = np.nonzero(ambiguous)
+    chosen = np.array(best, np.float64)
+    resolved = np.zeros(best.shape, bool)
+    if ys.size == 0:
+        return chosen, resolved
+    padded = np.pad(np.where(confident, best, np.nan), radius, constant_values=np.nan)
+    windows = sliding_window_view(padded, (2 * radius + 1, 2 * radius + 1))[ys, xs]
+    windows = windows.reshape(ys.size, -1)
+    support = np.isfinite(windows).sum(axis=1) >= 3
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            reference = np.nanmedian(windows, axis=1)
+    near_best = ((np.abs(best[ys, xs] - reference) < 0.5 * separation)
+                 & (best_chi2[ys, xs] <= threshold))
+    near_runner = ((np.abs(runner[ys, xs] - reference) < 0.5 * separation)
+                   & (runner_chi2[ys, xs] <= threshold))
+    take = support & (near_best | near_runner)
+    chosen[ys, xs] = np.where(near_runner, runner[ys, xs], best[ys, xs])
+    resolved[ys[take], xs[take]] = True
+    return chosen, resolved
+
+
+def _candidates(d, w, ranges, searched: float):
+    """(depths, chi^2), each (candidates, pixels), of the wrap-count candidates of the
+    wrapped depths ``d`` (frequencies ascending, weights ``w`` = 1 / variance): every
+    wrap count of the lowest frequency within ``searched`` (and -1), each other
+    frequency's count nearest to it and its two neighbours; chi^2 is inf for a depth
+    outside [-a quarter of the finest wrap, searched]."""
+    import itertools
+
+    depths, chi2s = [], []
+    wraps = list(range(max(1, int(math.ceil(searched / ranges[0] - 1e-9))))) + [-1]
+    for n0 in wraps:
+        reference = d[0] + n0 * ranges[0]
+        nearest = np.round((reference - d[1:]) / ranges[1:, None])
+        for steps in itertools.product((0, -1, 1), repeat=len(ranges) - 1):
+            counts = nearest + np.array(steps, np.float64)[:, None]
+            unwrapped = np.concatenate([reference[None], d[1:] + counts * ranges[1:, None]])
+            mean = (w * unwrapped).sum(axis=0) / w.sum(axis=0)
+            chi2 = (w * (unwrapped - mean) ** 2).sum(axis=0)
+            outside = ~((mean >= -0.25 * ranges[-1]) & (mean <= searched))
+            depths.append(mean)
+            chi2s.append(np.where(outside, np.inf, chi2))
+    return np.stack(depths), np.stack(chi2s)
+
+
+def unwrap_likelihood(depths, variances, frequencies_hz, max_range: float | None = None,
+                      gap: float = LIKELIHOOD_GAP,
+                      inconsistency_p: float = INCONSISTENCY_P,
+                      spatial_radius: int = 2) -> UnwrappedML:
+    """Unwrapped depth from N >= 2 wrapped depths d_j (m) with predicted variances v_j
+    (m^2): the wrap counts (:func:`_candidates`) minimizing chi^2 = sum_j (d_j + n_j R_j
+    - D)^2 / v_j, D their inverse-variance mean (maximum likelihood under Gaussian noise).
+    Flagged: ambiguous where a candidate of another depth (over a quarter of the finest
+    wrap away) comes within ``gap`` of the best chi^2 (unless ``spatial_radius`` > 0 and
+    the confident neighbours settle it, :func:`_resolve_by_neighbours`); inconsistent
+    where the best chi^2 exceeds the (1 - ``inconsistency_p``) quantile of chi^2(N - 1)."""
+
+    frequencies_hz = tuple(float(f) for f in frequencies_hz)
+    if len(frequencies_hz) < 2 or not len(depths) == len(variances) == len(frequencies_hz):
+        raise ReconstructionError("unwrapping needs N >= 2 wrapped depths, as many variances "
+                                  f"and frequencies, got {len(depths)}, {len(variances)} and "
+                                  f"{len(frequencies_hz)}")
+    limit = unambiguous_range(frequencies_hz)
+    searched = limit if max_range is None else min(float(max_range), limit)
+    order = np.argsort(frequencies_hz)
+    f = np.asarray(frequencies_hz)[order]
+    ranges = np.array([wrap_distance(x) for x in f])
+    shape = np.shape(depths[0])
+    d = np.stack([np.asarray(depths[i], np.float64).reshape(-1) for i in order])
+    v = np.stack([np.asarray(variances[i], np.float64).reshape(-1) for i in order])
+    w = 1.0 / np.maximum(v, 1e-12)
+    candidates_depth, candidates_chi2 = _candidates(d, w, ranges, searched)
+    best = np.argmin(candidates_chi2, axis=0)
+    n_pixels = d.shape[1]
+    best_chi2 = candidates_chi2[best, np.arange(n_pixels)]
+    best_depth = np.where(np.isfinite(best_chi2),
+                          candidates_depth[best, np.arange(n_pixels)], np.nan)
+    # ---- The best candidate of another depth: the wrong wrap the noise could pick ----
+    separation = 0.25 * ranges[-1]
+    other = np.abs(candidates_depth - best_depth) > separation
+    runner_chi2 = np.where(other, candidates_chi2, np.inf)
+    runner = np.argmin(runner_chi2, axis=0)
+    runner_up = runner_chi2[runner, np.arange(n_pixels)]
+    runner_depth = candidates_depth[runner, np.arange(n_pixels)]
+    finite = np.isfinite(best_depth) & np.isfinite(best_chi2)
+    difference = runner_up - best_chi2
+    ambiguous = finite & (difference < gap)
+    threshold = _chi2_quantile(inconsistency_p, len(f) - 1)
+    inconsistent = finite & ~ambiguous & (best_chi2 > threshold)
+    if spatial_radius and len(shape) == 2:
+        chosen, resolved = _resolve_by_neighbours(
+            best_depth.reshape(shape), best_chi2.reshape(shape), runner_depth.reshape(shape),
+            runner_up.reshape(shape),
+            threshold, (finite & ~ambiguous & ~inconsistent).reshape(shape),
+            ambiguous.reshape(shape), spatial_radius, separation)
+        best_depth = np.where(resolved.reshape(-1), chosen.reshape(-1), best_depth)
+        ambiguous = ambiguous & ~resolved.reshape(-1)
+    failed = ambiguous | inconsistent
+    depth = np.where(finite & ~failed, best_depth, np.nan)
+    variance = 1.0 / w.sum(axis=0)
+    return UnwrappedML(depth.reshape(shape), variance.reshape(shape),
+                       ambiguous.reshape(shape), inconsistent.reshape(shape),
+                       best_chi2.reshape(shape), difference.reshape(shape), searched)

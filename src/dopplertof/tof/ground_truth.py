@@ -122,18 +122,45 @@ def _trace_pixel_centres(scene, width: int, height: int, start: float, mid: floa
     from ..integrators.camera import is_pinhole
 
     mi = require_variant()
-    index = dr.arange(mi.UInt32, width * height)
-    # pixel centres, normalized over the crop window as Mitsuba's sensors take them
-    position = mi.Point2f((mi.Float(index % width) + 0.5) / width,
-                          (mi.Float(index // width) + 0.5) / height)
-    time = dr.full(mi.Float, mid, width * height)
-    ray, si, body = _trace(mi, scene, position, time, start, end)
+    ray, si, body = _trace(mi, scene, *_pixel_centres(mi, width, height, mid), start, end)
     dr.eval(si.p, si.n, ray.d, body)
     p, n = _as_numpy(si.p), _as_numpy(si.n)
     d = np.broadcast_to(_as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     ray_o = None if is_pinhole(scene.sensor) else np.broadcast_to(_as_numpy(ray.o), p.shape)
     return p, n, ray_o, d, np.asarray(body, dtype=np.int64)
+
+
+def _pixel_centres(mi, width: int, height: int, time: float):
+    """(film positions, times) of the width x height pixel centres at ``time``,
+    normalized over the crop window as Mitsuba's sensors take them."""
+    import drjit as dr
+
+    index = dr.arange(mi.UInt32, width * height)
+    position = mi.Point2f((mi.Float(index % width) + 0.5) / width,
+                          (mi.Float(index // width) + 0.5) / height)
+    return position, dr.full(mi.Float, time, width * height)
+
+
+def surface_albedo(scene, params=None) -> np.ndarray:
+    """(H, W) the diffuse reflectance (mean over channels) of the surface each pixel
+    centre sees at mid-exposure, what ambient light reflects (cameras/radiometry.py); 0
+    for BSDFs without a diffuse part, NaN where the ray hits nothing."""
+    import drjit as dr
+
+    from ..backend import require_variant
+
+    mi = require_variant()
+    start, mid, end = mid_exposure(scene, params)
+    width, height = (int(v) for v in scene.sensor.film().crop_size())
+    ray, si, _ = _trace(mi, scene, *_pixel_centres(mi, width, height, mid), start, end)
+    valid = si.is_valid()
+    reflectance = si.bsdf(ray).eval_diffuse_reflectance(si, valid)
+    dr.eval(reflectance, valid)
+    channels = np.asarray(reflectance, np.float64).reshape(-1, width * height)
+    value = channels.mean(axis=0)
+    value = np.where(np.asarray(valid, bool), value, np.nan)
+    return value.reshape(height, width)
 
 
 def _trace(mi, scene, position, time, start: float, end: float):
