@@ -295,3 +295,49 @@ def test_an_absolute_preset_needs_its_illuminator(tmp_path):
 
     with pytest.raises(PresetError, match=r"auto_exposure = false needs an \[illuminator\]"):
         load_text(tmp_path, absolute_text(illuminator=""))
+
+
+# ---- Lens distortion -----------------------------------------------------------------------
+
+def test_lens_distortion_follows_opencvs_model():
+    """Each pixel centre's ray, projected by OpenCV's Brown-Conrady model written out here
+    (x right, y down; Mitsuba's camera has x left and y up), lands on that pixel centre."""
+    import dataclasses
+
+    import dopplertof
+    from dopplertof.cameras.accuracy import wall_scene_xml
+    from dopplertof.integrators.camera import pinhole_intrinsics
+    from dopplertof.scene import load_string
+    from dopplertof.tof.ground_truth import ground_truth
+
+    dopplertof.set_variant()
+    width = height = 24
+    k1, k2, p1, p2, k3 = coefficients = (-0.25, 0.06, 0.002, -0.003, 0.01)
+    text = wall_scene_xml(2.0, 0.5, 70.0, width, 1).replace(
+        "</scene>", '<emitter type="point"><rgb name="intensity" value="1"/></emitter></scene>')
+    scene = load_string(text, {}, source="wall")
+    truth = ground_truth(dataclasses.replace(scene, lens_distortion=coefficients))
+    d = truth.direction
+    x, y = -d[..., 0] / d[..., 2], -d[..., 1] / d[..., 2]
+    r2 = x * x + y * y
+    radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    K = pinhole_intrinsics(width, height, 70.0)
+    u, v = K[0, 0] * xd + K[0, 2], K[1, 1] * yd + K[1, 2]
+    np.testing.assert_allclose(u, np.arange(width)[None, :] + 0.5 + 0 * u, atol=2e-3)
+    np.testing.assert_allclose(v, np.arange(height)[:, None] + 0.5 + 0 * v, atol=2e-3)
+    # the corners moved: barrel distortion shows more of the wall than the pinhole
+    plain = ground_truth(scene)
+    assert abs(x[0, 0]) > abs(-plain.direction[0, 0, 0] / plain.direction[0, 0, 2]) * 1.05
+
+
+def test_a_preset_lens_renders_what_its_truth_and_k_say(tmp_path):
+    coefficients = [-0.25, 0.06, 0.002, -0.003, 0.01]
+    preset = load_text(tmp_path, absolute_text(optics={"distortion": coefficients}))
+    result = wall(preset, 2.0, 0.5, crop=12, spp=16)
+    assert result.summary["intrinsics"]["distortion_k1_k2_p1_p2_k3"] == coefficients
+    K = np.array(result.summary["intrinsics"]["K"])
+    assert K[0, 2] == 6.0 and K[1, 2] == 6.0
+    error = result.depth - result.depth_gt  # rendered rays and truth rays are the same
+    assert np.isfinite(error).mean() > 0.9 and np.nanmax(np.abs(error)) < 0.01

@@ -120,6 +120,8 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
     if isinstance(scene, (str, os.PathLike)):
         scene = load_scene_for_camera(scene, preset)
+    if any(preset.distortion) and scene.lens_distortion is None:
+        scene = replace(scene, lens_distortion=tuple(preset.distortion))
     ambient = _ambient_irradiance(preset, ambient_irradiance)
     base = _base_params(scene, preset, params)
     photons = (radiometry.photons_per_unit(preset, scene_light_intensity(scene, preset),
@@ -145,6 +147,7 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     recon.depth_z = recon.depth * cosine
     result.summary = _summary(scene, preset, result, records, spp, seed, noise, noise_seed,
                               _time.perf_counter() - started, keep_mixed_pixels)
+    result.summary["intrinsics"] = _intrinsics(scene)
     if preset.absolute:
         result.summary["noise"]["radiometry"] = {
             "exposure": "absolute: photons from the illuminator's power, the lens and the "
@@ -154,6 +157,21 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
             "signal_electrons_p50": light.electrons_percentile(result.readout, preset, 50),
             "signal_electrons_p99": light.electrons_percentile(result.readout, preset, 99)}
     return result
+
+
+def _intrinsics(scene) -> dict:
+    """K and the lens distortion of the capture's pinhole (OpenCV's conventions)."""
+    import mitsuba as mi
+
+    from ..integrators.camera import pinhole_intrinsics
+
+    width, height = (int(v) for v in scene.sensor.film().size())
+    fov = float(mi.traverse(scene.sensor)["x_fov"][0])
+    return {"K": pinhole_intrinsics(width, height, fov).tolist(),
+            "distortion_k1_k2_p1_p2_k3": list(scene.lens_distortion or (0.0,) * 5),
+            "convention": "OpenCV: pixel (i, j) centre at (i + 0.5, j + 0.5), x right, "
+                          "y down, z forward; depth.npy is the range along each pixel's "
+                          "(distorted) ray"}
 
 
 # ---- Absolute radiometry ---------------------------------------------------------------

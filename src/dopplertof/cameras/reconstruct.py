@@ -57,8 +57,8 @@ class CameraReconstruction:
     depth_z: np.ndarray | None = field(default=None)  #: (H, W), set by the capture
     #: (H, W) bool: footprints that mix surfaces, masked (all False when kept)
     mixed: np.ndarray | None = None
-    #: (H, W) bool: nearer than the camera's operating range (reconstruction.min_range_m)
-    #: by more than three predicted standard deviations
+    #: (H, W) bool: outside the camera's range: nearer than reconstruction.min_range_m by
+    #: more than three predicted standard deviations, or unwrapped beyond max_range_m
     out_of_range: np.ndarray | None = None
 
     @property
@@ -77,7 +77,7 @@ class CameraReconstruction:
                 "masked_pixels": {"saturated": int(self.saturated.sum()),
                                   "low confidence": int(self.low_confidence.sum()),
                                   "unwrapping failed": int(self.unwrap_failed.sum()),
-                                  "nearer than the operating range": 0 if self.out_of_range
+                                  "outside the range": 0 if self.out_of_range
                                   is None else int(self.out_of_range.sum()),
                                   tof_rec.reason_name(tof_rec.MIXED_FOOTPRINT): mixed},
                 "units": "radial range in m from the camera centre (depth_z.npy: along the "
@@ -125,12 +125,14 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
                                       [g.depth_variance for g in groups],
                                       [g.frequency_mhz * 1e6 for g in groups], max_range)
         depth, failed, variance = unwrapped.depth, unwrapped.failed, unwrapped.variance
-        range_m = unwrapped.unambiguous_range
+        beyond = unwrapped.beyond
+        range_m = min(unwrapped.unambiguous_range, max_range)
         method = (f"N-phase least-squares fit per frequency, unwrapped by maximum likelihood "
                   f"over wrap counts of {len(groups)} frequencies (inverse-variance mean; "
                   f"flagged where a wrong wrap comes within chi^2 {LIKELIHOOD_GAP:g} or the "
                   "frequencies disagree beyond their noise)")
     else:
+        beyond = np.zeros(saturated.shape, bool)
         depth, failed = groups[0].depth, np.zeros(saturated.shape, bool)
         range_m = min(max_range, tof_rec.wrap_distance(groups[0].frequency_mhz * 1e6))
         variance = groups[0].depth_variance
@@ -143,7 +145,7 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
                                   mixed=mixed)
     # nearer than the operating range by more than three predicted standard deviations
     nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
-    result.out_of_range = ~(np.isnan(depth) | ~(depth < nearest))
+    result.out_of_range = ~(np.isnan(depth) | ~(depth < nearest)) | beyond
     masked = result.masked
     result.depth = np.where(masked, np.nan, depth)
     if preset.heterodyne:

@@ -32,10 +32,11 @@ UNITS = {
 
 
 def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
-    """K of a pinhole whose horizontal field of view is ``fov_deg``: pixel (i, j)
-    covers [i, i + 1] x [j, j + 1], its centre at (i + 0.5, j + 0.5)."""
-    focal = 0.5 * width / math.tan(math.radians(fov_deg) / 2)
-    return np.array([[focal, 0.0, 0.5 * width], [0.0, focal, 0.5 * height], [0.0, 0.0, 1.0]])
+    """K of a pinhole whose horizontal field of view is ``fov_deg``
+    (:func:`dopplertof.integrators.camera.pinhole_intrinsics`)."""
+    from ..integrators.camera import pinhole_intrinsics
+
+    return pinhole_intrinsics(width, height, fov_deg)
 
 
 def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict, dict]:

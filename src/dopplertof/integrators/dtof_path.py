@@ -26,7 +26,7 @@ from ..scene.bodies import BodyFrames
 from ..scene.scene import DTOF_INTEGRATORS, loaded
 from . import pipeline
 from .analytic import trace_analytic_pass
-from .camera import Camera, PinholeProjection, is_pinhole, rest_forward
+from .camera import Camera, LensDistortion, PinholeProjection, is_pinhole, rest_forward
 from .film import FilmSampler, SplatFilter
 from .path_steps import (VISIBILITY_BITS_MAX_DEPTH, CameraSample, ModulationWeight, PassLayout,
                          _as_colour, _camera_rays, _intersect, advance, contributions,
@@ -131,11 +131,15 @@ def _define_class(mi):
             self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
             #: the splat film's filter, or None for the importance film
             self.splat = SplatFilter(sensor.film()) if splat else None
+            lens = LensDistortion.of(sensor, getattr(scene, "lens_distortion", None))
             self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
-                                 mi.Vector3f(*map(float, rest_forward(sensor))))
+                                 mi.Vector3f(*map(float, rest_forward(sensor))), lens)
             #: the pinhole film map, when pairs use the motion mapping (else None)
             self.projection = None
             if params.antithetic_mapping == "motion":
+                if lens is not None:
+                    raise ValueError("antithetic_mapping='motion' needs an undistorted "
+                                     "pinhole; this camera's lens distorts")
                 if not is_pinhole(sensor):
                     raise ValueError(
                         "antithetic_mapping='motion' needs a pinhole perspective sensor, got "

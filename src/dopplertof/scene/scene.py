@@ -110,6 +110,9 @@ class DopplerScene:
     inputs: tuple = ()  #: InputFile of every file the scene references (meshes, textures...)
     #: (open, interval) in s replacing the sensor's shutter (None: the sensor's own)
     shutter_window: tuple | None = None
+    #: Brown-Conrady (k1, k2, p1, p2, k3) of the lens, OpenCV's order (None: a pinhole;
+    #: set by a camera preset, integrators.camera.LensDistortion)
+    lens_distortion: tuple | None = None
 
     @property
     def sensor(self):

@@ -169,10 +169,12 @@ def _trace(mi, scene, position, time, start: float, end: float):
     static, -2 nothing)."""
     import drjit as dr
 
-    from ..integrators.camera import Camera
+    from ..integrators.camera import Camera, LensDistortion
     from ..scene.bodies import BodyFrames, intersect
 
-    ray, _, _ = Camera(mi, scene.sensor, scene.sensor_motion).ray(position, time,
+    lens = LensDistortion.of(scene.sensor, scene.lens_distortion)
+    ray, _, _ = Camera(mi, scene.sensor, scene.sensor_motion,
+                       distortion=lens).ray(position, time,
                                                                   mi.Point2f(0.5, 0.5))
     frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
