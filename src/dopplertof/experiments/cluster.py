@@ -172,14 +172,36 @@ def run_in_folder(function, pending: list, output: str, *, scheduler=None, worke
         if threads:
             pending = [replace(t, threads=threads) for t in pending]
         return run_tasks(dask, function, pending, retries=retries, progress=progress,
-                         description=description, already_done=already_done)
+                         description=description, already_done=already_done,
+                         run=run_token(output))
+
+
+def run_token(output: str) -> str:
+    """What tells this run's tasks from every other run's on a shared scheduler: its
+    output folder (absolute) and a random part drawn once per run."""
+    import uuid
+
+    return f"{os.path.abspath(output)}\n{uuid.uuid4().hex}"
+
+
+def task_key(task, run: str) -> str:
+    """The Dask key of ``task`` in the run ``run`` (:func:`run_token`): the task's name
+    and a digest of its spec hash and the run, so that two runs of the same
+    configuration on one scheduler (into two folders, or one after the other) never
+    share a task (a shared key attaches the second run's futures to the first run's
+    results, rendered into the first run's folder: issue 39, P1-19 to P1-21)."""
+    from .tasks import spec_hash
+
+    return f"dopplertof-{task.name}-{spec_hash([task.hash, run])[:16]}"
 
 
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
               description: str = "tasks", already_done: int = 0,
-              no_worker_timeout: float | None = None) -> RunOutcome:
-    """Submit ``function(task)`` for every task (``task.name`` names it); collect
-    results and failures as they complete. A failing task does not stop the others.
+              no_worker_timeout: float | None = None, run: str | None = None) -> RunOutcome:
+    """Submit ``function(task)`` for every task (``task.name`` names it, under the key
+    :func:`task_key` of the run ``run``, default a fresh :func:`run_token` of the
+    working folder); collect results and failures as they complete. A failing task
+    does not stop the others.
     When the cluster has had no worker for ``no_worker_timeout`` seconds (default
     NO_WORKER_TIMEOUT), the tasks not finished are failures ("no Dask worker ...") and
     the run ends."""
@@ -189,9 +211,10 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
     started = time.perf_counter()
     outcome = RunOutcome()
     futures = {}
+    run = run or run_token(os.getcwd())
     for task in tasks:
-        key = f"dopplertof-{task.name}-{task.hash[:10]}"
-        future = client.submit(function, task, key=key, retries=retries, pure=False)
+        future = client.submit(function, task, key=task_key(task, run), retries=retries,
+                               pure=False)
         futures[future] = task
     bar = tqdm(total=len(tasks) + already_done, initial=already_done, unit="task",
                desc=description, disable=not show_progress(progress), file=sys.stderr,
