@@ -90,3 +90,37 @@ def check_text(value, name: str = "text") -> str:
     if isinstance(value, str):
         return value
     raise _wrong_type(name, "a str", value)
+
+
+def check_choice(value, choices, name: str, error=ValueError) -> str:
+    """One of the names ``choices`` (a str)."""
+    if not isinstance(value, str):
+        raise _wrong_type(name, "one of " + ", ".join(map(repr, choices)), value)
+    if value not in choices:
+        raise error(f"unknown {name} {value!r}: one of {', '.join(choices)}")
+    return value
+
+
+def check_flag(value, name: str) -> bool:
+    """True or False (a NumPy bool too); ``'no'``, 0 or None are refused, not read as
+    a truth value (``noise='no'`` turned the noise on)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise _wrong_type(name, "True or False", value)
+
+
+def check_index(value, length: int, name: str = "index") -> int:
+    """An item of a sequence of ``length``: an integer in [-length, length)."""
+    if not _is_integer(value):
+        raise _wrong_type(name, "an integer (one item; a range of items: a loop or a "
+                                "torch Subset)", value)
+    if not -length <= int(value) < length:
+        raise IndexError(f"{name} {int(value)} out of range: {length} item(s)")
+    return int(value) % length
+
+
+def check_callable(value, name: str, optional: bool = True):
+    """A function (``optional``: or None)."""
+    if (value is None and optional) or callable(value):
+        return value
+    raise _wrong_type(name, "a function" + (" or None" if optional else ""), value)

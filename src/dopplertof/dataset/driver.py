@@ -11,7 +11,10 @@ Output folder::
 
 A rerun with the same configuration skips the complete shards (a killed run resumes at
 the first unfinished one; its samples depend on (configuration, seed, index) only, so
-the result is bitwise the same). Another configuration in the same folder is refused.
+the result is bitwise the same). A shard is complete when it holds every sample planned
+for it and every checksum matches (:func:`shards.shard_state`, every sample read): a
+missing, truncated, damaged or misplaced shard, or one with a failed sample, is
+rendered again (issue 39). Another configuration in the same folder is refused.
 A sample that raises is tried again ``retries`` times within its shard's task, then
 its shard is written without it and dataset.json lists it with its error.
 """
@@ -143,6 +146,32 @@ def check_same_config(output: str, digest: str, source: str) -> None:
                            "use a new folder, or the configuration it was made with")
 
 
+def load_dataset_json(folder: str) -> dict:
+    """``folder``'s dataset.json, of this layout (a DatasetError naming the file)."""
+    path = os.path.join(folder, DATASET_JSON)
+    try:
+        with open(path, encoding="utf-8") as f:
+            info = json.load(f)
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{path}: not a dataset folder ({e})") from None
+    if not isinstance(info, dict) or info.get("layout_version") != LAYOUT_VERSION:
+        version = info.get("layout_version") if isinstance(info, dict) else None
+        raise DatasetError(f"{path}: layout version {version!r}, this reader reads "
+                           f"{LAYOUT_VERSION}")
+    return info
+
+
+def verify_dataset(folder) -> list:
+    """Every shard of the dataset in ``folder`` checked in full (every sample read and
+    its checksum compared): [(shard file, planned sample indices, ShardState)]."""
+    folder = os.fspath(folder)
+    info = load_dataset_json(folder)
+    return [(shard["file"], shard["samples"],
+             shard_state(os.path.join(folder, shard["file"]), info["config_hash"],
+                         shard["samples"]))
+            for shard in info["shards"]]
+
+
 def run_shard_task(task: ShardTask) -> dict:
     """Render the shard's samples and write the shard (runs on a worker)."""
     from ..experiments.tasks import RENDER_LOCK, package_versions, prepare_worker
@@ -192,7 +221,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     copy_meshes(config, output)
     pending = []
     for task in tasks:
-        if shard_state(task.path, task.config_hash) is None:
+        if not shard_state(task.path, task.config_hash, task.indices).complete:
             io.remove_temporaries(task.path)  # (a killed writer's)
             pending.append(task)
     summary.skipped_shards = len(tasks) - len(pending)
@@ -205,8 +234,8 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
         summary.failed_shards = outcome.failed
         if summary.rendered:
             summary.samples_per_hour = summary.rendered * 3600.0 / outcome.seconds
-    summary.failed = [f for t in tasks for f in (shard_state(t.path, t.config_hash)
-                                                 or ([], []))[1]]
+    summary.failed = [f for t in tasks
+                      for f in shard_state(t.path, t.config_hash, t.indices, full=False).failed]
     summary.seconds = time.perf_counter() - started
     write_dataset_json(output, config, tasks, summary)
     return summary
