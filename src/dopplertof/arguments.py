@@ -124,3 +124,22 @@ def check_callable(value, name: str, optional: bool = True):
     if (value is None and optional) or callable(value):
         return value
     raise _wrong_type(name, "a function" + (" or None" if optional else ""), value)
+
+
+def check_camera_capture(scene, camera, spp, seed, params, noise, noise_seed, on_frame,
+                         checkpoint, preset_type):
+    """The arguments of ``capture_camera`` (cameras/capture.py), each named when wrong
+    (issue 39: ``noise='no'`` turned the noise on, ``noise_seed=1.5`` was seed 1, a path
+    or None for the camera an os.fspath TypeError); returns the scene as a DopplerScene.
+    ``preset_type``: the camera preset class (cameras/ is above this module)."""
+    if not isinstance(camera, (str, os.PathLike, preset_type)) or isinstance(camera, bytes):
+        raise _wrong_type("camera", "a preset name, a .toml path or a CameraPreset", camera)
+    check_spp(spp)
+    check_seed(seed)
+    check_params(params)
+    check_flag(noise, "noise")
+    check_seed(noise_seed, "noise_seed")
+    check_callable(on_frame, "on_frame")
+    if checkpoint is not None:
+        check_path(checkpoint, "checkpoint")
+    return check_scene(scene)

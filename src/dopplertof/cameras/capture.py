@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..arguments import check_camera_capture
 from ..params import RenderParams
 from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
                            error_stats)
@@ -102,6 +103,8 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     render, bitwise as uninterrupted. keep_mixed_pixels: the pixels whose footprint
     mixes surfaces during the sequence are reconstructed, not NaN (as
     :func:`dopplertof.capture`'s)."""
+    scene = check_camera_capture(scene, camera, spp, seed, params, noise, noise_seed,
+                                 on_frame, checkpoint, CameraPreset)
     started = _time.perf_counter()
     if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
         raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
