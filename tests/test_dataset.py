@@ -344,7 +344,10 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
                         ({**TINY, "render": {"resolution": [8, 8]}}, "missing key render.spp"),
                         ({**TINY, "motion": {"speed": [3.0, 1.0]}}, "motion.speed out of range"),
                         ({**TINY, "motion": {"angular_speed": [0.0, 5000.0]}},
-                         "motion.angular_speed: 5000 rad/s turns more than")):
+                         "motion.angular_speed: 5000 rad/s turns more than"),
+                        # issue 39, D34: a MemoryError after 50 s of planning
+                        ({**TINY, "samples": 10**12},
+                         "samples = 1000000000000 plans 1000000000000 shards")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()
