@@ -301,6 +301,19 @@ def test_a_changed_config_in_the_same_folder_is_refused(tiny, tmp_path, capsys):
         assert json.load(f)["config"]["render"]["spp"] == 4
 
 
+def test_a_wrong_variant_does_not_claim_the_folder(tmp_path, capsys):
+    """issue 39, O04: `--variant nonsense_rgb` wrote dataset.json, and the corrected
+    rerun was refused as "another configuration" though nothing was rendered."""
+    from dopplertof.cli import main
+
+    config = _write_toml(tmp_path / "tiny.toml", TINY)
+    for variant in ("nonsense_rgb", "llvm_nonsense"):
+        code = main(["dataset", config, "-o", str(tmp_path / "out"), "--variant", variant])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "unknown variant" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_process_client):
     """Sample 1 raises every time: tried 1 + retries times, its shard written without it,
     dataset.json and the reader list it; the others are there. A rerun tries it again."""

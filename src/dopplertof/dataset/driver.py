@@ -129,6 +129,22 @@ def plan_shards(config: DatasetConfig, output: str, variant: str,
             for n, start in enumerate(range(0, total, size))]
 
 
+def check_variant(variant: str) -> None:
+    """Refuse a Mitsuba variant the workers cannot render in, before dataset.json names
+    it (a typo claimed the folder: the corrected rerun was refused as "another
+    configuration", issue 39, O04)."""
+    import mitsuba
+
+    from ..backend import variant_problem
+
+    problem = variant_problem(variant)
+    if problem is None and variant not in mitsuba.variants():
+        problem = (f"unknown variant {variant!r}: this Mitsuba has "
+                   f"{', '.join(v for v in mitsuba.variants() if variant_problem(v) is None)}")
+    if problem:
+        raise DatasetError(f"--variant: {problem}")
+
+
 def check_same_config(output: str, digest: str, source: str) -> None:
     """Refuse a folder that holds a dataset of another configuration."""
     path = os.path.join(output, DATASET_JSON)
@@ -213,6 +229,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     started = time.perf_counter()
     output = io.check_output_folder(os.fspath(output))
     variant = variant or DEFAULT_VARIANT
+    check_variant(variant)  # (before the folder is claimed for it)
     tasks = plan_shards(config, output, variant, retries)
     check_same_config(output, tasks[0].config_hash, config.source)
     summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
