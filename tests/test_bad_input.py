@@ -362,3 +362,23 @@ def test_bad_mesh_in_a_dict_scene(tmp_path, monkeypatch):
     with pytest.raises(dopplertof.SceneError, match="'wall': mesh file empty.obj: the file is "
                        "empty"):
         dopplertof.load_dict(d)
+
+
+@pytest.mark.parametrize("command", [["dataset", "{file}", "-o", "{out}"],
+                                     ["sweep", "{file}", "-o", "{out}"],
+                                     ["cameras", "{file}"]])
+@pytest.mark.parametrize("content", [bytes(range(0xC1, 0xFF)) * 2,  # D02, P37: junk
+                                     'name = "café"\n'.encode("latin-1")])  # D58: Latin-1
+def test_a_config_or_preset_that_is_not_utf8_names_the_file(tmp_path, capsys, command,
+                                                            content):
+    """issue 39, 2026-12-03 campaign D02, D58, P37: 'utf-8' codec can't decode byte 0xc1
+    in position 0, naming no file."""
+    from dopplertof.cli import main
+
+    path = tmp_path / "config.toml"
+    path.write_bytes(content)
+    out = tmp_path / "out"
+    code = main([a.format(file=path, out=out) for a in command])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"{path}: not a UTF-8 text file" in err and not out.exists()

@@ -453,3 +453,45 @@ def test_capture_camera_option_errors_write_nothing(tmp_path, args, message):
     done = run_cli("capture", str(scene), "-o", str(out), *args)
     assert done.returncode == 2 and message in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("kwargs, error, words", [
+    # issue 39, 2026-12-03 campaign: AttributeErrors from inside, or accepted silently
+    # A21: a scene file's path is loaded for the camera (issue 38); another type is named
+    ({"scene": 3.5}, TypeError, "scene must be a DopplerScene"),
+    ({"camera": None}, TypeError, "camera must be a preset name"),  # A23
+    ({"camera": 42}, TypeError, "camera must be a preset name"),  # A24
+    ({"noise_seed": -5}, ValueError, "noise_seed must be an integer in"),  # A29
+    ({"noise_seed": 1.5}, TypeError, "noise_seed must be an integer"),  # A30
+    ({"noise_seed": True}, TypeError, "noise_seed must be an integer"),  # A30
+    ({"params": "max_depth=2"}, TypeError, "params must be a dict"),  # A32
+    ({"noise": "no"}, TypeError, "noise must be True or False"),  # A33
+    ({"checkpoint": 42}, TypeError, "checkpoint must be a file path"),  # A34
+    ({"on_frame": "x"}, TypeError, "on_frame must be a function"),  # A35
+    ({"spp": 8.7}, TypeError, "spp must be a positive integer"),
+])
+def test_wrong_arguments_of_capture_camera_are_named_before_any_render(kwargs, error, words):
+    import dopplertof
+    from dopplertof.cameras.capture import capture_camera
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    call = {"scene": dopplertof.load_dict(plane_scene(4.0, 0.0, spp=4, res=2)),
+            "camera": "kinect-v2", "progress": False, **kwargs}
+    with pytest.raises(error, match=words):
+        capture_camera(**call)
+
+
+def test_a_plain_mitsuba_scene_is_captured(tmp_path):
+    """A36: mi.Scene raised AttributeError 'no attribute params'; now it is the static
+    DopplerScene it loads as."""
+    import mitsuba as mi
+
+    import dopplertof
+    from dopplertof.cameras.capture import capture_camera
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    box = mi.cornell_box()
+    box["sensor"]["film"].update(width=3, height=2)
+    result = capture_camera(mi.load_dict(box), "kinect-v2", spp=4, noise=False,
+                            progress=False)
+    assert result.depth.shape == (2, 3) and np.isfinite(result.depth_gt).any()

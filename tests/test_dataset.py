@@ -301,9 +301,22 @@ def test_a_changed_config_in_the_same_folder_is_refused(tiny, tmp_path, capsys):
         assert json.load(f)["config"]["render"]["spp"] == 4
 
 
+def test_a_wrong_variant_does_not_claim_the_folder(tmp_path, capsys):
+    """issue 39, O04: `--variant nonsense_rgb` wrote dataset.json, and the corrected
+    rerun was refused as "another configuration" though nothing was rendered."""
+    from dopplertof.cli import main
+
+    config = _write_toml(tmp_path / "tiny.toml", TINY)
+    for variant in ("nonsense_rgb", "llvm_nonsense"):
+        code = main(["dataset", config, "-o", str(tmp_path / "out"), "--variant", variant])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "unknown variant" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_process_client):
     """Sample 1 raises every time: tried 1 + retries times, its shard written without it,
-    dataset.json and the reader list it; the others are there."""
+    dataset.json and the reader list it; the others are there. A rerun tries it again."""
     from dopplertof.dataset import load_config, sample
     from dopplertof.dataset.driver import run_dataset
 
@@ -327,6 +340,13 @@ def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_proce
         assert json.load(f)["failed_samples"] == summary.failed
     ds = Dataset(tmp_path / "out")
     assert len(ds) == 1 and ds.failed == summary.failed and int(ds[0]["index"]) == 0
+    # issue 39, T01: a rerun (the failure was transient) tries the sample again (its
+    # shard, written without it, counted as complete: never retried)
+    monkeypatch.setattr(sample, "render_sample", real)
+    again = run_dataset(config, tmp_path / "out", client=in_process_client, progress=False)
+    assert again.ok and again.rendered == 2 and again.skipped_shards == 0
+    ds = Dataset(tmp_path / "out")
+    assert len(ds) == 2 and ds.failed == [] and int(ds[1]["index"]) == 1
 
 
 def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
@@ -337,7 +357,10 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
                         ({**TINY, "render": {"resolution": [8, 8]}}, "missing key render.spp"),
                         ({**TINY, "motion": {"speed": [3.0, 1.0]}}, "motion.speed out of range"),
                         ({**TINY, "motion": {"angular_speed": [0.0, 5000.0]}},
-                         "motion.angular_speed: 5000 rad/s turns more than")):
+                         "motion.angular_speed: 5000 rad/s turns more than"),
+                        # issue 39, D34: a MemoryError after 50 s of planning
+                        ({**TINY, "samples": 10**12},
+                         "samples = 1000000000000 plans 1000000000000 shards")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()
@@ -471,6 +494,138 @@ def test_a_complete_dataset_run_again_renders_nothing(tiny, capsys):
     out = capsys.readouterr().out
     assert "0 rendered now, 3 shards already complete, 0 samples failed" in out
     assert _shard_bytes(tiny[1]) == before
+
+
+# ---- issue 39: shards that prove their integrity ---------------------------------------
+
+def _flip_bit_in(path, key, index):
+    """Flip one bit in the stored bytes of sample ``index``'s dataset ``key``."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        offset = f[f"sample_{index:08d}"][key].id.get_chunk_info(0).byte_offset
+    with open(path, "r+b") as f:
+        f.seek(offset + 3)
+        byte = f.read(1)[0]
+        f.seek(offset + 3)
+        f.write(bytes([byte ^ 0x10]))
+
+
+def _rewrite(path, index, change):
+    """An edit HDF5 itself makes (its own checksums stay valid): ``change(group)``."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        change(f[f"sample_{index:08d}"])
+
+
+def _cut(path, keep):
+    data = open(path, "rb").read()
+    with open(path, "wb") as f:
+        f.write(data[:keep(len(data))])
+
+
+def _flip_signature(path):
+    with open(path, "r+b") as f:
+        f.seek(3)
+        byte = f.read(1)[0]
+        f.seek(3)
+        f.write(bytes([byte ^ 0xFF]))
+
+
+def _swap(folder):
+    a, b = os.path.join(folder, "shard_00000.h5"), os.path.join(folder, "shard_00001.h5")
+    os.rename(a, a + ".x")
+    os.rename(b, a)
+    os.rename(a + ".x", b)
+
+
+def _set_scene_xml(group):
+    group.attrs["scene_xml"] = group.attrs["scene_xml"].replace("0", "1", 1)
+
+
+def _set_k(group):
+    group["K"][0, 0] = group["K"][0, 0] + 1e-9
+
+
+#: (campaign id, damage, the shard named, found when the folder is opened)
+DAMAGES = [
+    ("S01", lambda d: _cut(os.path.join(d, "shard_00001.h5"), lambda n: n // 2), 1, True),
+    ("S02", lambda d: _cut(os.path.join(d, "shard_00001.h5"), lambda n: 0), 1, True),
+    ("S03", lambda d: _flip_bit_in(os.path.join(d, "shard_00000.h5"), "pose", 0), 0, False),
+    ("S04", lambda d: _flip_bit_in(os.path.join(d, "shard_00000.h5"), "raw", 0), 0, False),
+    ("S05", lambda d: _rewrite(os.path.join(d, "shard_00001.h5"), 1, _set_k), 1, False),
+    ("S06", lambda d: os.unlink(os.path.join(d, "shard_00001.h5")), 1, True),
+    ("S07", lambda d: _flip_signature(os.path.join(d, "shard_00002.h5")), 2, True),
+    ("S08", lambda d: _rewrite(os.path.join(d, "shard_00002.h5"), 2, _set_scene_xml), 2,
+     False),
+    ("S09", lambda d: _cut(os.path.join(d, "shard_00002.h5"), lambda n: n - 16), 2, True),
+    ("S12", _swap, 0, True),
+]
+
+
+@pytest.mark.parametrize("case, damage, shard, at_open", DAMAGES, ids=[d[0] for d in DAMAGES])
+def test_a_damaged_shard_is_named_by_the_reader_and_verify_and_rendered_again(
+        tiny, tmp_path, capsys, case, damage, shard, at_open):
+    """A truncated, emptied, deleted, bit-flipped, edited or swapped shard: the reader
+    names it (at open, or reading the sample) instead of serving fewer samples or the
+    damage; on_damage="skip" reads the others with a warning; `dataset verify` names it
+    (exit 1); a rerun renders it again, bitwise the undamaged shards. (Before: len 4 of
+    6 without a word, the flipped pose or the edited scene_xml served as data, a rerun
+    calling every shard complete; swapped shards out of index order.)"""
+    import shutil
+
+    from dopplertof.cli import main
+
+    out = str(tmp_path / "out")
+    shutil.copytree(tiny[1], out)
+    damage(out)
+    name = f"shard_{shard:05d}.h5"
+    with pytest.raises(DatasetError, match=name):
+        ds = Dataset(out)
+        for i in range(len(ds)):
+            ds.attributes(i)
+    if at_open:
+        with pytest.warns(UserWarning) as warned:
+            ds = Dataset(out, on_damage="skip")
+        assert name in str(warned[0].message) and "skipped" in str(warned[0].message)
+        assert ds.missing_shards == [name] or case == "S12"
+        assert [int(ds[i]["index"]) for i in range(len(ds))] == sorted(
+            int(ds[i]["index"]) for i in range(len(ds)))
+    assert main(["dataset", "verify", out]) == 1
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith(name) and "a rerun renders it again" in lines[0]
+    assert lines[-1].endswith(name) or case == "S12"
+    assert main(["dataset", tiny[0], "-o", out, "--quiet"]) == 0
+    capsys.readouterr()
+    assert _shard_bytes(out) == _shard_bytes(tiny[1])
+    assert len(Dataset(out)) == 3 and main(["dataset", "verify", out]) == 0
+    assert capsys.readouterr().out.strip().endswith("a rerun would render again: nothing")
+
+
+def test_dataset_verify_on_a_folder_that_is_no_dataset_is_one_line(tmp_path, capsys):
+    from dopplertof.cli import main
+
+    assert main(["dataset", "verify", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "dataset.json: not a dataset folder" in err
+
+
+@pytest.mark.parametrize("call, error, words", [
+    (lambda ds: Dataset(None), TypeError, "folder must be a file path"),  # A01
+    (lambda ds: Dataset(42), TypeError, "folder must be a file path"),  # A02
+    (lambda ds: Dataset(b"/bytes/path"), TypeError, "folder must be a file path"),  # A16
+    (lambda ds: Dataset(ds.folder, split=3), TypeError, "split must be one of"),
+    (lambda ds: Dataset(ds.folder, on_damage="ignore"), DatasetError, "unknown on_damage"),
+    (lambda ds: ds["0"], TypeError, "Dataset item must be an integer"),  # A08
+    (lambda ds: ds[0:2], TypeError, "Dataset item must be an integer"),  # A10
+    (lambda ds: ds[3], IndexError, "Dataset item 3 out of range: 3 item"),
+])
+def test_wrong_arguments_of_the_reader_name_the_argument(tiny, call, error, words):
+    """issue 39, A01, A02, A08, A10, A16: os.fspath's or a comparison's TypeError from
+    inside, naming no argument."""
+    with pytest.raises(error, match=words):
+        call(Dataset(tiny[1]))
 
 
 def test_a_shards_bytes_do_not_depend_on_when_its_datasets_are_closed(tmp_path, monkeypatch):

@@ -279,6 +279,43 @@ def test_retries_rerun_a_raising_task(tmp_path, client):
     assert len(os.listdir(attempts)) == 2
 
 
+def test_two_runs_of_one_configuration_on_one_scheduler_each_fill_their_own_folder(
+        tmp_path, client):
+    """issue 39, P1-19 to P1-21: two runs of the same tasks (same names, same spec
+    hashes) into two folders at the same time on one scheduler both run every task in
+    their own folder (the Dask key held no folder: the second run's futures were the
+    first run's tasks, its folder stayed empty while it reported them done)."""
+    from dopplertof.experiments.cluster import run_in_folder
+
+    def write_marker(task):  # (pickled by value)
+        import os
+        import time
+
+        time.sleep(0.3)
+        os.makedirs(task.folder, exist_ok=True)
+        open(os.path.join(task.folder, "done"), "w").close()
+        return task.folder
+
+    outcomes = {}
+
+    def run(name):
+        tasks = [types.SimpleNamespace(name=f"t{i}", hash="5" * 16,
+                                       folder=str(tmp_path / name / f"t{i}"))
+                 for i in range(3)]
+        outcomes[name] = run_in_folder(write_marker, tasks, str(tmp_path / name),
+                                       client=client, progress=False)
+
+    threads = [threading.Thread(target=run, args=(name,)) for name in "AB"]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=60)
+    for name in "AB":
+        assert not outcomes[name].failed
+        assert sorted(outcomes[name].done) == [str(tmp_path / name / f"t{i}") for i in range(3)]
+        assert sorted(os.listdir(tmp_path / name)) == ["t0", "t1", "t2"]
+
+
 def test_killed_worker_loses_nothing(tmp_path):
     """SIGKILL the worker process that is rendering a point: Dask reruns the point on a
     live worker, the sweep completes, no partial file is left, a rerun has nothing to do."""

@@ -170,6 +170,52 @@ def test_files_that_are_not_the_captures_are_left_alone(captures, cheap_previews
     assert not list(tmp_path.glob("*_std*")) and not _staging_left(tmp_path)
 
 
+# ---- issue 39 (C04, C14, C15): a camera capture is one output set too ------------------
+
+@pytest.fixture(scope="module")
+def camera_captures():
+    """Two kinect-v2 frames of a plane (4x4 pixels, 4 spp), of two noise seeds."""
+    from analytic import plane_scene
+    from dopplertof.cameras.capture import capture_camera
+
+    dopplertof.set_variant("llvm_ad_rgb")
+    scene = dopplertof.load_dict(plane_scene(4.0, 0.0, exposure=0.02, spp=4, res=4))
+    return [capture_camera(scene, "kinect-v2", spp=4, noise_seed=seed, progress=False)
+            for seed in (0, 1)]
+
+
+@pytest.mark.parametrize("fail_after", [0, 5, 12])
+def test_a_failed_camera_capture_leaves_the_previous_one_untouched(
+        camera_captures, tmp_path, monkeypatch, fail_after):
+    """A camera capture failing (an interrupt, a kill, a full disk) at its 1st, 6th or
+    13th file into the folder of a complete one leaves that one byte-identical (the
+    arrays were written file by file: the new raw.npy beside the old summary.json)."""
+    first, second = camera_captures
+    folder = tmp_path / "cap"
+    first.write(folder)
+    before = _snapshot(folder)
+    _count_files_written(monkeypatch, fail_after)
+    with pytest.raises(RuntimeError, match="injected"):
+        second.write(folder)
+    assert _snapshot(folder) == before and not _staging_left(folder)
+
+
+def test_a_camera_capture_replaces_the_previous_one_whole_or_leaves_no_folder(
+        camera_captures, tmp_path, monkeypatch):
+    first, second = camera_captures
+    folder, fresh = tmp_path / "cap", tmp_path / "fresh"
+    first.write(folder)
+    paths = second.write(folder)
+    second.write(fresh)
+    assert _snapshot(folder) == _snapshot(fresh)
+    assert sorted(os.path.basename(p) for p in paths) == sorted(
+        n for n in os.listdir(folder) if n != io.manifest_name("capture"))
+    _count_files_written(monkeypatch, fail_after=3)
+    with pytest.raises(RuntimeError, match="injected"):
+        first.write(tmp_path / "a" / "b")
+    assert not (tmp_path / "a").exists()
+
+
 # ---- Item 11: the other commands' output sets -----------------------------------------
 
 def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatch):

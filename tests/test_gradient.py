@@ -16,6 +16,7 @@ import pytest
 
 from analytic import plane_scene
 from conftest import PUBLISHED
+from dopplertof.diff import DerivativeError, DifferentiableScene, gradient
 
 RELATIVE = 1e-4
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -176,9 +177,52 @@ def test_a_parameter_the_loss_does_not_see_gets_exactly_zero():
     got = gradient(ds, lambda image: dr.sum(image, axis=None), names=names, spp=16)
     assert np.all(got["grey.reflectance.value"] == 0.0)
     assert np.all(got["white.reflectance.value"] != 0.0) and got["body0.vz"] != 0.0
-    constant = gradient(ds, lambda image: 1.0, names=names, spp=16)
-    assert constant.loss == 1.0
-    assert all(np.all(np.asarray(constant[n]) == 0.0) for n in names)
+    flat = gradient(ds, lambda image: dr.sum(image - image, axis=None), names=names, spp=16)
+    assert flat.loss == 0.0
+    assert all(np.all(np.asarray(flat[n]) == 0.0) for n in names)
+
+
+@pytest.mark.parametrize("call, error, words", [
+    # issue 39, 2026-12-03 campaign: wrong types named, not AttributeErrors from inside
+    (lambda ds, loss: gradient("file.xml", loss), TypeError,
+     "dscene must be a DopplerScene .*load it first"),  # A42
+    (lambda ds, loss: gradient(None, loss), TypeError, "dscene must be a DopplerScene"),  # A43
+    (lambda ds, loss: DifferentiableScene(None), TypeError, "scene must be"),  # A62
+    (lambda ds, loss: DifferentiableScene("file.xml"), TypeError, "load it first"),  # A63
+    (lambda ds, loss: gradient(ds, None), TypeError, "loss must be a function"),  # A39
+    (lambda ds, loss: gradient(ds, lambda image: "x"), TypeError, "must return a scalar"),
+    (lambda ds, loss: gradient(ds, loss, names="w_g"), TypeError,
+     r"names must be a list .*\['w_g'\]"),  # A45
+    (lambda ds, loss: gradient(ds, loss, spp=8.7), TypeError, "spp must be"),  # A48
+    (lambda ds, loss: gradient(ds, loss, spp=8.0), TypeError, "spp must be"),  # A48
+    (lambda ds, loss: gradient(ds, loss, seed=1.5), TypeError, "seed must be"),  # A64
+    (lambda ds, loss: gradient(ds, loss, seed=True), TypeError, "seed must be"),  # A64
+    (lambda ds, loss: gradient(ds, loss, params=["w_g"]), TypeError, "params must be"),  # A55
+    # a loss detached from AD or NaN: every derivative was 0.0, silently
+    (lambda ds, loss: gradient(ds, lambda image: np.ones(3)), DerivativeError,
+     "detached from automatic differentiation"),  # A40
+    (lambda ds, loss: gradient(ds, lambda image: float(np.mean(np.array(image) ** 2))),
+     DerivativeError, "detached from automatic differentiation"),  # A65
+    (lambda ds, loss: gradient(ds, lambda image: loss(image) * float("nan")),
+     DerivativeError, "the loss is nan"),  # A58
+])
+def test_wrong_arguments_and_losses_are_named(published_small, call, error, words):
+    import drjit as dr
+
+    _, ds = published_small
+    with pytest.raises(error, match=words):
+        call(ds, lambda image: dr.sum(image, axis=None))
+
+
+def test_a_dopplerscene_is_differentiated_as_it_is(published_small):
+    """A61: gradient(DopplerScene) raised AttributeError 'no attribute mi' (the README
+    says gradient gives a loss's gradient): the scene is made a DifferentiableScene."""
+    import drjit as dr
+
+    scene, ds = published_small
+    loss = lambda image: dr.sum(image, axis=None)  # noqa: E731
+    direct = gradient(scene, loss, names=["g_1"], spp=4)
+    assert direct["g_1"] == gradient(ds, loss, names=["g_1"], spp=4)["g_1"] != 0.0
 
 
 def test_bad_requests_are_one_line_errors(published_small):

@@ -151,3 +151,37 @@ def test_a_ctrl_c_python_drops_in_a_weakref_callback_still_stops_the_command(tmp
     assert "dopplertof: interrupted" in err.strip().splitlines()
     assert "Exception ignored" not in err and "Traceback" not in err, err
     assert not out.exists() or not any(out.iterdir())
+
+
+# ---- Ctrl-C while the local Dask cluster starts (issue 39) ------------------------------
+
+def test_ctrl_c_while_the_local_cluster_starts_stops_the_run(tmp_path, monkeypatch, capsys):
+    """2026-12-03 campaign G11, G18-G21: a Ctrl-C in the first second of `dataset` or
+    `sweep`, while the LocalCluster starts, was ignored (SIGINT set to SIG_IGN for the
+    workers' sake): the run rendered everything and exited 0. Now it is held while the
+    cluster starts, the cluster is closed, and the command ends with the one line, exit
+    130, no shard written."""
+    import distributed
+
+    from dopplertof.cli import main
+
+    real, started = distributed.LocalCluster, []
+
+    def ctrl_c_as_it_starts(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        started.append(real(*args, **kwargs))
+        return started[-1]
+
+    monkeypatch.setattr(distributed, "LocalCluster", ctrl_c_as_it_starts)
+    config = tmp_path / "ds.toml"
+    config.write_text('samples = 2\nsamples_per_shard = 1\nseed = 1\n[render]\n'
+                      'resolution = [8, 8]\nspp = 4\nmax_depth = 3\n')
+    out = tmp_path / "out"
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # (a terminal's)
+    try:
+        code = main(["dataset", str(config), "-o", str(out), "--workers", "1", "--quiet"])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert (code, capsys.readouterr().err) == (130, "dopplertof: interrupted\n")
+    assert started and started[0].status.name == "closed"
+    assert not list(out.glob("shard_*")) and not list(out.glob(".*.tmp*"))

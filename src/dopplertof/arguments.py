@@ -90,3 +90,58 @@ def check_text(value, name: str = "text") -> str:
     if isinstance(value, str):
         return value
     raise _wrong_type(name, "a str", value)
+
+
+def check_choice(value, choices, name: str, error=ValueError) -> str:
+    """One of the names ``choices`` (a str)."""
+    if not isinstance(value, str):
+        raise _wrong_type(name, "one of " + ", ".join(map(repr, choices)), value)
+    if value not in choices:
+        raise error(f"unknown {name} {value!r}: one of {', '.join(choices)}")
+    return value
+
+
+def check_flag(value, name: str) -> bool:
+    """True or False (a NumPy bool too); ``'no'``, 0 or None are refused, not read as
+    a truth value (``noise='no'`` turned the noise on)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise _wrong_type(name, "True or False", value)
+
+
+def check_index(value, length: int, name: str = "index") -> int:
+    """An item of a sequence of ``length``: an integer in [-length, length)."""
+    if not _is_integer(value):
+        raise _wrong_type(name, "an integer (one item; a range of items: a loop or a "
+                                "torch Subset)", value)
+    if not -length <= int(value) < length:
+        raise IndexError(f"{name} {int(value)} out of range: {length} item(s)")
+    return int(value) % length
+
+
+def check_callable(value, name: str, optional: bool = True):
+    """A function (``optional``: or None)."""
+    if (value is None and optional) or callable(value):
+        return value
+    raise _wrong_type(name, "a function" + (" or None" if optional else ""), value)
+
+
+def check_camera_capture(scene, camera, spp, seed, params, noise, noise_seed, on_frame,
+                         checkpoint, preset_type):
+    """The arguments of ``capture_camera`` (cameras/capture.py), each named when wrong
+    (issue 39: ``noise='no'`` turned the noise on, ``noise_seed=1.5`` was seed 1, a path
+    or None for the camera an os.fspath TypeError); returns the scene as a DopplerScene.
+    ``preset_type``: the camera preset class (cameras/ is above this module)."""
+    if not isinstance(camera, (str, os.PathLike, preset_type)) or isinstance(camera, bytes):
+        raise _wrong_type("camera", "a preset name, a .toml path or a CameraPreset", camera)
+    check_spp(spp)
+    check_seed(seed)
+    check_params(params)
+    check_flag(noise, "noise")
+    check_seed(noise_seed, "noise_seed")
+    check_callable(on_frame, "on_frame")
+    if checkpoint is not None:
+        check_path(checkpoint, "checkpoint")
+    if isinstance(scene, (str, os.PathLike)) and not isinstance(scene, bytes):
+        return check_path(scene, "scene")  # a scene file, loaded for the camera
+    return check_scene(scene)

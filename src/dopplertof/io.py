@@ -709,5 +709,8 @@ def read_toml(path, error=ValueError) -> dict:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise error(f"{path}: malformed TOML: {e}") from None
+    except UnicodeDecodeError as e:  # (issue 39: the file was not named)
+        raise error(f"{path}: not a UTF-8 text file, as TOML must be (byte {e.start}: "
+                    f"{e.reason}): save it as UTF-8") from None
     except OSError as e:
         raise error(f"{path}: cannot read: {e}") from None

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..arguments import check_camera_capture
 from ..params import RenderParams
 from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
                            error_stats)
@@ -103,7 +104,8 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
                    ambient_irradiance: float | None = None) -> CameraResult:
     """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
     .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
-    resolution; :func:`load_scene_for_camera` gives a scene file the preset's).
+    resolution; or a scene file's path, loaded by :func:`load_scene_for_camera` with the
+    preset's field of view, resolution and, for a scene without light, its illuminator).
 
     params: integrator parameter overrides for every frame. noise: shot and read noise
     (numpy PCG64 seeded ``noise_seed``); without it the sensor runs on mean electrons.
@@ -114,14 +116,13 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     :func:`dopplertof.capture`'s). ambient_irradiance: ambient light in uW/cm^2/nm at
     the illuminator's wavelength falling on every surface (an absolute preset only;
     None: the preset's documented condition, [conditions] in its file, else 0)."""
+    scene = check_camera_capture(scene, camera, spp, seed, params, noise, noise_seed,
+                                 on_frame, checkpoint, CameraPreset)
     started = _time.perf_counter()
     if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
         raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
-    if isinstance(scene, (str, os.PathLike)):
-        scene = load_scene_for_camera(scene, preset)
-    if any(preset.distortion) and scene.lens_distortion is None:
-        scene = replace(scene, lens_distortion=tuple(preset.distortion))
+    scene = _scene_through(scene, preset)
     ambient = _ambient_irradiance(preset, ambient_irradiance)
     base = _base_params(scene, preset, params)
     photons = (radiometry.photons_per_unit(preset, scene_light_intensity(scene, preset),
@@ -149,14 +150,29 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
                               _time.perf_counter() - started, keep_mixed_pixels)
     result.summary["intrinsics"] = _intrinsics(scene)
     if preset.absolute:
-        result.summary["noise"]["radiometry"] = {
-            "exposure": "absolute: photons from the illuminator's power, the lens and the "
+        result.summary["noise"]["radiometry"] = _radiometry_summary(preset, result, ambient)
+    return result
+
+
+def _scene_through(scene, preset: CameraPreset):
+    """The DopplerScene a preset captures: a scene file loaded for it, the preset's lens
+    distortion on a scene that has none of its own."""
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_scene_for_camera(scene, preset)
+    if any(preset.distortion) and scene.lens_distortion is None:
+        scene = replace(scene, lens_distortion=tuple(preset.distortion))
+    return scene
+
+
+def _radiometry_summary(preset: CameraPreset, result: CameraResult, ambient: float) -> dict:
+    """summary.json's noise.radiometry of an absolute preset's capture."""
+    light, readout = result.light, result.readout
+    return {"exposure": "absolute: photons from the illuminator's power, the lens and the "
                         "pixel (cameras/radiometry.py)",
             "illuminator_intensity_W_sr": radiometry.radiant_intensity(preset.illuminator),
             "ambient_irradiance_uW_cm2_nm": ambient,
-            "signal_electrons_p50": light.electrons_percentile(result.readout, preset, 50),
-            "signal_electrons_p99": light.electrons_percentile(result.readout, preset, 99)}
-    return result
+            "signal_electrons_p50": light.electrons_percentile(readout, preset, 50),
+            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99)}
 
 
 def _intrinsics(scene) -> dict:

@@ -5,8 +5,6 @@ All writes are atomic (:mod:`dopplertof.io`).
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from .. import io
@@ -22,14 +20,16 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
 
 
 def write_camera_result(result, folder) -> list:
-    """Every file of a camera frame into ``folder``; returns the paths in order."""
-    folder = prepare_folder(folder, create=True)
-    written = []
+    """Every file of a camera frame into ``folder``, all or nothing (the output set
+    "capture" of :func:`dopplertof.io.output_folder`, as a ToF capture's: an interrupted
+    write leaves the earlier capture whole, issue 39); returns the paths in order."""
+    with io.output_folder(prepare_folder(folder), "capture") as staged:
+        _write_camera_files(result, staged.path)
+    return staged.written
 
-    def path(name):
-        written.append(os.path.join(folder, name))
-        return written[-1]
 
+def _write_camera_files(result, path) -> None:
+    """The files of :func:`write_camera_result`, each at ``path(name)``."""
     recon, readout, summary = result.reconstruction, result.readout, result.summary
     camera = summary["camera"]["name"]
     arrays = {"raw": readout.raw, "raw_ideal": readout.raw_ideal.astype(np.float32),
@@ -45,7 +45,6 @@ def write_camera_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"), getattr(recon, attribute))
     _write_previews(result, path, camera)
     io.write_json(path("summary.json"), summary)
-    return written
 
 
 def masked_caption(recon, truth=None) -> str:

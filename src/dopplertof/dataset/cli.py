@@ -16,16 +16,29 @@ def add_subcommand(subparsers) -> None:
         description="Render a dataset of random moving scenes (raw frames of three splits, "
                     "depth, velocity, flow, instances, normals, albedo, K, pose). A rerun "
                     "resumes at the first unfinished shard.")
-    d.add_argument("config", help="dataset configuration (.toml; examples/dataset.toml)")
-    d.add_argument("-o", "--output", required=True, help=f"dataset folder ({FOLDER_HELP})")
+    d.add_argument("config", help="dataset configuration (.toml; examples/dataset.toml), "
+                                  "or `verify` to check the dataset folder FOLDER")
+    d.add_argument("folder", nargs="?", metavar="FOLDER",
+                   help="`dopplertof dataset verify FOLDER`: every sample read and its "
+                        "checksum compared; says what a rerun would render again (exit 0: "
+                        "nothing, 1: something)")
+    d.add_argument("-o", "--output", help=f"dataset folder ({FOLDER_HELP}); required "
+                                          "to render")
     _cluster_options(d)
     d.set_defaults(func=cmd_dataset)
 
 
 def cmd_dataset(args) -> int:
-    from .config import load_config
+    from .config import DatasetError, load_config
     from .driver import run_dataset
 
+    if args.config == "verify" and args.folder is not None:
+        return cmd_verify(args.folder)
+    if args.folder is not None:
+        raise DatasetError(f"unexpected argument {args.folder!r}: `dopplertof dataset CONFIG "
+                           "-o DIR` renders, `dopplertof dataset verify DIR` checks")
+    if args.output is None:
+        raise DatasetError("the dataset folder is missing: dopplertof dataset CONFIG -o DIR")
     config = load_config(args.config)
     summary = run_dataset(config, args.output, scheduler=args.scheduler,
                           workers=args.workers, retries=args.retries, variant=args.variant,
@@ -43,3 +56,29 @@ def cmd_dataset(args) -> int:
     for name, error in summary.failed_shards:
         print(f"dopplertof: shard failed: {name}: {error}", file=sys.stderr)
     return 0 if summary.ok else 1
+
+
+def cmd_verify(folder: str) -> int:
+    """Check every shard of ``folder`` in full; one line per shard a rerun would render
+    again, then the count. Exit 0 when nothing is to redo, 1 otherwise."""
+    from .driver import verify_dataset
+    from .shards import index_span
+
+    checked = verify_dataset(folder)
+    redo, present = [], 0
+    for name, planned, state in checked:
+        if state.problem is not None:
+            print(f"{name} (samples {index_span(planned)}): {state.problem}: a rerun renders "
+                  "it again")
+        else:
+            present += len(state.samples)
+            for failure in state.failed:
+                print(f"{name}: sample {failure['index']} failed ({failure['error']}): a "
+                      "rerun tries it again")
+        if not state.complete:
+            redo.append(name)
+    planned = sum(len(p) for _, p, _ in checked)
+    print(f"verify: {len(checked)} shards, {len(checked) - len(redo)} complete; {present} of "
+          f"{planned} samples present and intact; a rerun would render again: "
+          f"{', '.join(redo) if redo else 'nothing'}")
+    return 1 if redo else 0

@@ -198,10 +198,23 @@ def _typed(value, kind, check, where: str, meaning: str):
     return value
 
 
+#: the most samples one dataset folder plans: its dataset.json lists every sample (about
+#: 10 bytes each) and its plan holds a task per shard (samples = 10**12 planned for 50 s
+#: and ended in a MemoryError: issue 39, D34)
+MAX_SAMPLES = 10_000_000
+
+
 def _check_together(values: dict, source: str, base_dir: str) -> None:
-    """What one key cannot say alone: a mesh folder for the mesh shape, a known camera."""
+    """What one key cannot say alone: a plan of a size a folder can hold, a mesh folder
+    for the mesh shape, a known camera."""
     from ..cameras.preset import PresetError, load_preset
 
+    samples, per_shard = values[""]["samples"], values[""]["samples_per_shard"]
+    if samples > MAX_SAMPLES:
+        raise DatasetError(
+            f"{source}: samples = {samples} plans {-(-samples // per_shard)} shards and a "
+            f"dataset.json of about {samples * 10 / 1e9:.3g} GB; at most {MAX_SAMPLES} "
+            "samples per dataset folder: make several datasets (another seed each)")
     objects = values["objects"]
     if "mesh" in objects["shapes"]:
         folder = objects["mesh_folder"]

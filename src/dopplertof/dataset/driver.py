@@ -11,7 +11,10 @@ Output folder::
 
 A rerun with the same configuration skips the complete shards (a killed run resumes at
 the first unfinished one; its samples depend on (configuration, seed, index) only, so
-the result is bitwise the same). Another configuration in the same folder is refused.
+the result is bitwise the same). A shard is complete when it holds every sample planned
+for it and every checksum matches (:func:`shards.shard_state`, every sample read): a
+missing, truncated, damaged or misplaced shard, or one with a failed sample, is
+rendered again (issue 39). Another configuration in the same folder is refused.
 A sample that raises is tried again ``retries`` times within its shard's task, then
 its shard is written without it and dataset.json lists it with its error.
 """
@@ -126,6 +129,22 @@ def plan_shards(config: DatasetConfig, output: str, variant: str,
             for n, start in enumerate(range(0, total, size))]
 
 
+def check_variant(variant: str) -> None:
+    """Refuse a Mitsuba variant the workers cannot render in, before dataset.json names
+    it (a typo claimed the folder: the corrected rerun was refused as "another
+    configuration", issue 39, O04)."""
+    import mitsuba
+
+    from ..backend import variant_problem
+
+    problem = variant_problem(variant)
+    if problem is None and variant not in mitsuba.variants():
+        problem = (f"unknown variant {variant!r}: this Mitsuba has "
+                   f"{', '.join(v for v in mitsuba.variants() if variant_problem(v) is None)}")
+    if problem:
+        raise DatasetError(f"--variant: {problem}")
+
+
 def check_same_config(output: str, digest: str, source: str) -> None:
     """Refuse a folder that holds a dataset of another configuration."""
     path = os.path.join(output, DATASET_JSON)
@@ -141,6 +160,32 @@ def check_same_config(output: str, digest: str, source: str) -> None:
         raise DatasetError(f"{output} holds a dataset of another configuration than "
                            f"{source} (config hash {str(previous)[:12]} vs {digest[:12]}): "
                            "use a new folder, or the configuration it was made with")
+
+
+def load_dataset_json(folder: str) -> dict:
+    """``folder``'s dataset.json, of this layout (a DatasetError naming the file)."""
+    path = os.path.join(folder, DATASET_JSON)
+    try:
+        with open(path, encoding="utf-8") as f:
+            info = json.load(f)
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{path}: not a dataset folder ({e})") from None
+    if not isinstance(info, dict) or info.get("layout_version") != LAYOUT_VERSION:
+        version = info.get("layout_version") if isinstance(info, dict) else None
+        raise DatasetError(f"{path}: layout version {version!r}, this reader reads "
+                           f"{LAYOUT_VERSION}")
+    return info
+
+
+def verify_dataset(folder) -> list:
+    """Every shard of the dataset in ``folder`` checked in full (every sample read and
+    its checksum compared): [(shard file, planned sample indices, ShardState)]."""
+    folder = os.fspath(folder)
+    info = load_dataset_json(folder)
+    return [(shard["file"], shard["samples"],
+             shard_state(os.path.join(folder, shard["file"]), info["config_hash"],
+                         shard["samples"]))
+            for shard in info["shards"]]
 
 
 def run_shard_task(task: ShardTask) -> dict:
@@ -184,6 +229,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     started = time.perf_counter()
     output = io.check_output_folder(os.fspath(output))
     variant = variant or DEFAULT_VARIANT
+    check_variant(variant)  # (before the folder is claimed for it)
     tasks = plan_shards(config, output, variant, retries)
     check_same_config(output, tasks[0].config_hash, config.source)
     summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
@@ -192,7 +238,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     copy_meshes(config, output)
     pending = []
     for task in tasks:
-        if shard_state(task.path, task.config_hash) is None:
+        if not shard_state(task.path, task.config_hash, task.indices).complete:
             io.remove_temporaries(task.path)  # (a killed writer's)
             pending.append(task)
     summary.skipped_shards = len(tasks) - len(pending)
@@ -205,8 +251,8 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
         summary.failed_shards = outcome.failed
         if summary.rendered:
             summary.samples_per_hour = summary.rendered * 3600.0 / outcome.seconds
-    summary.failed = [f for t in tasks for f in (shard_state(t.path, t.config_hash)
-                                                 or ([], []))[1]]
+    summary.failed = [f for t in tasks
+                      for f in shard_state(t.path, t.config_hash, t.indices, full=False).failed]
     summary.seconds = time.perf_counter() - started
     write_dataset_json(output, config, tasks, summary)
     return summary

@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 
 import numpy as np
 
+from ..arguments import check_choice, check_index, check_path
 from .config import DatasetError
-from .driver import DATASET_JSON, LAYOUT_VERSION, SPLITS
-from .shards import sample_group, shard_state
+from .driver import SPLITS, load_dataset_json
+from .shards import DamagedSample, index_span, read_group, sample_group, shard_state
+
+#: what the reader does with a missing, damaged or misplaced shard
+ON_DAMAGE = ("error", "skip")
 
 
 class Dataset:
@@ -23,61 +28,73 @@ class Dataset:
     no noise). ``ds.units[key]`` is each array's unit; ``ds.attributes(i)`` the
     sample's scene (XML), description, seeds and camera preset, ``ds.scene(i)`` the
     loaded scene. Files are opened per
-    item, so that the object can be handed to forked loader processes."""
+    item, so that the object can be handed to forked loader processes.
 
-    def __init__(self, folder, split: str = "full"):
-        if split not in SPLITS:
-            raise DatasetError(f"unknown split {split!r}: one of {', '.join(SPLITS)}")
-        self.folder, self.split = os.fspath(folder), split
-        path = os.path.join(self.folder, DATASET_JSON)
-        try:
-            with open(path, encoding="utf-8") as f:
-                self.info = json.load(f)
-        except (OSError, ValueError) as e:
-            raise DatasetError(f"{path}: not a dataset folder ({e})") from None
-        if self.info.get("layout_version") != LAYOUT_VERSION:
-            raise DatasetError(f"{path}: layout version {self.info.get('layout_version')!r}, "
-                               f"this reader reads {LAYOUT_VERSION}")
+    Integrity (issue 39): a shard that is missing, truncated, damaged, of another
+    configuration or holds other samples than planned is named when the folder is
+    opened (a DatasetError; ``on_damage="skip"``: a warning, its samples left out and
+    the shard listed in ``missing_shards``); every sample read is checked against its
+    checksum (a DatasetError naming the shard and the sample). ``dopplertof dataset
+    verify DIR`` checks every sample, and a rerun renders such shards again."""
+
+    def __init__(self, folder, split: str = "full", on_damage: str = "error"):
+        folder = check_path(folder, "folder")
+        split = check_choice(split, SPLITS, "split", DatasetError)
+        on_damage = check_choice(on_damage, ON_DAMAGE, "on_damage", DatasetError)
+        self.folder, self.split = folder, split
+        self.info = load_dataset_json(folder)
         self.units = dict(self.info["units"])
         self._where, self.failed, self.missing_shards = [], [], []
         for shard in self.info["shards"]:
             shard_path = os.path.join(self.folder, shard["file"])
-            state = shard_state(shard_path, self.info["config_hash"])
-            if state is None:
+            state = shard_state(shard_path, self.info["config_hash"], shard["samples"],
+                                full=False)
+            if state.problem is not None:
+                problem = (f"{shard_path} (samples {index_span(shard['samples'])}): "
+                           f"{state.problem}")
+                if on_damage == "error":
+                    raise DatasetError(
+                        f"{problem}: a rerun of the dataset renders it again (`dopplertof "
+                        f"dataset verify {self.folder}` lists what it redoes); "
+                        "Dataset(..., on_damage='skip') reads the other shards")
+                warnings.warn(f"{problem}: skipped", stacklevel=2)
                 self.missing_shards.append(shard["file"])
                 continue
-            self._where += [(shard_path, i) for i in state[0]]
-            self.failed += state[1]
+            self._where += [(shard_path, i) for i in state.samples]
+            self.failed += state.failed
 
     def __len__(self) -> int:
         return len(self._where)
 
-    def _group(self, item: int):
-        if not -len(self) <= item < len(self):
-            raise IndexError(f"sample {item} of {len(self)}")
-        return self._where[item]
-
-    def __getitem__(self, item: int) -> dict:
+    def _read(self, item) -> tuple[dict, dict]:
+        """The arrays and attributes of item ``item``, checked against their checksum."""
         import h5py
 
-        path, index = self._group(item)
-        with h5py.File(path, "r") as f:
-            group = f[sample_group(index)]
-            sample = {key: group[key][()] for key in group}
-            seed = int(group.attrs["render_seed"])
+        item = check_index(item, len(self), "Dataset item")
+        path, index = self._where[item]
+        try:
+            with h5py.File(path, "r") as f:
+                return read_group(f[sample_group(index)], index, path)
+        except DamagedSample as exc:
+            raise DatasetError(f"{exc}: a rerun of the dataset renders its shard "
+                               "again") from None
+        except (OSError, KeyError) as exc:
+            raise DatasetError(f"{path}: sample {index}: unreadable, damaged "
+                               f"({' '.join(str(exc).split())}): a rerun of the dataset "
+                               "renders its shard again") from None
+
+    def __getitem__(self, item: int) -> dict:
+        sample, attributes = self._read(item)
         sample["raw"] = sample[SPLITS[self.split]]
-        sample.update(index=np.int64(index), seed=np.int64(seed))
+        sample.update(index=np.int64(attributes["index"]),
+                      seed=np.int64(attributes["render_seed"]))
         return sample
 
     def attributes(self, item: int) -> dict:
         """The sample's attributes: index, render_seed, noise_seed, scene_xml,
         description (parsed), camera_preset (parsed), photons_per_unit."""
-        import h5py
-
-        path, index = self._group(item)
-        with h5py.File(path, "r") as f:
-            attrs = {k: v.item() if hasattr(v, "item") else v
-                     for k, v in f[sample_group(index)].attrs.items()}
+        attrs = {k: v.item() if hasattr(v, "item") else v
+                 for k, v in self._read(item)[1].items()}
         for key in ("description", "camera_preset"):
             attrs[key] = json.loads(attrs[key])
         return attrs
@@ -90,3 +107,4 @@ class Dataset:
 
         return load_string(self.attributes(item)["scene_xml"], {},
                            source=f"{self.folder}: sample {item}", base_dir=self.folder)
+

@@ -20,13 +20,14 @@ with the number of parameters.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from .render import (_CHANNEL, _MOTION_NAME, MODULATION_PARAMETERS, DerivativeError,
-                     _ModulationVariables, _motion_value, check_names, differentiable_key,
-                     differentiable_names)
+                     DifferentiableScene, _ModulationVariables, _motion_value, check_names,
+                     differentiable_key, differentiable_names)
 
 
 class Gradient(dict):
@@ -69,11 +70,8 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
     from ..integrators.pipeline import Accumulator, PassPlanner, _spectrum_channels
     from ..sampling import check_sample_count
 
+    dscene, names, spp, seed, p = _request(dscene, loss, names, spp, seed, params)
     mi = dscene.mi
-    names = differentiable_names(dscene) if names is None else list(names)
-    check_names(dscene, names)
-    p = gradient_params(dscene, params)
-    spp = dscene.scene.spp if spp is None else int(spp)
     check_sample_count(p.time_correlate_number, spp, p.path_group_size, p.samples_per_pass)
     if method not in METHODS:
         raise DerivativeError(f"gradient: unknown method {method!r}: expected one of "
@@ -108,8 +106,41 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
         out = Gradient({name: _read_gradient(variables, name) for name in names})
     finally:
         restore()
-    out.image, out.loss, out.spp, out.seed, out.method = image, loss_value, spp, int(seed), method
+    out.image, out.loss, out.spp, out.seed, out.method = image, loss_value, spp, seed, method
     return out
+
+
+def _request(dscene, loss, names, spp, seed, params):
+    """:func:`gradient`'s arguments checked (issue 39: each wrong one named):
+    (DifferentiableScene, names, spp, seed, render parameters)."""
+    from ..arguments import check_callable, check_params, check_seed, check_spp
+
+    dscene = as_differentiable(dscene)
+    check_callable(loss, "loss", optional=False)
+    spp, seed = check_spp(spp), check_seed(seed)
+    names = differentiable_names(dscene) if names is None else _name_list(names)
+    check_names(dscene, names)
+    p = gradient_params(dscene, check_params(params))
+    return dscene, names, dscene.scene.spp if spp is None else spp, seed, p
+
+
+def as_differentiable(dscene):
+    """``dscene`` as a DifferentiableScene: one as is, a DopplerScene (or a plain
+    ``mi.Scene``) made one at its own velocities; anything else a TypeError saying what
+    to pass (a DopplerScene raised AttributeError 'no attribute mi': issue 39, A61)."""
+    from ..arguments import check_scene
+
+    if isinstance(dscene, DifferentiableScene):
+        return dscene
+    return DifferentiableScene(check_scene(dscene, "dscene"))
+
+
+def _name_list(names) -> list:
+    """``names`` as a list of parameter names (a str is one name's letters: refused)."""
+    if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+        raise TypeError(f"names must be a list of parameter names (one name: "
+                        f"[{names!r}]), got {type(names).__name__} {names!r}")
+    return list(names)
 
 
 def _primal(mi, setup, plan, sums, passes, path: bool):
@@ -272,15 +303,26 @@ def _loss_adjoint(mi, loss, image):
     tensor = mi.TensorXf(image)
     dr.enable_grad(tensor)
     value = loss(tensor)
-    adjoint = np.zeros(image.shape)
-    if dr.grad_enabled(value):
-        if dr.width(value) != 1:
-            raise DerivativeError(
-                f"gradient: the loss must be a scalar, got {dr.width(value)} values "
-                "(reduce it, e.g. with dr.sum or dr.mean)")
-        dr.backward(value)
-        adjoint = np.asarray(dr.grad(tensor), dtype=np.float64).reshape(image.shape)
-    return float(np.asarray(dr.detach(value)).ravel()[0]), adjoint
+    if not (dr.is_array_v(value) or isinstance(value, (int, float, np.number, np.ndarray))):
+        raise TypeError(f"gradient: the loss must return a scalar (a Dr.Jit Float of the "
+                        f"image), got {type(value).__name__} {value!r}")
+    if not dr.grad_enabled(value):  # every derivative would be 0: say why instead
+        raise DerivativeError(
+            f"gradient: the loss ({type(value).__name__}) does not depend on the image "
+            "through Dr.Jit: it is detached from automatic differentiation (computed "
+            "with NumPy, float() or dr.detach, or a constant); compute it with Dr.Jit "
+            "operations on the image tensor, e.g. dr.mean(dr.square(image - target))")
+    if dr.width(value) != 1:
+        raise DerivativeError(
+            f"gradient: the loss must be a scalar, got {dr.width(value)} values "
+            "(reduce it, e.g. with dr.sum or dr.mean)")
+    number = float(np.asarray(dr.detach(value)).ravel()[0])
+    if not math.isfinite(number):
+        raise DerivativeError(
+            f"gradient: the loss is {number} (not finite), so no derivative of it is; "
+            "check the loss for a division by zero, a log of zero or a NaN target")
+    dr.backward(value)
+    return number, np.asarray(dr.grad(tensor), dtype=np.float64).reshape(image.shape)
 
 
 class LaneAdjoint:

@@ -229,11 +229,12 @@ def _iteration(ds, captures, targets, residuals, names, spp, seed, weight):
 
 def _weighted_sum(mi, residual):
     """The loss whose gradient is the cross loss's: sum over pixels of 2 residual x
-    (the render's channel mean); a constant when there is no residual yet."""
+    (the render's channel mean); zero when there is no residual yet (a zero of the
+    image: gradient refuses a loss detached from it)."""
     import drjit as dr
 
     if residual is None:
-        return lambda image: 0.0
+        return lambda image: dr.sum(image - image, axis=None)
 
     def loss(image):
         channels = image.shape[-1]

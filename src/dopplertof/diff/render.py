@@ -66,8 +66,12 @@ class DifferentiableScene:
     """
 
     def __init__(self, scene, params=None, velocities=None, camera_velocity=None):
+        from ..arguments import check_mapping, check_params, check_scene
         from ..backend import require_variant
 
+        scene = check_scene(scene)
+        check_params(params)
+        check_mapping(velocities, "velocities")
         self.mi = mi = require_variant()
         if not dr_is_diff(mi):
             raise DerivativeError(

@@ -81,9 +81,12 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         raise ClusterError(f"--workers must be >= 1, got {n}")
     threads = max(MIN_DRJIT_THREADS, (os.cpu_count() or 1) // n)
     _start_resource_tracker_quietly()
-    with _workers_ignore_ctrl_c():
+    with _workers_ignore_ctrl_c() as held:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
+    if held:  # Ctrl-C while the cluster started: stop it, then act on the Ctrl-C
+        cluster.close()
+        _deliver_ctrl_c()
     try:
         with Client(cluster) as c, _dask_logs_to(c, log_file):
             yield c, threads
@@ -141,20 +144,42 @@ def _start_resource_tracker_quietly() -> None:
 
 @contextlib.contextmanager
 def _workers_ignore_ctrl_c():
-    """Start processes that ignore SIGINT (a child inherits an ignored signal): Ctrl-C
-    reaches every process of the terminal's group, and only this one should act on it,
-    by shutting the workers down, rather than each worker printing its traceback."""
+    """Start processes that never see Ctrl-C: it reaches every process of the terminal's
+    group, and only this one should act on it, by shutting the workers down, rather than
+    each worker printing its traceback. SIGINT is blocked in this thread while the block
+    runs: the threads started meanwhile (the cluster's) and the processes they spawn
+    inherit the blocked signal, across exec too. A Ctrl-C meanwhile is held, not lost:
+    yields a list that holds it once the block ends (it was ignored, SIG_IGN, and the run
+    went on to exit 0: issue 39, 2026-12-03 campaign G11, G18-G21); the caller stops
+    what it started, then :func:`_deliver_ctrl_c`."""
     import signal
     import threading
 
+    held: list = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield held
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = signal.getsignal(signal.SIGINT)
+    if previous not in (signal.SIG_IGN, None):
+        # (Python runs a handler in the main thread, even for a signal another thread
+        # took: recorded, not raised in the middle of the cluster's start)
+        signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        yield
+        yield held
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a held Ctrl-C arrives now
+        if previous not in (signal.SIG_IGN, None):
+            signal.signal(signal.SIGINT, previous)
+
+
+def _deliver_ctrl_c() -> None:
+    """The Ctrl-C :func:`_workers_ignore_ctrl_c` held, to this process's own handler (the
+    CLI's: the interrupt line and exit 130); KeyboardInterrupt where it does not raise."""
+    import signal
+
+    signal.raise_signal(signal.SIGINT)
+    raise KeyboardInterrupt
 
 
 def show_progress(progress) -> bool:
@@ -172,14 +197,36 @@ def run_in_folder(function, pending: list, output: str, *, scheduler=None, worke
         if threads:
             pending = [replace(t, threads=threads) for t in pending]
         return run_tasks(dask, function, pending, retries=retries, progress=progress,
-                         description=description, already_done=already_done)
+                         description=description, already_done=already_done,
+                         run=run_token(output))
+
+
+def run_token(output: str) -> str:
+    """What tells this run's tasks from every other run's on a shared scheduler: its
+    output folder (absolute) and a random part drawn once per run."""
+    import uuid
+
+    return f"{os.path.abspath(output)}\n{uuid.uuid4().hex}"
+
+
+def task_key(task, run: str) -> str:
+    """The Dask key of ``task`` in the run ``run`` (:func:`run_token`): the task's name
+    and a digest of its spec hash and the run, so that two runs of the same
+    configuration on one scheduler (into two folders, or one after the other) never
+    share a task (a shared key attaches the second run's futures to the first run's
+    results, rendered into the first run's folder: issue 39, P1-19 to P1-21)."""
+    from .tasks import spec_hash
+
+    return f"dopplertof-{task.name}-{spec_hash([task.hash, run])[:16]}"
 
 
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
               description: str = "tasks", already_done: int = 0,
-              no_worker_timeout: float | None = None) -> RunOutcome:
-    """Submit ``function(task)`` for every task (``task.name`` names it); collect
-    results and failures as they complete. A failing task does not stop the others.
+              no_worker_timeout: float | None = None, run: str | None = None) -> RunOutcome:
+    """Submit ``function(task)`` for every task (``task.name`` names it, under the key
+    :func:`task_key` of the run ``run``, default a fresh :func:`run_token` of the
+    working folder); collect results and failures as they complete. A failing task
+    does not stop the others.
     When the cluster has had no worker for ``no_worker_timeout`` seconds (default
     NO_WORKER_TIMEOUT), the tasks not finished are failures ("no Dask worker ...") and
     the run ends."""
@@ -189,9 +236,10 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
     started = time.perf_counter()
     outcome = RunOutcome()
     futures = {}
+    run = run or run_token(os.getcwd())
     for task in tasks:
-        key = f"dopplertof-{task.name}-{task.hash[:10]}"
-        future = client.submit(function, task, key=key, retries=retries, pure=False)
+        future = client.submit(function, task, key=task_key(task, run), retries=retries,
+                               pure=False)
         futures[future] = task
     bar = tqdm(total=len(tasks) + already_done, initial=already_done, unit="task",
                desc=description, disable=not show_progress(progress), file=sys.stderr,
