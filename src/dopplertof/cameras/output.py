@@ -13,8 +13,12 @@ from ..tof.output import prepare_folder
 
 #: the masks written, file stem -> (attribute of the reconstruction, what it means)
 MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
-         "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn"),
-         "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree"),
+         "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn, or "
+                                 "phase noise above 1 / min_snr"),
+         "mask_unwrap_failed": ("unwrap_failed", "a wrong wrap nearly as likely as the best, "
+                                "or the frequencies disagree beyond their noise"),
+         "mask_out_of_range": ("out_of_range", "nearer than min_range_m (by 3 sigma) or "
+                               "beyond max_range_m"),
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces (all False when "
                                   "kept: --keep-mixed-pixels)")}
 
@@ -42,7 +46,9 @@ def _write_camera_files(result, path) -> None:
         io.write_npy(path(f"{name}.npy"),
                      data if data.dtype.kind in "iu" else data.astype(np.float32))
     for name, (attribute, _) in MASKS.items():
-        io.write_npy(path(f"{name}.npy"), getattr(recon, attribute))
+        mask = getattr(recon, attribute)
+        io.write_npy(path(f"{name}.npy"),
+                     np.zeros(recon.depth.shape, bool) if mask is None else mask)
     _write_previews(result, path, camera)
     io.write_json(path("summary.json"), summary)
 
