@@ -227,20 +227,43 @@ def test_two_path_multipath_is_biased_or_flagged_never_a_wrap_off():
     assert np.mean((error < -0.2) | (error > 2.0)) < 1e-4  # between the paths, not a wrap off
 
 
-def test_kinect_v2_frequencies_never_report_a_wrap_off_under_noise():
+@pytest.mark.parametrize("name", ["kinect-v2", "azure-kinect", "opt8241", "mlx75027"])
+def test_every_cameras_frequencies_never_report_a_wrap_off_under_noise(name):
+    """Depths over each multi-frequency preset's range with 0.08 rad of phase noise at
+    every frequency: almost all reported, under 1e-4 a wrap off."""
+    from dopplertof.cameras import load_preset
     from dopplertof.cameras.unwrap import unwrap_likelihood
 
-    frequencies = (16e6, 80e6, 120e6)
+    preset = load_preset(name)
+    frequencies = [f * 1e6 for f in preset.frequencies_mhz]
+    far = preset.reconstruction["max_range_m"]
     rng = np.random.default_rng(3)
-    truth = rng.uniform(0.5, 18.0, 100_000)
-    sigmas = [0.03 * 120e6 / f for f in frequencies]
-    depths = [_wrapped(truth + rng.normal(0, s, truth.size), f)
+    truth = np.repeat(np.linspace(0.3, 0.95 * far, 400)[None, :], 150, axis=0)
+    sigmas = [C * 0.08 / (4 * math.pi * f) for f in frequencies]
+    depths = [_wrapped(truth + rng.normal(0, s, truth.shape), f)
               for s, f in zip(sigmas, frequencies)]
-    out = unwrap_likelihood(depths, [np.full(truth.size, s**2) for s in sigmas],
-                            frequencies, 18.75)
+    out = unwrap_likelihood(depths, [np.full(truth.shape, s**2) for s in sigmas],
+                            frequencies, far)
     valid = np.isfinite(out.depth)
     assert valid.mean() > 0.9
-    assert np.mean(np.abs(out.depth[valid] - truth[valid]) > 0.5) < 1e-4
+    assert np.mean(np.abs(out.depth[valid] - truth[valid]) > 0.25 * min(
+        C / (2 * f) for f in frequencies)) < 1e-4
+
+
+def test_a_bright_wall_saturates_nearer_than_the_operating_range_not_within_it(tmp_path):
+    """Every Azure mode: a 95% wall at the near end of its range is read unsaturated (the
+    specification ranges 95% walls from there), one at half that distance saturates and
+    is flagged."""
+    from dopplertof.cameras import load_preset
+
+    for name in ("azure-kinect", "azure-kinect-nfov-binned", "azure-kinect-wfov-binned",
+                 "azure-kinect-wfov-unbinned"):
+        preset = load_preset(name)
+        near = preset.reconstruction["min_range_m"]
+        inside, closer = wall(preset, near, 0.95, 2.2, spp=4), wall(preset, near / 2, 0.95,
+                                                                     2.2, spp=4)
+        assert inside.summary["noise"]["saturated_pixels"] == 0, name
+        assert closer.reconstruction.saturated.all() and np.isnan(closer.depth).all(), name
 
 
 # ---- The presets ------------------------------------------------------------------------------
