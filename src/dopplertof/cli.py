@@ -490,6 +490,9 @@ class _InterruptWatch:
     def __exit__(self, *exc_info):
         import signal
 
+        from .backend import INTERRUPT_SEEN
+
+        INTERRUPT_SEEN.clear()  # the command is over: a later one in this process commits
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             sys.unraisablehook = self._previous_hook
