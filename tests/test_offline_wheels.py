@@ -154,9 +154,15 @@ def python_for_wheelhouse():
     return sys.executable, f"{sys.version_info[0]}.{sys.version_info[1]}"
 
 
-@pytest.fixture(scope="module")
-def wheelhouse(tmp_path_factory):
-    """(folder, script's stdout, interpreter): the wheelhouse, built once for the module."""
+#: wheelhouses built in this run, by Python version
+BUILT = {}
+
+
+def build_wheelhouse(tmp_path_factory, version):
+    """(folder, the script's stdout) for CPython ``version``, built once per test run;
+    skipped where the package index cannot be reached."""
+    if version in BUILT:
+        return BUILT[version]
     probe_dir = tmp_path_factory.mktemp("probe")
     probe = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps",
                             "--disable-pip-version-check", "--only-binary=:all:", "-d",
@@ -165,13 +171,20 @@ def wheelhouse(tmp_path_factory):
     if probe.returncode != 0:
         last = (probe.stderr.strip().splitlines() or ["no output"])[-1]
         pytest.skip(f"the package index cannot be reached (pip download iniconfig: {last})")
-    python, version = python_for_wheelhouse()
-    out = tmp_path_factory.mktemp("wheelhouse") / "wheels"
+    out = tmp_path_factory.mktemp("wheelhouse") / f"wheels{version}"
     done = subprocess.run(["bash", SCRIPT, str(out), "--python-version", version],
                           capture_output=True, text=True, timeout=600,
                           env={**os.environ, "PYTHON": sys.executable})
     assert done.returncode == 0, done.stdout + done.stderr
-    return out, done.stdout, python
+    BUILT[version] = out, done.stdout
+    return BUILT[version]
+
+
+@pytest.fixture(scope="module")
+def wheelhouse(tmp_path_factory):
+    """(folder, script's stdout, interpreter): for Python 3.12 where one is found."""
+    python, version = python_for_wheelhouse()
+    return (*build_wheelhouse(tmp_path_factory, version), python)
 
 
 @pytest.mark.slow
@@ -230,3 +243,26 @@ def test_repacked_wheel_installs_offline_and_renders_with_llvm(wheelhouse, tmp_p
     assert words[:4] == ["shape", "(256,", "256,", "3)"], done.stdout
     mean = float(words[-1].strip("[]"))
     assert 0.05 < mean < 0.5, done.stdout  # the Cornell box's mean, about 0.147
+
+
+@pytest.mark.slow
+def test_gpu_check_installs_from_the_wheelhouse_and_passes_on_llvm(tmp_path_factory, tmp_path):
+    """tools/gpu_check.sh --wheelhouse, the dry run: the wheelhouse for this interpreter's
+    Python, installed into a scratch folder that the steps import mitsuba from."""
+    from dopplertof.backend import find_libllvm
+
+    if find_libllvm() is None:
+        pytest.skip("no libLLVM >= 16 on this machine for llvm_ad_rgb")
+    out, _ = build_wheelhouse(tmp_path_factory, f"{sys.version_info[0]}.{sys.version_info[1]}")
+    site = tmp_path / "site"
+    done = subprocess.run(["bash", os.path.join(ROOT, "tools", "gpu_check.sh"), "--wheelhouse",
+                           str(out), "--python", sys.executable, "--variant", "llvm_ad_rgb",
+                           "--quick", "--out", "check"], capture_output=True, text=True,
+                          timeout=400, cwd=tmp_path, env={**os.environ, "GPU_CHECK_SITE": str(site)})
+    assert done.returncode == 0, done.stdout + done.stderr
+    text = (tmp_path / "check" / "report.txt").read_text()
+    assert "software: mitsuba 3.9.1+rgb, drjit 1.5.0" in text and "install ok" in text
+    assert text.rstrip().endswith("result: PASS")
+    assert (site / "mitsuba-3.9.1+rgb.dist-info").is_dir()
+    assert "Successfully installed drjit-1.5.0 mitsuba-3.9.1+rgb" in (
+        tmp_path / "check" / "install.log").read_text()
