@@ -89,7 +89,8 @@ def test_repack_keeps_the_variants_asked_for_and_a_consistent_record(tmp_path):
     assert "mitsuba/data/srgb.coeff" not in names and "mitsuba/data/ior/Au.eta.spd" in names
     assert not [n for n in names if n.startswith(("mitsuba/include/", "mitsuba/cmake/"))]
     with zipfile.ZipFile(repacked) as z:
-        assert "MI_VARIANTS = ['cuda_ad_rgb', 'llvm_ad_rgb']" in z.read("mitsuba/config.py").decode()
+        config = z.read("mitsuba/config.py").decode()
+        assert "MI_VARIANTS = ['cuda_ad_rgb', 'llvm_ad_rgb']" in config
         assert b"Version: 3.9.1+rgb\n" in z.read("mitsuba-3.9.1+rgb.dist-info/METADATA")
     # pip installs it offline as any wheel (the file content is not a real Mitsuba)
     target = tmp_path / "site"
@@ -258,7 +259,8 @@ def test_gpu_check_installs_from_the_wheelhouse_and_passes_on_llvm(tmp_path_fact
     done = subprocess.run(["bash", os.path.join(ROOT, "tools", "gpu_check.sh"), "--wheelhouse",
                            str(out), "--python", sys.executable, "--variant", "llvm_ad_rgb",
                            "--quick", "--out", "check"], capture_output=True, text=True,
-                          timeout=400, cwd=tmp_path, env={**os.environ, "GPU_CHECK_SITE": str(site)})
+                          timeout=400, cwd=tmp_path,
+                          env={**os.environ, "GPU_CHECK_SITE": str(site)})
     assert done.returncode == 0, done.stdout + done.stderr
     text = (tmp_path / "check" / "report.txt").read_text()
     assert "software: mitsuba 3.9.1+rgb, drjit 1.5.0" in text and "install ok" in text
