@@ -8,6 +8,8 @@ compiles every kernel, and the median time of each is compared.
     .venv/bin/python benchmarks/throughput.py [--res 256] [--spp 64] [--repeats 5]
         [--variant llvm_ad_rgb] [--quick]
 
+Each comparison also prints `time per sample (LABEL): dopplertof X ns, stock path Y ns`
+(median time over resolution^2 x spp; tools/gpu_report.py divides CUDA's by LLVM's, issue 44).
 The last lines read `throughput ratio (2 moving bodies): X` (ours / stock time), the
 static ratio with a tent and a gaussian filter (stock Mitsuba's film splats too), and
 `splat film cost (gaussian): Y`: the time of the splat film (every sample weighted into
@@ -129,6 +131,9 @@ def compare(n_bodies: int, moving: bool, args, rfilter: str = "box") -> float:
     label += "" if rfilter == "box" else f", {rfilter}"
     print(f"{label:>18}: stock path {s:7.3f} s   dopplertof {o:7.3f} s   ratio {o / s:5.2f}",
           flush=True)
+    samples = args.res * args.res * args.spp
+    print(f"time per sample ({label}): dopplertof {o / samples * 1e9:.3f} ns, stock path "
+          f"{s / samples * 1e9:.3f} ns", flush=True)
     return o / s
 
 

@@ -7,7 +7,9 @@ step passed and no test of the checked variant failed or was skipped.
 
 LOGS holds ``steps.txt`` (one ``name status seconds`` line per step), ``junit.xml``
 (pytest's, with the agreement tests' properties), ``throughput.txt`` and, where the
-fused renders failed, ``throughput_fallback.txt`` (one scene per kernel).
+fused renders failed, ``throughput_fallback.txt`` (one scene per kernel); for a variant
+other than LLVM's, ``throughput_llvm.txt``: the two moving bodies with dopplertof on
+llvm_ad_rgb, whose time per sample the variant's is divided by (issue 44).
 """
 
 from __future__ import annotations
@@ -99,6 +101,10 @@ def agreement_lines(cases, variant: str) -> list:
     return lines or ["  (no agreement test ran)"]
 
 
+def _ns(value) -> str:
+    return "none" if value is None else f"{value:.4g} ns"
+
+
 def _short(text: str) -> str:
     try:
         return f"{float(text):.3g}"
@@ -111,6 +117,33 @@ def throughput_lines(path: str) -> list:
         return []
     with open(path, encoding="utf-8") as f:
         return [line.strip() for line in f if line.startswith("throughput ratio")]
+
+
+#: benchmarks/throughput.py's line for the two moving bodies (dopplertof's time per sample)
+PER_SAMPLE = re.compile(r"^time per sample \(2 moving bodies\): dopplertof ([0-9.eE+-]+) ns")
+
+
+def time_per_sample(path: str) -> float | None:
+    """dopplertof's time per sample (ns) on the two moving bodies, or None."""
+    if not os.path.exists(path):
+        return None
+    with open(path, encoding="utf-8") as f:
+        found = [PER_SAMPLE.match(line) for line in f]
+    values = [float(m.group(1)) for m in found if m]
+    return values[-1] if values else None
+
+
+def libllvm_description() -> str:
+    """The libLLVM the LLVM variants load here, or why there is none."""
+    try:
+        sys.path.insert(0, os.path.join(ROOT, "src"))
+        from dopplertof.backend import BackendError, ensure_libllvm
+    except ImportError as exc:
+        return f"unknown (dopplertof: {exc})"
+    try:
+        return ensure_libllvm()
+    except BackendError as exc:
+        return f"none ({exc})"
 
 
 def read_steps(path: str) -> list:
@@ -129,6 +162,11 @@ def report(variant: str, logs: str) -> tuple:
     tally = counts(cases, variant)
     ratios = throughput_lines(os.path.join(logs, "throughput.txt"))
     fallback = throughput_lines(os.path.join(logs, "throughput_fallback.txt"))
+    ours = time_per_sample(os.path.join(logs, "throughput.txt"))
+    if ours is None:
+        ours = time_per_sample(os.path.join(logs, "throughput_fallback.txt"))
+    on_llvm = variant.startswith("llvm_")
+    llvm = ours if on_llvm else time_per_sample(os.path.join(logs, "throughput_llvm.txt"))
     problems = [f"step {name}: {status}" for name, status, _ in steps if status != "ok"]
     if tally["failure"] or tally["error"]:
         problems.append(f"{tally['failure'] + tally['error']} {variant} test(s) failed")
@@ -138,9 +176,12 @@ def report(variant: str, logs: str) -> tuple:
         problems.append(f"no {variant} test passed")
     if not ratios:
         problems.append("no throughput ratio measured")
+    if not on_llvm and (ours is None or llvm is None):
+        problems.append("no time per sample against llvm_ad_rgb measured")
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     lines = [f"GPU check (tools/gpu_check.sh), {stamp}, variant {variant}",
              f"GPU: {gpu_description()}", f"software: {versions()}",
+             f"libLLVM: {libllvm_description()}",
              "steps: " + ", ".join(f"{n} {s} ({t} s)" for n, s, t in steps),
              f"gpu tests ({variant}): {tally['passed']} passed, "
              f"{tally['failure'] + tally['error']} failed, {tally['skipped']} skipped, "
@@ -151,6 +192,14 @@ def report(variant: str, logs: str) -> tuple:
     lines += [f"throughput against stock path on {variant} (ours / stock time):"]
     lines += [f"  {r}" for r in ratios] or ["  (none)"]
     lines += [f"  one scene per kernel: {r}" for r in fallback]
+    lines += ["against dopplertof on llvm_ad_rgb (time per sample, 2 moving bodies):"]
+    if on_llvm:
+        lines += ["  (the variant checked is LLVM's)"]
+    elif ours is None or llvm is None:
+        lines += [f"  (not measured: {variant} {_ns(ours)}, llvm_ad_rgb {_ns(llvm)})"]
+    else:
+        lines += [f"  {variant} {_ns(ours)}, llvm_ad_rgb {_ns(llvm)}: ratio "
+                  f"{ours / llvm:.3g} ({llvm / ours:.3g} times as fast as LLVM)"]
     lines.append("result: " + ("PASS" if not problems else "FAIL: " + "; ".join(problems)))
     return "\n".join(lines) + "\n", not problems
 
