@@ -53,6 +53,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..arguments import check_seed
+from .loss import cross_loss
 from .motion import VelocityMotion
 from .progress import IterationProgress
 from .settings import FIT_SPP, JACOBIAN_SHARE
@@ -618,7 +619,7 @@ def _gauss_newton(problem: _FitProblem, spp: int, iterations: int, tolerance: fl
     theta = problem.values()
     residuals, jacobians = problem.evaluate(spp)
     problem.seen = _metric(jacobians)[1]
-    loss, fresh = _cross_loss(residuals), True
+    loss, fresh = cross_loss(*residuals), True
     history = [problem.record(0, loss, spp, theta, started)]
     progress.update(history[-1])
     damping, done, stop = 1e-3, 0, f"{iterations} iterations"
@@ -663,7 +664,7 @@ def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, thet
         step = _trust(_damped_step(residuals, jacobians, damping, problem.seen), theta)
         problem.set_values(theta + step)
         new_residuals, _ = problem.evaluate(samples, jacobian=False)
-        new_loss = _cross_loss(new_residuals)
+        new_loss = cross_loss(*new_residuals)
         if new_loss < loss or damping > 1e3:
             return step, new_residuals, new_loss
         damping *= 10.0
@@ -741,15 +742,6 @@ def _blocks(masks, block: int) -> np.ndarray:
         label[on] = k * (tile.max() + 1) + tile[on]
     used = label[label >= 0]
     return np.unique(used, return_inverse=True)[1]
-
-
-def _cross_loss(residuals) -> float:
-    """(R_A - C) . (R_B - C): its expectation is the squared distance of the expected
-    render to the captures, without the renders' variance (which depends on the
-    velocities and would bias a fit of the plain squared loss, by O(1/spp)). It can be
-    negative (the two renders' noise), most often near the minimum."""
-    r_a, r_b = residuals
-    return float(r_a @ r_b)
 
 
 def _metric(jacobians, snr=0.5):

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .loss import residual, residual_weighted_loss
 from .progress import IterationProgress
 from .render import _MOTION_NAME, DerivativeError, check_names
 
@@ -215,32 +216,13 @@ def _iteration(ds, captures, targets, residuals, names, spp, seed, weight):
     total, loss = None, 0.0
     for c, (render_params, _) in captures.items():
         previous = residuals.get(c)
-        g = gradient(ds, _weighted_sum(ds.mi, previous), names=names, spp=spp, seed=seed,
-                     params=dict(render_params))
-        residual = g.image.astype(np.float64).mean(-1) - targets[c]
-        if weight is not None:
-            residual = residual * weight
-        residuals[c] = residual
-        loss += float(np.sum(residual * residual))
+        g = gradient(ds, residual_weighted_loss(ds.mi, previous), names=names, spp=spp,
+                     seed=seed, params=dict(render_params))
+        current = residuals[c] = residual(g.image, targets[c], weight)
+        loss += float(np.sum(current * current))
         if previous is not None:
             total = dict(g) if total is None else {n: total[n] + g[n] for n in names}
     return total, loss
-
-
-def _weighted_sum(mi, residual):
-    """The loss whose gradient is the cross loss's: sum over pixels of 2 residual x
-    (the render's channel mean); a constant when there is no residual yet."""
-    import drjit as dr
-
-    if residual is None:
-        return lambda image: 0.0
-
-    def loss(image):
-        channels = image.shape[-1]
-        weights = np.repeat((2.0 / channels) * residual[..., None], channels, axis=-1)
-        return dr.sum(image * mi.TensorXf(weights.astype(np.float32)), axis=None)
-
-    return loss
 
 
 def _inverse_line(entry: dict) -> str:
