@@ -1,5 +1,5 @@
-"""Command-line pieces several commands share: integer argument types and the
-repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
+"""Command-line pieces several commands share: integer argument types, ``--variant`` and
+the repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
 
 from __future__ import annotations
 
@@ -21,6 +21,12 @@ def int_at_least(minimum: int, wording: str):
         return value
 
     return parse
+
+
+def add_variant_option(p) -> None:
+    """``--variant``, of every command that renders."""
+    p.add_argument("--variant", default=None, metavar="VARIANT",
+                   help="Mitsuba variant (default llvm_ad_rgb)")
 
 
 positive_int = int_at_least(1, "a positive integer")
