@@ -496,3 +496,25 @@ def test_capture_camera_option_errors_write_nothing(tmp_path, args, message):
     done = run_cli("capture", str(scene), "-o", str(out), *args)
     assert done.returncode == 2 and message in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_keyframes_shorter_than_the_raw_frames_warn_once_naming_both_spans(tmp_path, capsys):
+    """issue 42: the starter sphere's 1.5 ms of keyframes through kinect-v2's raw frames
+    (about 13 ms) passed silently; the bodies stand still after their last keyframe."""
+    import json
+    import os
+
+    from dopplertof.cli import main
+
+    sphere = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          "examples", "translating_sphere.xml")
+    out = tmp_path / "out"
+    assert main(["capture", sphere, "--camera", "kinect-v2", "--res", "4x4", "--spp", "2",
+                 "--quiet", "--noiseless", "-o", str(out)]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    summary = json.loads((out / "summary.json").read_text())
+    first, last = summary["sequence_s"]
+    assert len(warnings) == 1 and warnings == [f"dopplertof: warning: {summary['warnings'][0]}"]
+    assert "the keyframes (0 to 0.0015 s) cover" in warnings[0]
+    assert f"of the raw frames ({first:g} to {last:g} s)" in warnings[0]
+    assert last - first > 0.01

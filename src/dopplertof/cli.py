@@ -8,7 +8,7 @@ import sys
 
 from .demo import DEMO_RES, DEMO_SPP
 from .cli_options import (FOLDER_HELP, add_defines_option, add_params_option, add_variant_option,
-                          parse_pairs)
+                          parse_pairs, print_warnings)
 
 
 class UsageError(Exception):
@@ -264,7 +264,7 @@ def _cmd_render(args) -> int:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
-    _print_warnings(result.metadata)
+    print_warnings(result.metadata)
     if "resumed_from_samples" in result.metadata:
         print(f"dopplertof: resumed from checkpoint {args.checkpoint}: "
               f"{result.metadata['resumed_from_samples']:g} of {result.metadata['spp']} "
@@ -279,12 +279,6 @@ def _cmd_render(args) -> int:
                  "per pixel)" if "sample_counts" in md else "")
               + f", {md['render_seconds']:.1f} s")
     return 0
-
-
-def _print_warnings(record: dict) -> None:
-    """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
-    for warning in record.get("warnings", ()):
-        print(f"dopplertof: warning: {warning}", file=sys.stderr)
 
 
 _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
@@ -331,7 +325,7 @@ def _cmd_capture(args) -> int:
     result.write(args.output)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         remove_checkpoint(args.checkpoint)
-    _print_warnings(result.summary)
+    print_warnings(result.summary)
     print(format_summary(result.summary, args.output))
     from .tof.precision import format_precision
 

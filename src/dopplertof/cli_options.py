@@ -4,6 +4,7 @@ the repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
 from __future__ import annotations
 
 import argparse
+import sys
 
 #: what every command's --help says about its output folder (io.make_output_folder)
 FOLDER_HELP = "created, with missing parents, if missing"
@@ -27,6 +28,12 @@ def add_variant_option(p) -> None:
     """``--variant``, of every command that renders."""
     p.add_argument("--variant", default=None, metavar="VARIANT",
                    help="Mitsuba variant (default llvm_ad_rgb)")
+
+
+def print_warnings(record: dict) -> None:
+    """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
+    for warning in record.get("warnings", ()):
+        print(f"dopplertof: warning: {warning}", file=sys.stderr)
 
 
 positive_int = int_at_least(1, "a positive integer")

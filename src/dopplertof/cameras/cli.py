@@ -98,6 +98,7 @@ def _wiggling(args) -> int:
 def _compare(args) -> int:
     import dopplertof
 
+    from ..cli_options import print_warnings
     from .capture import capture_through, format_camera_summary, parse_resolution
     from .figures import write_camera_comparison
     from .preset import load_preset, preset_names
@@ -115,6 +116,7 @@ def _compare(args) -> int:
                               noise=not args.noiseless, progress=False)
     for result in results:
         print(format_camera_summary(result.summary))
+        print_warnings(result.summary)
     write_camera_comparison(path, results, f"{os.path.basename(args.compare)} through "
                             f"{len(results)} cameras, {args.spp} spp per raw frame"
                             + (", no shot or read noise" if args.noiseless else ""))
@@ -143,7 +145,7 @@ def run_camera_capture(args, load_defines) -> int:
     """``capture SCENE --camera NAME -o DIR``; ``load_defines``: the -D values."""
     import dopplertof
 
-    from ..cli_options import parse_pairs
+    from ..cli_options import parse_pairs, print_warnings
     from ..tof import prepare_folder
     from .capture import (capture_camera, format_camera_summary, load_scene_for_camera,
                           parse_resolution)
@@ -174,4 +176,5 @@ def run_camera_capture(args, load_defines) -> int:
 
         remove_checkpoint(args.checkpoint)
     print(format_camera_summary(result.summary, os.fspath(args.output)))
+    print_warnings(result.summary)
     return 0

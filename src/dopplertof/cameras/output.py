@@ -17,8 +17,9 @@ from ..tof.output import prepare_folder
 MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
          "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn"),
          "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree"),
-         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces (all False when "
-                                  "kept: --keep-mixed-pixels)")}
+         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
+                                  "sequence (from the scene's geometry; NaN in the maps "
+                                  "unless kept: --keep-mixed-pixels)")}
 
 
 def write_camera_result(result, folder) -> list:
@@ -42,10 +43,19 @@ def write_camera_result(result, folder) -> list:
         io.write_npy(path(f"{name}.npy"),
                      data if data.dtype.kind in "iu" else data.astype(np.float32))
     for name, (attribute, _) in MASKS.items():
-        io.write_npy(path(f"{name}.npy"), getattr(recon, attribute))
+        io.write_npy(path(f"{name}.npy"), _mask(result, attribute))
     _write_previews(result, path, camera)
     io.write_json(path("summary.json"), summary)
     return written
+
+
+def _mask(result, attribute: str) -> np.ndarray:
+    """The reconstruction's mask ``attribute``; the mixed footprints from the geometry,
+    whether masked or kept (issue 42: kept, the reconstruction's mask is all False and
+    the information was lost)."""
+    if attribute == "mixed" and result.mixed_footprints is not None:
+        return np.asarray(result.mixed_footprints, bool)
+    return getattr(result.reconstruction, attribute)
 
 
 def masked_caption(recon, truth=None) -> str:
