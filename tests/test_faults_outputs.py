@@ -381,3 +381,21 @@ def test_the_cli_says_it_in_one_line_with_exit_2(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert err == f"dopplertof: error: {out}: file too large (the file size limit)\n"
+
+
+def test_json_floats_are_written_to_fifteen_significant_digits(tmp_path):
+    """issue 42: a sum's rounding (0.1 * 0.1 = 0.010000000000000002, 0.03 - 0.02 =
+    0.009999999999999998) read as noise in summary.json; float32 values keep their
+    shortest decimal; integers, infinities and NaN pass as they are."""
+    import json
+
+    from dopplertof import io
+
+    path = tmp_path / "a.json"
+    io.write_json(path, {"a": 0.03 - 0.02, "b": [0.1 * 0.1, np.float64(1 / 3)],
+                         "c": np.float32(0.0015), "d": 7, "e": float("inf"), "f": 123456.789})
+    text = path.read_text()
+    assert "0.0099999" not in text and "0.0100000" not in text
+    got = json.loads(text)
+    assert got["a"] == 0.01 and got["b"] == [0.01, 0.333333333333333] and got["c"] == 0.0015
+    assert got["d"] == 7 and got["e"] == float("inf") and got["f"] == 123456.789

@@ -49,6 +49,24 @@ class InverseResult:
     history: list = field(default_factory=list)  #: per iteration: loss, seconds, scalars
     settings: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the values (an array by its shape and mean), the iterations and the
+        last loss; not the history (issue 42: print() showed all of it)."""
+        values = ", ".join(f"{n}: {_short(v)}" for n, v in self.values.items())
+        last = self.history[-1] if self.history else {}
+        loss = f", loss {last['loss']:.4g}" if "loss" in last else ""
+        return (f"InverseResult({values}; {max(len(self.history) - 1, 0)} iterations{loss}; "
+                "history and settings: .history, .settings)")
+
+
+def _short(value) -> str:
+    """A fitted value in a few characters: a float to 6 digits, an array by its shape
+    and mean."""
+    array = np.asarray(value)
+    if array.ndim == 0:
+        return f"{float(array):.6g}"
+    return f"array{array.shape} mean {float(array.mean()):.4g}"
+
 
 def group_of(name: str) -> str:
     """The step-size group of a parameter name: velocity, angular or reflectance."""
