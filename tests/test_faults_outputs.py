@@ -173,7 +173,7 @@ def test_files_that_are_not_the_captures_are_left_alone(captures, cheap_previews
 # ---- Item 11: the other commands' output sets -----------------------------------------
 
 def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatch):
-    from dopplertof.diff import fit
+    from dopplertof.diff import fit, fit_output
 
     result = fit.FitResult(bodies=[{"name": "box"}], iterations=1, loss=1.0,
                            history=[{"iteration": 0, "loss": 1.0, "radial_velocity_m_s": [2.0]}])
@@ -183,7 +183,7 @@ def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatc
     def plot_fails(result, path):
         raise RuntimeError("injected failure in the plot")
 
-    monkeypatch.setattr(fit, "write_convergence_plot", plot_fails)
+    monkeypatch.setattr(fit_output, "write_convergence_plot", plot_fails)
     with pytest.raises(RuntimeError, match="injected"):
         fit.write_fit(fit.FitResult(bodies=[], iterations=2, loss=0.5), tmp_path)
     assert _snapshot(tmp_path) == before  # fit.json is still the first fit's

@@ -325,7 +325,7 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     """A parameter the captures do not see stays at its start with an infinite
     uncertainty (afb2c4e moved such parameters: 27.5 +- 1132 m/s); the fit stops once a
     step no longer lowers the loss by 1%, well before its iteration limit."""
-    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
 
     problem = _LinearProblem([0.5, -1.0, 3.0])
     silent = _fit_progress(False, 50)
@@ -359,7 +359,7 @@ def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
     """The predicted standard deviation matches the spread of fits over independent
     captures and renders within 10% (the fit averages the two seeds' renders, so half
     their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
-    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(11)
     fitted, predicted = [], []
@@ -402,7 +402,8 @@ def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():
 def test_convergence_plot_draws_no_negative_loss_on_its_log_axis(tmp_path, monkeypatch):
     """afb2c4e drew max(loss, 1e-300): a negative cross loss fell to 1e-300."""
     from dopplertof import io
-    from dopplertof.diff.fit import FitResult, write_convergence_plot
+    from dopplertof.diff.fit_output import FitResult
+    from dopplertof.diff.fit_plots import write_convergence_plot
 
     history = [{"iteration": i, "loss": loss, "radial_velocity_m_s": [-10.0]}
                for i, loss in enumerate([4e-7, 3e-8, -2e-9, 1e-9])]

@@ -179,7 +179,7 @@ TOLERANCE = 0.02
 def test_fit_reflectances_are_the_uniform_ones_and_shift_every_channel(tmp_path):
     import dopplertof
     from dopplertof.diff import DifferentiableScene
-    from dopplertof.diff.fit import _Reflectances, reflectance_keys
+    from dopplertof.diff.fit_solve import _Reflectances, reflectance_keys
     from dopplertof.diff.inverse import get_value
 
     dopplertof.set_variant("llvm_ad_rgb")
