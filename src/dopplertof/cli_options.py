@@ -24,10 +24,10 @@ def int_at_least(minimum: int, wording: str):
     return parse
 
 
-def add_variant_option(p) -> None:
-    """``--variant``, of every command that renders."""
+def add_variant_option(p, what: str = "Mitsuba variant") -> None:
+    """``--variant``, of every command that renders (``what``: the kind it needs)."""
     p.add_argument("--variant", default=None, metavar="VARIANT",
-                   help="Mitsuba variant (default llvm_ad_rgb)")
+                   help=f"{what} (default llvm_ad_rgb)")
 
 
 def print_warnings(record: dict) -> None:

@@ -89,7 +89,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     seed = check_seed(seed, "seed", FitError)  # (renders of seed and seed + 1: < 2^64)
     check_seed(seed + 1, "seed + 1 (the Jacobian's renders)", FitError)
     # bodies at their poses at mid-exposure (from the scene), velocities to be fitted
-    motions, t_mid = _motions_at_mid_exposure(data)
+    motions, truths, t_mid = _motions_at_mid_exposure(data)
     geometry = _truth(data.scene, motions, data.base)
     masks = _interior_masks(data.scene, geometry)
 
@@ -107,9 +107,10 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         problem, spp, iterations, tolerance, plateau, _fit_progress(progress, iterations), started)
     loss = history[-1]["loss"]
 
-    # ---- Uncertainties from the final Jacobian ----
+    # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
     cov, sigma = _covariance(state, problem.seen)
-    bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form)
+    bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths)
+    warnings = [] if angular else problem.rotation_warnings(state, bodies)
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(problem.fitted),
         "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed,
@@ -119,12 +120,20 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         "parameters": problem.names, "angular": bool(angular),
         "start": "user" if start else "closed form (velocity.npy)",
         **_method_notes(t_mid, tolerance, plateau),
-        "stopped": stop,
-        "unconstrained": [n for n, ok in zip(problem.names, problem.seen) if not ok],
+        "stopped": stop, **_unconstrained(problem.names, theta, history[0], sigma),
         "seconds": round(_time.perf_counter() - started, 3),
     }
     return FitResult(bodies, done, loss, history, settings,
-                     problem.reflectance_entries(theta, sigma))
+                     problem.reflectance_entries(theta, sigma), warnings)
+
+
+def _unconstrained(names, theta, first: dict, sigma) -> dict:
+    """fit.json's settings that name the parameters without an uncertainty at the end
+    (``unconstrained``) and those of them the fit never moved (``kept_at_start``)."""
+    start = np.asarray(first["parameters"], np.float64)
+    loose = [i for i, s in enumerate(sigma) if not np.isfinite(s)]
+    return {"unconstrained": [names[i] for i in loose],
+            "kept_at_start": [names[i] for i in loose if theta[i] == start[i]]}
 
 
 def _jacobian_samples(spp: int, jacobian_spp, base) -> int:
@@ -155,6 +164,8 @@ def _jacobian_samples(spp: int, jacobian_spp, base) -> int:
 
 def _motions_at_mid_exposure(data: CaptureData):
     """Each body's VelocityMotion about its pose at mid-exposure t_mid (velocities 0),
+    the truth (per body (v, omega) of the capture scene's keyframed motion: its chord
+    over the exposure about the same pivot, exact for two keyframes of a rigid motion),
     and t_mid."""
     from ..tof.ground_truth import mid_exposure
 
@@ -163,9 +174,11 @@ def _motions_at_mid_exposure(data: CaptureData):
     t_mid = 0.5 * (t0 + t1)
     motions = [VelocityMotion.from_motion(b.motion, t0, t1, t_ref=t_mid)
                for b in scene.bodies]
+    truths = [([float(x) for x in m.velocity], [float(x) for x in m.angular_velocity])
+              for m in motions]
     for m in motions:
         m.velocity, m.angular_velocity = [0.0] * 3, [0.0] * 3
-    return motions, t_mid
+    return motions, truths, t_mid
 
 
 def _interior_masks(scene, geometry) -> list:

@@ -18,12 +18,15 @@ class FitResult:
     history: list = field(default_factory=list)
     settings: dict = field(default_factory=dict)
     reflectances: dict = field(default_factory=dict)  #: key -> value, uncertainty (fitted)
+    warnings: list = field(default_factory=list)  #: e.g. a body's unfitted rotation
 
     def as_json(self) -> dict:
         out = {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,
                "history": self.history, "settings": self.settings}
         if self.reflectances:
             out["reflectances"] = self.reflectances
+        if self.warnings:
+            out["warnings"] = self.warnings
         return out
 
 
@@ -38,14 +41,30 @@ def write_fit(result: FitResult, folder) -> list:
     return staged.written
 
 
-def _vector(values, uncertainties, unit: str) -> str:
-    """(x, y, z) +- (sx, sy, sz) unit; a component without an uncertainty (not seen by
-    the captures) is marked as kept at its start."""
+def _vector(values, uncertainties, unit: str, statuses=None) -> str:
+    """(x +- sx, y +- sy, z +- sz) unit; a component without an uncertainty says what
+    happened to it (its status in fit.json: kept at its start, or moved and unconstrained
+    at the end; issue 42: every such component read "kept at its start")."""
     parts = []
-    for value, sigma in zip(values, uncertainties or [None] * 3):
-        parts.append(f"{value:+.3f} (not seen: kept at its start)" if sigma is None
+    for value, sigma, status in zip(values, uncertainties or [None] * 3,
+                                    statuses or ["no uncertainty"] * 3):
+        parts.append(f"{value:+.3f} ({status})" if sigma is None
                      else f"{value:+.3f} +- {sigma:.3f}")
     return f"({', '.join(parts)}) {unit}"
+
+
+def _truth_line(body: dict, kind: str, unit: str, shown: str) -> list:
+    """The line under a fitted vector: the capture's 3-D truth and the per-component
+    errors (in m/s or rad/s, and in reported standard deviations where there is one);
+    none where fit.json has no truth."""
+    key = "m_s" if unit == "m/s" else "rad_s"
+    truth = body.get(f"truth_{kind}_velocity_{key}")
+    if truth is None:
+        return []
+    errors = [f"{e:+.3f}" + ("" if z is None else f" ({z:+.1f} sd)") for e, z in zip(
+        body[f"{kind}_velocity_error_{key}"], body[f"{kind}_velocity_error_sigmas"])]
+    return [f"    {shown}truth ({', '.join(f'{t:+.3f}' for t in truth)}) {unit}, "
+            f"error ({', '.join(errors)}) {unit}"]
 
 
 def _error(value: float, truth) -> str:
@@ -66,10 +85,15 @@ def format_fit(result: FitResult) -> str:
     for b in result.bodies:
         lines.append(f"  {b['name']}: linear velocity "
                      + _vector(b["linear_velocity_m_s"], b["linear_velocity_uncertainty_m_s"],
-                               "m/s"))
+                               "m/s", b.get("linear_velocity_status")))
+        lines += _truth_line(b, "linear", "m/s", "")
         if b.get("angular_velocity_uncertainty_rad_s") is not None:
             lines.append("    angular velocity " + _vector(
-                b["angular_velocity_rad_s"], b["angular_velocity_uncertainty_rad_s"], "rad/s"))
+                b["angular_velocity_rad_s"], b["angular_velocity_uncertainty_rad_s"], "rad/s",
+                b.get("angular_velocity_status")))
+            lines += _truth_line(b, "angular", "rad/s", "")
+        elif any(abs(w) > 1e-6 for w in b.get("truth_angular_velocity_rad_s") or []):
+            lines += _truth_line(b, "angular", "rad/s", "angular velocity not fitted; ")
         lines.append(f"    radial velocity {b['radial_velocity_m_s']:+.3f} "
                      f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s (median over the body)"
                      + _error(b["radial_velocity_m_s"], b.get("capture_velocity_gt_median_m_s")))

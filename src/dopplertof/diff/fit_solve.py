@@ -99,19 +99,25 @@ class _FitProblem:
         interreflected light it changes there is a small part of a Jacobian that
         Gauss-Newton needs only approximately), half the derivative passes of all the
         parameters over all the pixels."""
-        from .render import render_derivatives
-
-        jacobians = []
         # column groups: each body's motion over its own pixels, the reflectances over all
         groups = [(self.names[k * self.per_body:(k + 1) * self.per_body], pixels,
                    k * self.per_body) for k, pixels in enumerate(self.body_pixels)]
         if self.reflectances.keys:
             groups.append((self.reflectances.keys, self.pixels,
                            len(self.motions) * self.per_body))
+        return self._columns(groups, len(self.names))
+
+    def _columns(self, groups, width: int):
+        """Per seed (A, B), the residuals' derivatives (rows, ``width``) for column
+        ``groups`` of (names, the pixels they are rendered over, their first column),
+        from renders at ``jacobian_spp``."""
+        from .render import render_derivatives
+
+        out = []
         for seed in self.seeds:
             columns = []
             for c in self.fitted:
-                block = np.zeros((self.n_groups, len(self.names)))
+                block = np.zeros((self.n_groups, width))
                 for names, pixels, first in groups:
                     d = render_derivatives(self.scenes[c], names, spp=self.jacobian_spp,
                                            seed=seed, pixels=pixels)
@@ -119,8 +125,32 @@ class _FitProblem:
                         block[:, first + j] = self.pool(
                             d.tangents[n].mean(-1).ravel()[self.pixels])
                 columns.append(block)
-            jacobians.append(np.concatenate(columns))
-        return tuple(jacobians)
+            out.append(np.concatenate(columns))
+        return tuple(out)
+
+    def rotation_warnings(self, state, bodies) -> list:
+        """Without angular velocities fitted: per body, whether its residuals show an
+        unfitted rotation (:func:`_rotation_evidence`, from the derivatives of its
+        angular velocity over its pixels at the end), recorded in its entry
+        (``unfitted_rotation``); the warnings of the bodies that do, each naming the body
+        and the evidence."""
+        warnings = []
+        for k, pixels in enumerate(self.body_pixels):
+            names = [f"body{k}.w{a}" for a in "xyz"]
+            extra = self._columns([(names, pixels, 0)], 3)
+            evidence = _rotation_evidence(state, extra, self.seen)
+            bodies[k]["unfitted_rotation"] = evidence
+            if evidence["chi_square"] > ROTATION_CHI_SQUARE:
+                omega = ", ".join(f"{w:+.3g}" for w in evidence["angular_velocity_rad_s"])
+                warnings.append(
+                    f"body {k} ({bodies[k]['name']}): its residuals show an unfitted rotation: "
+                    f"an angular velocity of about ({omega}) rad/s would lower the loss by "
+                    f"{evidence['chi_square']:.3g} times the residuals' variance (chi-square "
+                    f"of 3 degrees of freedom, above {ROTATION_CHI_SQUARE:g} once in 10^5 "
+                    f"without a rotation), leaving {evidence['squared_residual_left']:.1%} of "
+                    "the squared residual; its linear velocity absorbs the rotation: fit "
+                    "again with --angular")
+        return warnings
 
     def radial(self) -> list:
         """Each body's median radial velocity at the current motions (the truth's)."""
@@ -152,36 +182,45 @@ class _FitProblem:
         self.set_values(theta)
         return grad_radial
 
-    def body_entries(self, theta, cov, sigma, first: dict, closed_form) -> list:
+    def body_entries(self, theta, cov, sigma, first: dict, closed_form, truths=None) -> list:
         """fit.json's per-body entries at the fitted ``theta`` (the current motions),
-        with the uncertainties from ``cov`` and ``sigma``, the start (``first``: the
-        history's first entry) and the capture's own record of the body."""
+        with the uncertainties from ``cov`` and ``sigma``, what happened to each
+        component (:func:`_statuses`), the start (``first``: the history's first entry),
+        the capture's own record of the body and, with ``truths`` (per body (v, omega)
+        of the capture's scene), the 3-D truth and the per-component errors."""
         radial = self.radial()
         # the radial velocities' derivatives (central differences of the truth; linear in u)
         grad_radial = self.radial_gradient(theta)
         per, bodies = self.per_body, []
+        start = np.asarray(first["parameters"], np.float64)
         for k, m in enumerate(self.motions):
             g = grad_radial[k]
+            linear, angular = slice(k * per, k * per + 3), slice(k * per + 3, k * per + 6)
             entry = {
                 "name": ", ".join(self.data.scene.bodies[k].names),
                 "radial_velocity_m_s": radial[k],
                 "radial_velocity_uncertainty_m_s": float(np.sqrt(max(g @ cov @ g, 0.0))),
-                "linear_velocity_m_s": theta[k * per:k * per + 3].tolist(),
-                "linear_velocity_uncertainty_m_s": _or_none(sigma[k * per:k * per + 3]),
+                "linear_velocity_m_s": theta[linear].tolist(),
+                "linear_velocity_uncertainty_m_s": _or_none(sigma[linear]),
+                "linear_velocity_status": _statuses(theta[linear], start[linear], sigma[linear]),
                 "angular_velocity_rad_s": [float(x) for x in m.angular_velocity],
                 "angular_velocity_uncertainty_rad_s": (
-                    _or_none(sigma[k * per + 3:k * per + 6]) if self.angular else None),
+                    _or_none(sigma[angular]) if self.angular else None),
+                "angular_velocity_status": (
+                    _statuses(theta[angular], start[angular], sigma[angular]) if self.angular
+                    else [NOT_FITTED] * 3),
                 "pivot_m": m.pivot,
-                "start_linear_velocity_m_s": first["parameters"][k * per:k * per + 3],
+                "start_linear_velocity_m_s": first["parameters"][linear],
                 "start_radial_velocity_m_s": first["radial_velocity_m_s"][k],
                 "closed_form_linear_velocity_m_s": (None if closed_form[k] is None
                                                     else closed_form[k].tolist()),
                 "interior_pixels": int(self.masks[k].sum()),
             }
+            if truths is not None:
+                entry.update(_truth_entries(entry, *truths[k]))
             _add_capture_record(entry, self.data.summary)
             bodies.append(entry)
         return bodies
-
 
     def reflectance_entries(self, theta, sigma) -> dict:
         """fit.json's reflectances: per key its fitted value (the channels' mean), the
@@ -228,6 +267,38 @@ class _Reflectances:
             if float(value) != self.current[key]:
                 self.current[key] = float(value)
                 set_value(self.ds, key, self.channels(key))
+
+
+#: what happened to a component of a body's motion (fit.json's ``*_status``, the printout)
+FITTED = "fitted"
+KEPT = "not seen: kept at its start"
+MOVED_UNCONSTRAINED = "moved from its start, unconstrained at the end: no uncertainty"
+NOT_FITTED = "not fitted (held at 0; --angular fits it)"
+
+
+def _statuses(values, start, sigma) -> list:
+    """Per component: :data:`FITTED` (a finite uncertainty), else :data:`KEPT` where the
+    value is its start's, else :data:`MOVED_UNCONSTRAINED` (issue 42: a component the
+    start's Jacobian saw and the fit moved, 0 to 20.4 rad/s, but the final Jacobian did
+    not constrain, was labelled as kept at its start)."""
+    return [FITTED if np.isfinite(s) else KEPT if v == s0 else MOVED_UNCONSTRAINED
+            for v, s0, s in zip(values, start, sigma)]
+
+
+def _truth_entries(entry: dict, v_true, w_true) -> dict:
+    """fit.json's 3-D truth of a body (the capture scene's motion about the same pivot)
+    and the per-component errors, in m/s (rad/s) and in reported standard deviations
+    (None without one)."""
+    out = {"truth_linear_velocity_m_s": [float(x) for x in v_true],
+           "truth_angular_velocity_rad_s": [float(x) for x in w_true]}
+    for kind, unit, truth in (("linear", "m_s", v_true), ("angular", "rad_s", w_true)):
+        fitted = np.asarray(entry[f"{kind}_velocity_{unit}"], np.float64)
+        error = fitted - np.asarray(truth, np.float64)
+        sigma = entry[f"{kind}_velocity_uncertainty_{unit}"] or [None] * 3
+        out[f"{kind}_velocity_error_{unit}"] = error.tolist()
+        out[f"{kind}_velocity_error_sigmas"] = [
+            None if s is None or s == 0 else float(e / s) for e, s in zip(error, sigma)]
+    return out
 
 
 def _add_capture_record(entry: dict, summary: dict) -> None:
@@ -304,6 +375,59 @@ def _damped_trials(problem: _FitProblem, residuals, jacobians, loss: float, thet
         damping *= 10.0
 
 
+#: the chi-square (3 degrees of freedom) of an unfitted rotation's loss reduction above
+#: which ``fit`` warns: exceeded by chance once in about 10^5 fits of a body without one
+ROTATION_CHI_SQUARE = 25.9
+
+
+def _rotation_evidence(state, extra, seen) -> dict:
+    """How much an angular velocity would lower the cross loss at the end of a fit
+    without one (Gauss-Newton's predicted reduction g^T G^+ g with its columns ``extra``
+    beside the fitted ones, less that without them: a score test), in units of the
+    residuals' variance s^2 (:func:`_residual_variance`): about chi-square of 3 degrees
+    of freedom for a body that does not turn; and the angular velocity of that step."""
+    (r_a, r_b), (J_a, J_b) = state
+    n = J_a.shape[1]
+    jacobians = (np.hstack([J_a, extra[0]]), np.hstack([J_b, extra[1]]))
+    G, seen_all = _metric(jacobians)
+    g = 0.5 * (jacobians[0].T @ r_b + jacobians[1].T @ r_a)
+    fitted = np.concatenate([seen & seen_all[:n], np.zeros(3, bool)])
+    both = np.concatenate([fitted[:n], seen_all[n:]])
+    (without, _), (with_rotation, step) = (_predicted_reduction(G, g, mask)
+                                           for mask in (fitted, both))
+    gain = max(with_rotation - without, 0.0)
+    # s^2 of the residuals the fit with the rotation would leave (an F test: the
+    # rotation's misfit left in them would hide it in its own noise)
+    s2 = _residual_variance((r_a, r_b), int(both.sum()), with_rotation)
+    chi_square = gain / s2 if s2 > 0 else 0.0
+    energy = float(np.sum(np.square(0.5 * (r_a + r_b))))
+    return {"chi_square": float(chi_square),
+            "squared_residual_left": float(max(energy - with_rotation, 0.0) / energy
+                                           if energy > 0 else 1.0),
+            "angular_velocity_rad_s": [float(x) for x in step[n:]],
+            "seen": [bool(x) for x in seen_all[n:]],
+            "threshold": ROTATION_CHI_SQUARE}
+
+
+def _predicted_reduction(G, g, mask):
+    """Gauss-Newton's (predicted reduction of the cross loss, step) over the parameters
+    ``mask``: the step -G^+ g (columns scaled, directions below RCOND^2 dropped) and
+    g^T G^+ g."""
+    step = _scaled_step(G, g, mask)
+    return float(-g @ step), step
+
+
+def _residual_variance(residuals, parameters: int, explained: float = 0.0) -> float:
+    """s^2: the squared residual of the two renders' mean over its degrees of freedom
+    (the capture's noise and half of one render's, as in the fitted velocities, whose
+    steps average the two seeds' residuals; positive, as the cross loss need not be),
+    less ``explained`` (a step's predicted reduction: the residual it would leave)."""
+    r_a, r_b = residuals
+    mean_residual = 0.5 * (r_a + r_b)
+    energy = float(mean_residual @ mean_residual)
+    return max(energy - explained, 1e-3 * energy) / max(len(r_a) - parameters, 1)
+
+
 def _covariance(state, seen):
     """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the squared
     residual of the two final renders' mean over its degrees of freedom (the capture's
@@ -311,18 +435,16 @@ def _covariance(state, seen):
     two seeds' residuals; positive, as the cross loss need not be), over the parameters
     ``seen`` (that the final Jacobian sees too); and the standard deviations (inf for a
     parameter not seen: unconstrained)."""
-    (r_a, r_b), jacobians = state
+    residuals, jacobians = state
     G, seen_now = _metric(jacobians)
     seen = seen & seen_now
     n = G.shape[0]
-    dof = max(len(r_a) - int(seen.sum()), 1)
-    mean_residual = 0.5 * (r_a + r_b)
-    energy = float(mean_residual @ mean_residual)
+    s2 = _residual_variance(residuals, int(seen.sum()))
     cov = np.zeros((n, n))
     if seen.any():
         scale = np.sqrt(np.diag(G)[seen])
         Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
-        cov[np.ix_(seen, seen)] = ((energy / dof) * _truncated_inverse(Gs, RCOND ** 2)
+        cov[np.ix_(seen, seen)] = (s2 * _truncated_inverse(Gs, RCOND ** 2)
                                    / np.outer(scale, scale))
     sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
     return cov, sigma
@@ -398,18 +520,23 @@ def _metric(jacobians, snr=0.5):
 def _damped_step(residuals, jacobians, damping, seen, rcond=RCOND):
     """The Levenberg-Marquardt step of the cross loss, -(G + damping diag(G))^+ g with
     g = (J_A^T r_B + J_B^T r_A) / 2 and G from :func:`_metric`, over the parameters
-    ``seen``, in the directions whose eigenvalue (columns scaled by G's diagonal)
-    reaches ``rcond``^2 of the largest."""
+    ``seen`` (:func:`_scaled_step`)."""
     (r_a, r_b), (J_a, J_b) = residuals, jacobians
     G = _metric(jacobians)[0]
-    step = np.zeros(J_a.shape[1])
-    if not seen.any():
+    return _scaled_step(G, 0.5 * (J_a.T @ r_b + J_b.T @ r_a), seen, damping, rcond)
+
+
+def _scaled_step(G, g, mask, damping: float = 0.0, rcond: float = RCOND):
+    """-(G + damping diag(G))^+ g over the parameters ``mask`` (zero elsewhere), with
+    the columns scaled by G's diagonal and only the directions whose eigenvalue reaches
+    ``rcond``^2 of the largest."""
+    step = np.zeros(len(g))
+    if not mask.any():
         return step
-    scale = np.sqrt(np.diag(G)[seen])
-    A = G[np.ix_(seen, seen)] / np.outer(scale, scale)
+    scale = np.sqrt(np.diag(G)[mask])
+    A = G[np.ix_(mask, mask)] / np.outer(scale, scale)
     A += damping * np.diag(np.diag(A))
-    g = 0.5 * (J_a.T @ r_b + J_b.T @ r_a)[seen] / scale
-    step[seen] = -_truncated_inverse(A, rcond ** 2) @ g / scale
+    step[mask] = -_truncated_inverse(A, rcond ** 2) @ (g[mask] / scale) / scale
     return step
 
 
