@@ -143,3 +143,18 @@ def test_crop_window_is_the_same_part_of_the_frame():
     np.testing.assert_allclose(crop.direction, full.direction[window], atol=1e-6)
     np.testing.assert_allclose(crop.depth, full.depth[window], rtol=1e-5)
     np.testing.assert_allclose(crop.velocity, full.velocity[window], rtol=1e-4, atol=1e-6)
+
+
+def test_a_centre_ray_through_the_crease_of_two_meshes_still_finds_the_surface():
+    """issue 42: the demo's truth (128x128) had a NaN at pixel (2, 125), inside the
+    closed box: the pixel-centre ray passed exactly through the edge where the ceiling
+    meets a wall. Tried again a ten-thousandth of a pixel to each side, it hits."""
+    import dopplertof
+    from dopplertof.demo import demo_scene_path
+    from dopplertof.tof.ground_truth import ground_truth
+
+    scene = dopplertof.load_file(demo_scene_path(), {"res": 128})
+    truth = ground_truth(scene, scene.params)
+    assert np.all(np.isfinite(truth.depth)) and np.all(truth.body >= -1)
+    # the filled pixel continues its neighbours (2.6 mm from the next one in its row)
+    assert abs(truth.depth[2, 125] - truth.depth[2, 124]) < 0.01, truth.depth[1:4, 123:127]

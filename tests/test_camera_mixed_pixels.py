@@ -87,8 +87,9 @@ def test_capture_camera_command_writes_the_mask_and_takes_the_option(tmp_path, c
     summary = json.loads((out / "summary.json").read_text())
     assert summary["mixed_pixels"] == ("kept" if keep else "NaN")
     assert summary["mixed_footprints"] > 0
-    assert int(mask.sum()) == (0 if keep else summary["mixed_footprints"])
+    # the geometry's mask either way (issue 42: kept, it was written all False)
+    assert int(mask.sum()) == summary["mixed_footprints"]
     depth = np.load(out / "depth.npy")
-    assert np.all(np.isnan(depth[mask]))
+    assert np.all(np.isfinite(depth[mask]) if keep else np.isnan(depth[mask]))
     if not keep:  # the printed summary counts them
         assert f"{summary['mixed_footprints']} px {MIXED}" in printed, printed

@@ -142,6 +142,49 @@ def test_cameras_command_lists_prints_and_suggests(tmp_path):
     bad = run_cli("cameras", "kinnect-v2")
     assert bad.returncode == 2 and "did you mean 'kinect-v2'?" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1
+    # issue 42: --list, as examples/dataset.toml and the config's help say
+    assert run_cli("cameras", "--list").stdout == listing.stdout
+    both = run_cli("cameras", "--list", "opt8241")
+    assert both.returncode == 2 and both.stderr.strip() == (
+        "dopplertof: error: --list takes no NAME: give one or the other")
+
+
+def _compared(name, error, velocity):
+    """A camera's result as write_camera_comparison reads it (plain arrays)."""
+    from types import SimpleNamespace
+
+    depth_gt = np.full(error.shape, 3.0)
+    summary = {"errors": {"depth_m": {"median": 0.01}}, "mixed_footprints": 2,
+               "noise": {"saturated_pixels": 0}}
+    return SimpleNamespace(preset=SimpleNamespace(name=name), depth=depth_gt + error,
+                           depth_gt=depth_gt, velocity_gt=np.ones(error.shape),
+                           reconstruction=SimpleNamespace(amplitude=np.ones(error.shape),
+                                                          velocity=velocity),
+                           summary=summary)
+
+
+def test_the_comparison_hatches_masked_pixels_and_writes_its_numbers(tmp_path):
+    """issue 42: masked pixels were white, the colour of zero range error; the numbers
+    were nowhere but on the terminal."""
+    import json
+
+    from PIL import Image
+
+    from dopplertof.cameras.figures import write_camera_comparison
+
+    error = np.zeros((12, 16))
+    error[:, :8] = np.nan  # half masked
+    velocity = np.where(np.isnan(error), np.nan, 1.0)
+    path = tmp_path / "compare.png"
+    numbers = write_camera_comparison(path, [_compared("a", error, velocity),
+                                             _compared("b", np.zeros((12, 16)), None)], "t")
+    pixels = np.asarray(Image.open(path).convert("RGB")).reshape(-1, 3)
+    magenta = np.all(pixels == (255, 0, 255), axis=1).sum()
+    assert magenta > 100, magenta
+    written = json.loads((tmp_path / "compare.json").read_text())
+    assert written == numbers and [c["camera"] for c in written["cameras"]] == ["a", "b"]
+    assert [c["masked_pixels"] for c in written["cameras"]] == [96, 0]
+    assert written["cameras"][0]["errors"] == {"depth_m": {"median": 0.01}}
 
 
 # ---- Unwrapping over N frequencies --------------------------------------------------------
@@ -495,3 +538,25 @@ def test_a_plain_mitsuba_scene_is_captured(tmp_path):
     result = capture_camera(mi.load_dict(box), "kinect-v2", spp=4, noise=False,
                             progress=False)
     assert result.depth.shape == (2, 3) and np.isfinite(result.depth_gt).any()
+
+
+def test_keyframes_shorter_than_the_raw_frames_warn_once_naming_both_spans(tmp_path, capsys):
+    """issue 42: the starter sphere's 1.5 ms of keyframes through kinect-v2's raw frames
+    (about 13 ms) passed silently; the bodies stand still after their last keyframe."""
+    import json
+    import os
+
+    from dopplertof.cli import main
+
+    sphere = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          "examples", "translating_sphere.xml")
+    out = tmp_path / "out"
+    assert main(["capture", sphere, "--camera", "kinect-v2", "--res", "4x4", "--spp", "2",
+                 "--quiet", "--noiseless", "-o", str(out)]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    summary = json.loads((out / "summary.json").read_text())
+    first, last = summary["sequence_s"]
+    assert len(warnings) == 1 and warnings == [f"dopplertof: warning: {summary['warnings'][0]}"]
+    assert "the keyframes (0 to 0.0015 s) cover" in warnings[0]
+    assert f"of the raw frames ({first:g} to {last:g} s)" in warnings[0]
+    assert last - first > 0.01

@@ -101,3 +101,16 @@ def test_the_mitsuba_plugin_is_the_integrator_class():
         assert integrator.params.max_depth == 3 and integrator.params.w_g == 20.0
     with pytest.raises(Exception, match="unknown parameter 'max_dept'"):
         mi.load_dict({"type": "dopplertof", "max_dept": 3})
+
+
+def test_version_and_every_variant_option_has_help():
+    """issue 42: no --version; cameras' (and demo's) --variant had no help."""
+    from dopplertof import __version__
+
+    done = subprocess.run([sys.executable, "-m", "dopplertof.cli", "--version"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == f"dopplertof {__version__}"
+    for command in ("cameras", "demo", "render", "capture"):
+        helped = subprocess.run([sys.executable, "-m", "dopplertof.cli", command, "--help"],
+                                capture_output=True, text=True)
+        assert "--variant VARIANT     Mitsuba variant" in helped.stdout, command

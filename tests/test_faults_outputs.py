@@ -219,7 +219,7 @@ def test_a_camera_capture_replaces_the_previous_one_whole_or_leaves_no_folder(
 # ---- Item 11: the other commands' output sets -----------------------------------------
 
 def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatch):
-    from dopplertof.diff import fit
+    from dopplertof.diff import fit, fit_output
 
     result = fit.FitResult(bodies=[{"name": "box"}], iterations=1, loss=1.0,
                            history=[{"iteration": 0, "loss": 1.0, "radial_velocity_m_s": [2.0]}])
@@ -229,7 +229,7 @@ def test_a_failed_fit_leaves_the_previous_fit_json_and_plot(tmp_path, monkeypatc
     def plot_fails(result, path):
         raise RuntimeError("injected failure in the plot")
 
-    monkeypatch.setattr(fit, "write_convergence_plot", plot_fails)
+    monkeypatch.setattr(fit_output, "write_convergence_plot", plot_fails)
     with pytest.raises(RuntimeError, match="injected"):
         fit.write_fit(fit.FitResult(bodies=[], iterations=2, loss=0.5), tmp_path)
     assert _snapshot(tmp_path) == before  # fit.json is still the first fit's
@@ -427,3 +427,21 @@ def test_the_cli_says_it_in_one_line_with_exit_2(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert err == f"dopplertof: error: {out}: file too large (the file size limit)\n"
+
+
+def test_json_floats_are_written_to_fifteen_significant_digits(tmp_path):
+    """issue 42: a sum's rounding (0.1 * 0.1 = 0.010000000000000002, 0.03 - 0.02 =
+    0.009999999999999998) read as noise in summary.json; float32 values keep their
+    shortest decimal; integers, infinities and NaN pass as they are."""
+    import json
+
+    from dopplertof import io
+
+    path = tmp_path / "a.json"
+    io.write_json(path, {"a": 0.03 - 0.02, "b": [0.1 * 0.1, np.float64(1 / 3)],
+                         "c": np.float32(0.0015), "d": 7, "e": float("inf"), "f": 123456.789})
+    text = path.read_text()
+    assert "0.0099999" not in text and "0.0100000" not in text
+    got = json.loads(text)
+    assert got["a"] == 0.01 and got["b"] == [0.01, 0.333333333333333] and got["c"] == 0.0015
+    assert got["d"] == 7 and got["e"] == float("inf") and got["f"] == 123456.789

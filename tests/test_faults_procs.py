@@ -169,3 +169,21 @@ def test_a_sweep_with_no_worker_left_ends(monkeypatch):
     assert outcome.done == [] and [name for name, _ in outcome.failed] == ["t0", "t1", "t2"]
     assert all("no Dask worker left for 3 s" in error for _, error in outcome.failed)
     assert seconds < 3.0 + 10.0
+
+
+def test_a_closing_worker_writes_nothing_more_to_the_workers_log(tmp_path):
+    """issue 42: logs/workers.log held a CommClosedError traceback after a successful run
+    (a worker's heartbeat racing the scheduler's close). The plugin's teardown, a
+    closing worker's first step, sends its stderr to /dev/null."""
+    log = tmp_path / "workers.log"
+    code = ("import os, sys\n"
+            "from dopplertof.experiments.worker_log import WorkerStderrToFile\n"
+            f"plugin = WorkerStderrToFile({str(log)!r})\n"
+            "plugin.setup(None)\n"
+            "os.write(2, b'a task failed\\n')\n"
+            "plugin.teardown(None)\n"
+            "os.write(2, b'CommClosedError at shutdown\\n')\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert log.read_text() == "a task failed\n" and done.stderr == ""

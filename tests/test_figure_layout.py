@@ -235,7 +235,8 @@ def test_animation_frames_show_their_colour_bar_label(tmp_path, monkeypatch, siz
 
 def test_angular_fit_convergence_plot_shows_omega(tmp_path, saved):
     """An --angular fit's convergence.png: e6dc814 showed the radial velocity only."""
-    from dopplertof.diff.fit import FitResult, write_convergence_plot
+    from dopplertof.diff.fit_output import FitResult
+    from dopplertof.diff.fit_plots import write_convergence_plot
 
     names = [f"body0.{kind}{a}" for kind in "vw" for a in "xyz"]
     history = [{"iteration": i, "loss": 10.0 ** -i, "radial_velocity_m_s": [0.0],

@@ -140,6 +140,16 @@ def test_cli_fit_writes_fit_json(capture_dir, tmp_path, capsys):
     # stderr is not a terminal here: one progress line per iteration (afb2c4e: none)
     lines = [x for x in printed.err.splitlines() if x.startswith("fit iteration")]
     assert len(lines) == len(saved["history"]) >= 2
+    # issue 42: the 3-D truth and the per-component errors, saved and printed
+    for body, vz in zip(saved["bodies"], (10.0, -10.0)):
+        assert np.allclose(body["truth_linear_velocity_m_s"], [0.0, 0.0, vz], atol=1e-6)
+        assert np.allclose(body["truth_angular_velocity_rad_s"], 0.0, atol=1e-6)
+        assert np.allclose(body["linear_velocity_error_m_s"],
+                           np.subtract(body["linear_velocity_m_s"], [0.0, 0.0, vz]), atol=1e-6)
+        assert body["linear_velocity_status"][0] == "fitted"
+        assert body["unfitted_rotation"]["chi_square"] < 25.9  # (boxes that do not turn)
+    assert printed.out.count("    truth (") == 2 and "not fitted" not in printed.out
+    assert "unfitted rotation" not in printed.err
 
 
 def test_jacobian_is_rendered_per_body_over_its_own_pixels_at_fewer_samples(
@@ -164,7 +174,9 @@ def test_jacobian_is_rendered_per_body_over_its_own_pixels_at_fewer_samples(
     monkeypatch.setattr(render, "render_derivatives", blank_render)
     result = fit(capture_dir, spp=16, iterations=2, progress=False)
     assert result.settings["jacobian_spp"] == 4
-    jacobian_calls = [c for c in calls if c[0]]
+    # (the angular velocities' columns at the end: the unfitted rotation's evidence)
+    jacobian_calls = [c for c in calls if c[0] and ".v" in c[0][0]]
+    assert len([c for c in calls if c[0] and ".w" in c[0][0]]) == 8
     # two seeds x two captures x two bodies, once: a blank Jacobian sees nothing, so
     # no step lowers the loss and the start's Jacobian serves the uncertainties
     assert len(jacobian_calls) == 8
@@ -325,7 +337,7 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     """A parameter the captures do not see stays at its start with an infinite
     uncertainty (afb2c4e moved such parameters: 27.5 +- 1132 m/s); the fit stops once a
     step no longer lowers the loss by 1%, well before its iteration limit."""
-    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
 
     problem = _LinearProblem([0.5, -1.0, 3.0])
     silent = _fit_progress(False, 50)
@@ -359,7 +371,7 @@ def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
     """The predicted standard deviation matches the spread of fits over independent
     captures and renders within 10% (the fit averages the two seeds' renders, so half
     their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
-    from dopplertof.diff.fit import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(11)
     fitted, predicted = [], []
@@ -378,12 +390,16 @@ def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():
     against a truth of -0.000."""
     from dopplertof.diff.fit import FitResult, format_fit
 
+    from dopplertof.diff.fit_solve import FITTED, KEPT, MOVED_UNCONSTRAINED
+
     body = {"name": "door", "radial_velocity_m_s": -0.0012,
             "radial_velocity_uncertainty_m_s": 0.001,
             "linear_velocity_m_s": [0.01, 27.5, -0.02],
             "linear_velocity_uncertainty_m_s": [0.002, None, 0.003],
-            "angular_velocity_rad_s": [0.0, 19.995, 0.0],
-            "angular_velocity_uncertainty_rad_s": [0.01, 0.003, 0.02],
+            "linear_velocity_status": [FITTED, KEPT, FITTED],
+            "angular_velocity_rad_s": [0.0, 19.995, 20.4],
+            "angular_velocity_uncertainty_rad_s": [0.01, 0.003, None],
+            "angular_velocity_status": [FITTED, FITTED, MOVED_UNCONSTRAINED],
             "capture_velocity_gt_median_m_s": -0.0000019}
     box = dict(body, name="box", radial_velocity_m_s=-10.05,
                capture_velocity_gt_median_m_s=-9.97,
@@ -393,6 +409,9 @@ def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():
     text = format_fit(result)
     assert "+19.995 +- 0.003" in text and "rad/s" in text  # the angular velocity
     assert "+27.500 (not seen: kept at its start)" in text
+    # issue 42: a component that moved (0 to 20.4 rad/s) but has no uncertainty at the
+    # end is not "kept at its start"
+    assert "+20.400 (moved from its start, unconstrained at the end: no uncertainty)" in text
     assert "%" not in text.split("box")[0]  # the door's truth is near zero: m/s
     assert "error -0.001 m/s" in text and "error +0.80%" in text
     assert text.count("angular") == 1  # the box's angular velocity was not fitted
@@ -402,7 +421,8 @@ def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():
 def test_convergence_plot_draws_no_negative_loss_on_its_log_axis(tmp_path, monkeypatch):
     """afb2c4e drew max(loss, 1e-300): a negative cross loss fell to 1e-300."""
     from dopplertof import io
-    from dopplertof.diff.fit import FitResult, write_convergence_plot
+    from dopplertof.diff.fit_output import FitResult
+    from dopplertof.diff.fit_plots import write_convergence_plot
 
     history = [{"iteration": i, "loss": loss, "radial_velocity_m_s": [-10.0]}
                for i, loss in enumerate([4e-7, 3e-8, -2e-9, 1e-9])]
@@ -412,3 +432,67 @@ def test_convergence_plot_draws_no_negative_loss_on_its_log_axis(tmp_path, monke
     write_convergence_plot(result, str(tmp_path / "c.png"))
     ys = np.concatenate([line.get_ydata() for line in drawn["fig"].axes[0].get_lines()])
     assert ys.min() >= 1e-9 and ys.max() <= 4e-7
+
+
+def test_statuses_say_kept_only_where_a_component_stayed_at_its_start():
+    from dopplertof.diff.fit_solve import FITTED, KEPT, MOVED_UNCONSTRAINED, _statuses
+
+    got = _statuses(np.array([1.0, 0.0, 20.4]), np.array([0.5, 0.0, 0.0]),
+                    np.array([0.1, np.inf, np.inf]))
+    assert got == [FITTED, KEPT, MOVED_UNCONSTRAINED]
+
+
+def test_an_unfitted_rotation_shows_in_the_residuals_as_a_chi_square():
+    """The score test of _rotation_evidence on a linear problem: residuals with a signal
+    along the (unfitted) angular columns give a chi-square far above its threshold and
+    that signal's angular velocity; residuals of noise only give about 3 (its mean)."""
+    from dopplertof.diff.fit_solve import ROTATION_CHI_SQUARE, _rotation_evidence
+
+    rng = np.random.default_rng(5)
+    rows = 400
+    J = rng.normal(size=(rows, 3))
+    W = rng.normal(size=(rows, 3))
+    omega = np.array([0.0, 30.0, 0.0])
+    chi = []
+    for signal in (W @ omega * 1e-3, np.zeros(rows)):
+        noise = [1e-2 * rng.normal(size=rows) for _ in range(2)]
+        # the fitted linear velocity absorbs what of the rotation it can (least squares)
+        fit, *_ = np.linalg.lstsq(J, signal, rcond=None)
+        residuals = tuple(signal - J @ fit + n for n in noise)
+        state = (residuals, (J, J))
+        evidence = _rotation_evidence(state, (W, W), np.ones(3, bool))
+        chi.append(evidence["chi_square"])
+    assert chi[0] > 100 * ROTATION_CHI_SQUARE and chi[1] < ROTATION_CHI_SQUARE, chi
+
+
+@pytest.mark.slow  # two captures and fits at 32x32 (about 30 s)
+def test_fit_warns_of_an_unfitted_rotation_naming_the_body(tmp_path, capsys):
+    """issue 42: without --angular a spinning body's fit said nothing of the rotation
+    its linear velocity absorbed. The rotating cube (66.7 rad/s about y) warns, naming
+    it and the evidence (measured 2026-12-03 at 32x32, fit --spp 32: an angular
+    velocity of about (-2.7, +64.9, -6.8) rad/s, the chi-square at its floor of 1e4);
+    the translating sphere does not (its spin about its centre is invisible)."""
+    import dopplertof
+    from dopplertof.cli import main
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    dopplertof.set_variant("llvm_ad_rgb")
+    for name, turns in (("rotating_cube.xml", True), ("translating_sphere.xml", False)):
+        scene = dopplertof.load_file(os.path.join(here, "examples", name), {"res": 32})
+        capture = tmp_path / name
+        dopplertof.capture(scene, seed=0, progress=False).write(str(capture))
+        capsys.readouterr()
+        assert main(["fit", str(capture), "-o", str(tmp_path / f"fit_{name}"), "--spp", "32",
+                     "--quiet"]) == 0
+        printed = capsys.readouterr()
+        warnings = [x for x in printed.err.splitlines() if "unfitted rotation" in x]
+        saved = json.loads((tmp_path / f"fit_{name}" / "fit.json").read_text())
+        if turns:
+            assert len(warnings) == 1 and warnings[0].startswith(
+                "dopplertof: warning: body 0 (cube): its residuals show an unfitted rotation")
+            assert saved["warnings"] == [warnings[0][len("dopplertof: warning: "):]]
+            evidence = saved["bodies"][0]["unfitted_rotation"]
+            assert abs(evidence["angular_velocity_rad_s"][1] - 66.7) < 10
+            assert "angular velocity not fitted; truth (+0.000, +66.667, +0.000)" in printed.out
+        else:
+            assert not warnings and "warnings" not in saved

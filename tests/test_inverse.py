@@ -89,6 +89,11 @@ def test_fit_captures_prints_a_line_per_iteration_and_refuses_bad_names(tmp_path
     fitted = result.values[key]
     assert fitted.shape == (texture.size,) and np.all((fitted >= 0) & (fitted <= 1))
     assert not np.array_equal(fitted, texture.ravel())  # the second iteration stepped
+    # issue 42: print(result) is one short line, not the whole history
+    shown = repr(result)
+    assert "\n" not in shown and len(shown) < 300, shown
+    assert shown.startswith(f"InverseResult({key}: array({texture.size},) mean ")
+    assert f"body0.vz: {result.values['body0.vz']:.6g}" in shown and "2 iterations" in shown
 
 
 @pytest.mark.slow  # 40 iterations of 4 gradients (about 1 min on 2 loaded cores)
@@ -175,7 +180,7 @@ TOLERANCE = 0.02
 def test_fit_reflectances_are_the_uniform_ones_and_shift_every_channel(tmp_path):
     import dopplertof
     from dopplertof.diff import DifferentiableScene
-    from dopplertof.diff.fit import _Reflectances, reflectance_keys
+    from dopplertof.diff.fit_solve import _Reflectances, reflectance_keys
     from dopplertof.diff.inverse import get_value
 
     dopplertof.set_variant("llvm_ad_rgb")

@@ -7,11 +7,19 @@ import os
 import sys
 
 from .demo import DEMO_RES, DEMO_SPP
-from .cli_options import FOLDER_HELP, add_defines_option, add_params_option, parse_pairs
+from .cli_options import (FOLDER_HELP, add_defines_option, add_params_option, add_variant_option,
+                          parse_pairs, print_warnings)
 
 
 class UsageError(Exception):
     pass
+
+
+def _version() -> str:
+    """The package's version (the one place it is written: dopplertof.__version__)."""
+    from . import __version__
+
+    return __version__
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -20,6 +28,7 @@ def _parser() -> argparse.ArgumentParser:
                                 description="Doppler time-of-flight camera simulator",
                                 epilog=f"Every command's output folder is {FOLDER_HELP}.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     # ---- this module's commands (dispatched by name in main)
     _add_render_command(sub)
@@ -52,11 +61,6 @@ def _add_seed_option(p) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-def _add_variant_option(p) -> None:
-    """``--variant`` of render, capture and precision (demo's has no help text)."""
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
-
-
 def _add_noise_options(n) -> None:
     """The sensor model's options (capture and precision; _NOISE_OPTIONS reads them)."""
     n.add_argument("--photons-per-unit", type=float, metavar="K", help="photons/s at a pixel "
@@ -86,7 +90,7 @@ def _add_render_command(sub) -> None:
     add_defines_option(r)
     add_params_option(r, "override an integrator parameter, e.g. -P hetero_frequency=1")
     # ---- how it runs
-    _add_variant_option(r)
+    add_variant_option(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     # ---- files beside the image
     r.add_argument("--checkpoint", metavar="FILE",
@@ -127,7 +131,7 @@ def _add_capture_command(sub) -> None:
                    help="reconstruct the pixels whose footprint mixes surfaces (silhouettes: "
                    "a mixture of two surfaces' velocities) instead of NaN")
     # ---- how it runs
-    _add_variant_option(c)
+    add_variant_option(c)
     c.add_argument("--quiet", action="store_true", help="no progress bar, summary only")
     c.add_argument("--checkpoint", metavar="DIR",
                    help="keep every finished render (capture, raw frame, batch) in DIR; "
@@ -184,7 +188,7 @@ def _add_precision_command(sub) -> None:
     add_defines_option(s)
     add_params_option(s, "override an integrator parameter")
     _add_seed_option(s)
-    _add_variant_option(s)
+    add_variant_option(s)
     s.add_argument("--quiet", action="store_true", help="no progress")
     _add_noise_options(s.add_argument_group("sensor (the default noise model unless set)"))
 
@@ -196,7 +200,7 @@ def _add_demo_command(sub) -> None:
                    help=f"output folder ({FOLDER_HELP}; default demo_out)")
     d.add_argument("--spp", type=int, default=DEMO_SPP, help=f"default {DEMO_SPP}")
     d.add_argument("--res", type=int, default=DEMO_RES, help=f"default {DEMO_RES}")
-    d.add_argument("--variant", default=None)
+    add_variant_option(d)
     d.add_argument("--noise", action="store_true", help="add sensor noise (default camera)")
     d.add_argument("--quiet", action="store_true")
 
@@ -264,7 +268,7 @@ def _cmd_render(args) -> int:
         io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
-    _print_warnings(result.metadata)
+    print_warnings(result.metadata)
     if "resumed_from_samples" in result.metadata:
         print(f"dopplertof: resumed from checkpoint {args.checkpoint}: "
               f"{result.metadata['resumed_from_samples']:g} of {result.metadata['spp']} "
@@ -279,12 +283,6 @@ def _cmd_render(args) -> int:
                  "per pixel)" if "sample_counts" in md else "")
               + f", {md['render_seconds']:.1f} s")
     return 0
-
-
-def _print_warnings(record: dict) -> None:
-    """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
-    for warning in record.get("warnings", ()):
-        print(f"dopplertof: warning: {warning}", file=sys.stderr)
 
 
 _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
@@ -331,7 +329,7 @@ def _cmd_capture(args) -> int:
     result.write(args.output)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         remove_checkpoint(args.checkpoint)
-    _print_warnings(result.summary)
+    print_warnings(result.summary)
     print(format_summary(result.summary, args.output))
     from .tof.precision import format_precision
 

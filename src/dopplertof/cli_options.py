@@ -1,9 +1,10 @@
-"""Command-line pieces several commands share: integer argument types and the
-repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
+"""Command-line pieces several commands share: integer argument types, ``--variant`` and
+the repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 #: what every command's --help says about its output folder (io.make_output_folder)
 FOLDER_HELP = "created, with missing parents, if missing"
@@ -21,6 +22,18 @@ def int_at_least(minimum: int, wording: str):
         return value
 
     return parse
+
+
+def add_variant_option(p, what: str = "Mitsuba variant") -> None:
+    """``--variant``, of every command that renders (``what``: the kind it needs)."""
+    p.add_argument("--variant", default=None, metavar="VARIANT",
+                   help=f"{what} (default llvm_ad_rgb)")
+
+
+def print_warnings(record: dict) -> None:
+    """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
+    for warning in record.get("warnings", ()):
+        print(f"dopplertof: warning: {warning}", file=sys.stderr)
 
 
 positive_int = int_at_least(1, "a positive integer")

@@ -25,6 +25,7 @@ import errno
 import fcntl
 import glob
 import json
+import math
 import os
 import re
 import secrets
@@ -395,12 +396,17 @@ def write_json(path, data: dict) -> None:
             f.write("\n")
 
 
+#: significant digits of a float64 written to JSON: the most that every decimal keeps
+#: through a double, so that sums' rounding (0.009999999999999998) reads 0.01 (issue 42)
+JSON_DIGITS = 15
+
+
 def json_ready(value):
     """``value`` (dicts, lists, tuples, floats, NumPy scalars and arrays) for JSON, with
     every float that is a float32 value (Mitsuba's shutter times, np.float32 scalars and
-    arrays) as its shortest float32 decimal: 0.0015, not 0.001500000013038516. A float
-    that float32 cannot hold exactly is kept as it is; what JSON cannot hold is left to
-    the encoder."""
+    arrays) as its shortest float32 decimal: 0.0015, not 0.001500000013038516; any other
+    float to :data:`JSON_DIGITS` significant digits: 0.01, not 0.009999999999999998.
+    What JSON cannot hold is left to the encoder."""
     if isinstance(value, dict):
         return {key: json_ready(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
@@ -415,12 +421,15 @@ def json_ready(value):
 
 
 def _shortest_float(x: float) -> float:
-    """``x``, or the float of float32's shortest decimal of ``x`` when ``x`` is exactly
-    a float32 value (that decimal reads back as the same float32)."""
+    """The float of float32's shortest decimal of ``x`` when ``x`` is exactly a float32
+    value (that decimal reads back as the same float32), else ``x`` to
+    :data:`JSON_DIGITS` significant digits (not finite: ``x``)."""
+    if not math.isfinite(x):
+        return x
     with np.errstate(over="ignore"):
         single = np.float32(x)
     if not np.isfinite(single) or float(single) != x:
-        return x
+        return float(f"{x:.{JSON_DIGITS}g}")
     return float(str(single))
 
 

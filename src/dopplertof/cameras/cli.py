@@ -14,9 +14,13 @@ PRESET_OWNS = ("hetero_frequency", "unwrap_frequency", "min_signal", "mc_batches
 
 def add_subcommand(sub) -> None:
     """``cameras``: list the presets, or print one."""
+    from ..cli_options import add_variant_option
+
     c = sub.add_parser("cameras", help="list the camera presets, or print one; its wiggling "
                        "figure; a scene through several cameras side by side")
-    c.add_argument("name", nargs="?", help="a preset name or a preset file (.toml)")
+    c.add_argument("name", nargs="?", help="a preset name or a preset file (.toml); "
+                   "none: list the presets")
+    c.add_argument("--list", action="store_true", help="list the presets (as with no NAME)")
     c.add_argument("--wiggling", metavar="FIG.png", help="with NAME: the noise-free depth "
                    "error against distance and (FIG.json) the calibration tables")
     c.add_argument("--compare", metavar="SCENE", help="capture SCENE through --with cameras "
@@ -29,7 +33,7 @@ def add_subcommand(sub) -> None:
     c.add_argument("-o", "--output", metavar="FIG.png", help="with --compare: the figure")
     c.add_argument("--noiseless", action="store_true",
                    help="with --compare: no shot or read noise (rounding stays)")
-    c.add_argument("--variant", default=None)
+    add_variant_option(c)
     c.set_defaults(func=run_cameras)
 
 
@@ -52,6 +56,10 @@ def run_cameras(args) -> int:
         return _compare(args)
     if args.wiggling is not None:
         return _wiggling(args)
+    if args.list and args.name is not None:
+        from ..tof.capture import CaptureError
+
+        raise CaptureError("--list takes no NAME: give one or the other")
     if args.name is None:
         for name in preset_names():
             print(f"{name:<26} {load_preset(name).description}")
@@ -90,6 +98,7 @@ def _wiggling(args) -> int:
 def _compare(args) -> int:
     import dopplertof
 
+    from ..cli_options import print_warnings
     from .capture import capture_through, format_camera_summary, parse_resolution
     from .figures import write_camera_comparison
     from .preset import load_preset, preset_names
@@ -107,10 +116,11 @@ def _compare(args) -> int:
                               noise=not args.noiseless, progress=False)
     for result in results:
         print(format_camera_summary(result.summary))
+        print_warnings(result.summary)
     write_camera_comparison(path, results, f"{os.path.basename(args.compare)} through "
                             f"{len(results)} cameras, {args.spp} spp per raw frame"
                             + (", no shot or read noise" if args.noiseless else ""))
-    print(f"wrote {path}")
+    print(f"wrote {path} and {path[:-4]}.json (each camera's errors and masked pixels)")
     return 0
 
 
@@ -135,7 +145,7 @@ def run_camera_capture(args, load_defines) -> int:
     """``capture SCENE --camera NAME -o DIR``; ``load_defines``: the -D values."""
     import dopplertof
 
-    from ..cli_options import parse_pairs
+    from ..cli_options import parse_pairs, print_warnings
     from ..tof import prepare_folder
     from .capture import (capture_camera, format_camera_summary, load_scene_for_camera,
                           parse_resolution)
@@ -167,4 +177,5 @@ def run_camera_capture(args, load_defines) -> int:
 
         remove_checkpoint(args.checkpoint)
     print(format_camera_summary(result.summary, os.fspath(args.output)))
+    print_warnings(result.summary)
     return 0

@@ -41,29 +41,36 @@ def write_wiggling(path, preset) -> dict:
     return numbers
 
 
-def write_camera_comparison(path, results, title: str) -> None:
-    """One row per camera: range error, amplitude and (heterodyne) velocity."""
+def write_camera_comparison(path, results, title: str) -> dict:
+    """One row per camera: range error, amplitude and (heterodyne) velocity, masked
+    pixels (NaN) hatched on magenta as in every preview (white would read as zero error);
+    beside it (FIG.json) each camera's numbers: its error statistics and masked pixels.
+    Returns the numbers."""
     plt = io.pyplot()
     rows = len(results)
     fig, axes = plt.subplots(rows, 3, figsize=(10.5, 2.9 * rows), dpi=100, squeeze=False)
     errors = [r.depth - r.depth_gt for r in results]
     limit = max(float(np.nanpercentile(np.abs(e), 95)) if np.isfinite(e).any() else 0.0
                 for e in errors) or 0.01
+
+    def show(ax, data, cmap, **scale):
+        io.show_no_signal(ax, data.shape)
+        return ax.imshow(np.ma.masked_invalid(data), cmap=io.no_signal_colours(cmap),
+                         interpolation="nearest", zorder=1, **scale)
+
     for row, result, error in zip(axes, results, errors):
         name = result.preset.name
-        shown = row[0].imshow(np.ma.masked_invalid(error), cmap="PuOr_r", vmin=-limit,
-                              vmax=limit, interpolation="nearest")
+        shown = show(row[0], error, "PuOr_r", vmin=-limit, vmax=limit)
         row[0].set_title(f"{name}: range error (m)", fontsize=8)
         fig.colorbar(shown, ax=row[0], fraction=0.046,
                      extend=previews.colorbar_extend(error, -limit, limit))
-        shown = row[1].imshow(result.reconstruction.amplitude, cmap="gray", interpolation="nearest")
+        shown = show(row[1], result.reconstruction.amplitude, "gray")
         row[1].set_title(f"{name}: amplitude (DN)", fontsize=8)
         fig.colorbar(shown, ax=row[1], fraction=0.046)
         velocity = result.reconstruction.velocity
         if velocity is not None:
             v = float(np.nanmax(np.abs(result.velocity_gt))) * 1.25 or 1.0
-            shown = row[2].imshow(np.ma.masked_invalid(velocity), cmap="RdBu_r", vmin=-v,
-                                  vmax=v, interpolation="nearest")
+            shown = show(row[2], velocity, "RdBu_r", vmin=-v, vmax=v)
             row[2].set_title(f"{name}: radial velocity (m/s)", fontsize=8)
             fig.colorbar(shown, ax=row[2], fraction=0.046,
                          extend=previews.colorbar_extend(velocity, -v, v))
@@ -73,5 +80,20 @@ def write_camera_comparison(path, results, title: str) -> None:
         for ax in row:
             ax.set_axis_off()
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    fig.text(0.5, 0.005, previews.NO_SIGNAL_NOTE, ha="center", va="bottom", fontsize=7)
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
     io.save_figure(fig, path)
+    numbers = {"title": title, "cameras": [_comparison_numbers(r, e)
+                                           for r, e in zip(results, errors)]}
+    io.write_json(str(path)[:-4] + ".json", numbers)
+    return numbers
+
+
+def _comparison_numbers(result, error) -> dict:
+    """One camera's row of the comparison: its summary's errors and the pixels masked
+    in its range error (NaN: hatched)."""
+    summary = result.summary
+    return {"camera": result.preset.name, "errors": summary["errors"],
+            "masked_pixels": int(np.count_nonzero(~np.isfinite(error))),
+            "pixels": int(error.size), "mixed_footprints": summary["mixed_footprints"],
+            "saturated_pixels": summary["noise"]["saturated_pixels"]}

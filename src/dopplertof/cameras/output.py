@@ -19,8 +19,9 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
                                 "or the frequencies disagree beyond their noise"),
          "mask_out_of_range": ("out_of_range", "nearer than min_range_m (by 3 sigma) or "
                                "beyond max_range_m"),
-         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces (all False when "
-                                  "kept: --keep-mixed-pixels)")}
+         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
+                                  "sequence (from the scene's geometry; NaN in the maps "
+                                  "unless kept: --keep-mixed-pixels)")}
 
 
 def write_camera_result(result, folder) -> list:
@@ -46,11 +47,19 @@ def _write_camera_files(result, path) -> None:
         io.write_npy(path(f"{name}.npy"),
                      data if data.dtype.kind in "iu" else data.astype(np.float32))
     for name, (attribute, _) in MASKS.items():
-        mask = getattr(recon, attribute)
-        io.write_npy(path(f"{name}.npy"),
-                     np.zeros(recon.depth.shape, bool) if mask is None else mask)
+        io.write_npy(path(f"{name}.npy"), _mask(result, attribute))
     _write_previews(result, path, camera)
     io.write_json(path("summary.json"), summary)
+
+
+def _mask(result, attribute: str) -> np.ndarray:
+    """The reconstruction's mask ``attribute``; the mixed footprints from the geometry,
+    whether masked or kept (issue 42: kept, the reconstruction's mask is all False and
+    the information was lost)."""
+    if attribute == "mixed" and result.mixed_footprints is not None:
+        return np.asarray(result.mixed_footprints, bool)
+    mask = getattr(result.reconstruction, attribute)
+    return np.zeros(result.reconstruction.depth.shape, bool) if mask is None else mask
 
 
 def masked_caption(recon, truth=None) -> str:

@@ -6,7 +6,8 @@ raises an exception with a one-line message before any work and any output.
 
 from __future__ import annotations
 
-from ..cli_options import add_defines_option, parse_pairs, positive_int
+from ..cli_options import (add_defines_option, add_variant_option, parse_pairs, positive_int,
+                           print_warnings)
 
 
 def add_subcommand(sub) -> None:
@@ -33,7 +34,7 @@ def add_subcommand(sub) -> None:
                    help="start body K's linear velocity (m/s) here instead of the closed "
                    "form (repeatable)")
     add_defines_option(f, "the capture's -D values for the scene (repeatable)")
-    f.add_argument("--variant", default=None, help="an AD variant (default llvm_ad_rgb)")
+    add_variant_option(f, "Mitsuba variant with automatic differentiation (_ad_)")
     f.add_argument("--quiet", action="store_true", help="no progress bar")
     f.set_defaults(func=run)
 
@@ -69,4 +70,5 @@ def run(args) -> int:
     paths = write_fit(result, args.output)
     print(format_fit(result))
     print(f"wrote {', '.join(paths)}")
+    print_warnings(result.as_json())
     return 0

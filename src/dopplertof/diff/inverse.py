@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .loss import residual, residual_weighted_loss
 from .progress import IterationProgress
 from .render import _MOTION_NAME, DerivativeError, check_names
 
@@ -47,6 +48,24 @@ class InverseResult:
     values: dict  #: name -> fitted value (float, or a float64 array in the key's layout)
     history: list = field(default_factory=list)  #: per iteration: loss, seconds, scalars
     settings: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        """One line: the values (an array by its shape and mean), the iterations and the
+        last loss; not the history (issue 42: print() showed all of it)."""
+        values = ", ".join(f"{n}: {_short(v)}" for n, v in self.values.items())
+        last = self.history[-1] if self.history else {}
+        loss = f", loss {last['loss']:.4g}" if "loss" in last else ""
+        return (f"InverseResult({values}; {max(len(self.history) - 1, 0)} iterations{loss}; "
+                "history and settings: .history, .settings)")
+
+
+def _short(value) -> str:
+    """A fitted value in a few characters: a float to 6 digits, an array by its shape
+    and mean."""
+    array = np.asarray(value)
+    if array.ndim == 0:
+        return f"{float(array):.6g}"
+    return f"array{array.shape} mean {float(array.mean()):.4g}"
 
 
 def group_of(name: str) -> str:
@@ -215,33 +234,13 @@ def _iteration(ds, captures, targets, residuals, names, spp, seed, weight):
     total, loss = None, 0.0
     for c, (render_params, _) in captures.items():
         previous = residuals.get(c)
-        g = gradient(ds, _weighted_sum(ds.mi, previous), names=names, spp=spp, seed=seed,
-                     params=dict(render_params))
-        residual = g.image.astype(np.float64).mean(-1) - targets[c]
-        if weight is not None:
-            residual = residual * weight
-        residuals[c] = residual
-        loss += float(np.sum(residual * residual))
+        g = gradient(ds, residual_weighted_loss(ds.mi, previous), names=names, spp=spp,
+                     seed=seed, params=dict(render_params))
+        current = residuals[c] = residual(g.image, targets[c], weight)
+        loss += float(np.sum(current * current))
         if previous is not None:
             total = dict(g) if total is None else {n: total[n] + g[n] for n in names}
     return total, loss
-
-
-def _weighted_sum(mi, residual):
-    """The loss whose gradient is the cross loss's: sum over pixels of 2 residual x
-    (the render's channel mean); zero when there is no residual yet (a zero of the
-    image: gradient refuses a loss detached from it)."""
-    import drjit as dr
-
-    if residual is None:
-        return lambda image: dr.sum(image - image, axis=None)
-
-    def loss(image):
-        channels = image.shape[-1]
-        weights = np.repeat((2.0 / channels) * residual[..., None], channels, axis=-1)
-        return dr.sum(image * mi.TensorXf(weights.astype(np.float32)), axis=None)
-
-    return loss
 
 
 def _inverse_line(entry: dict) -> str:

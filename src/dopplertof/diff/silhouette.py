@@ -10,7 +10,7 @@ grows with the step, the image's interior part stays linear in a velocity far be
 it), it measures the whole derivative, the visibility term included.
 
 Pixels are split into classes (:func:`pixel_classes`): a body's ``interior`` (the fit's
-pixels: :func:`dopplertof.diff.fit.interior`), its ``silhouette`` (footprints that see
+pixels: :func:`dopplertof.diff.fit_capture.interior`), its ``silhouette`` (footprints that see
 more than one surface, :func:`dopplertof.tof.ground_truth.mixed_footprints`, within the
 filter's reach of the body), its ``rim`` (the rest of the pixels whose footprint reaches
 the body: the interior's margin by the silhouette, a box's edges, where one face gives
@@ -62,7 +62,7 @@ def _geometry(scene) -> tuple:
 
 def _classes(geometry, k: int) -> dict:
     """:func:`pixel_classes` from :func:`_geometry`'s tuple."""
-    from .fit import interior
+    from .fit_capture import interior
 
     truth, mixed, reach = geometry
     inner = interior(truth, k, reach)
@@ -163,8 +163,8 @@ def relative_bias(derivative_sums, difference_sums) -> tuple:
 
 def block_sums(values: np.ndarray, mask: np.ndarray, block: int = 8) -> np.ndarray:
     """Sums of ``values`` over the block x block tiles of the pixels of ``mask`` (the
-    fit's residual blocks, :func:`dopplertof.diff.fit._blocks`)."""
-    from .fit import _blocks
+    fit's residual blocks, :func:`dopplertof.diff.fit_solve._blocks`)."""
+    from .fit_solve import _blocks
 
     labels = _blocks([mask], block)
     return np.bincount(labels, weights=values.ravel()[mask.ravel()])

@@ -19,7 +19,19 @@ class WorkerStderrToFile(WorkerPlugin):
         self.path = path
 
     def setup(self, worker) -> None:
-        log = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
-        sys.stderr.flush()
-        os.dup2(log, 2)
-        os.close(log)
+        _stderr_to(self.path)
+
+    def teardown(self, worker) -> None:
+        """The worker is closing (its first step, before its connections close): what it
+        says from here on is its shutdown's noise (issue 42: a CommClosedError traceback
+        in workers.log after a successful run, from a heartbeat racing the scheduler's
+        close), so its stderr goes to /dev/null."""
+        _stderr_to(os.devnull)
+
+
+def _stderr_to(path: str) -> None:
+    """This process's file descriptor 2 appends to ``path``."""
+    log = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    sys.stderr.flush()
+    os.dup2(log, 2)
+    os.close(log)

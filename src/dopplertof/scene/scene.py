@@ -185,10 +185,12 @@ def keyframe_coverage(span, start: float, exposure: float) -> float:
 MAX_SPAN_PER_EXPOSURE = 100
 
 
-def keyframe_coverage_warning(span, start: float, exposure: float) -> str | None:
+def keyframe_coverage_warning(span, start: float, exposure: float,
+                              what: str = "the exposure") -> str | None:
     """A warning when the keyframes cover less than MIN_KEYFRAME_COVERAGE of the
     exposure (a unit mistake: ``time=1.5`` meant as ms), or span MAX_SPAN_PER_EXPOSURE
-    exposures or more (keyframe times in ms), else None."""
+    exposures or more (keyframe times in ms), else None. ``what``: the interval's name
+    in the message (a camera's: "the raw frames")."""
     share = keyframe_coverage(span, start, exposure)
     if share >= MIN_KEYFRAME_COVERAGE:
         if span is None or span[1] - span[0] < MAX_SPAN_PER_EXPOSURE * exposure:
@@ -198,7 +200,7 @@ def keyframe_coverage_warning(span, start: float, exposure: float) -> str | None
                 f"exposure ({exposure:g} s): the bodies travel that small a part "
                 "of their keyframed path during it; keyframe times are in seconds (were "
                 "they written in ms?)")
-    return (f"the keyframes ({span[0]:g} to {span[1]:g} s) cover {share:.1%} of the exposure "
+    return (f"the keyframes ({span[0]:g} to {span[1]:g} s) cover {share:.1%} of {what} "
             f"({start:g} to {start + exposure:g} s): outside them everything holds its first "
             "or last pose, and the measured motion stops; time and keyframe times are in "
             "seconds")

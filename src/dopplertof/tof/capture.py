@@ -555,6 +555,11 @@ MULTIPATH_NOTE = ("the static surfaces' velocity error is multipath, not noise: 
                   "reflected off moving bodies reaches them along paths whose length changes; "
                   "max_depth=2 (direct light only) removes it")
 
+#: the note on static surfaces whose velocity error is the sensor's noise
+NOISE_NOTE = ("the static surfaces' velocity error is mostly the sensor's noise: its 95th "
+              "percentile {p95:.3g} m/s, {clean:.3g} m/s without the noise (summary.json's "
+              "static_surfaces_without_noise)")
+
 #: what the truth means when the light is not at the camera
 LIGHT_OFF_CAMERA_NOTE = ("the camera measures half the rate of change (and half the length) "
                          "of the whole path camera -> surface -> light; the truth is the "
@@ -647,6 +652,7 @@ def _summary(scene, settings: _Settings, records, recon, noise_free, truth, nois
     if noise_free is not None:
         summary["errors_without_noise"] = _errors(noise_free, truth, depth_modulo)
         summary["bodies_without_noise"] = _bodies(scene, noise_free, truth)
+        summary["static_surfaces_without_noise"] = _static_surfaces(noise_free, truth)
     return summary
 
 
@@ -704,6 +710,11 @@ SPEED_RESOLUTION = 1e-3
 MULTIPATH_P95_M_S = 0.5
 
 
+def _static_p95(region) -> float:
+    """The 95th percentile of a region's absolute velocity error (0 when none)."""
+    return ((region or {}).get("velocity_error_m_s") or {}).get("p95_abs") or 0.0
+
+
 def _speed(v: float) -> str:
     return "0" if abs(v) < SPEED_RESOLUTION else f"{v:+.3g}"
 
@@ -727,9 +738,17 @@ def body_lines(summary: dict) -> list:
                      f"95th percentile {err['p95_abs']:.3g} m/s, mean {err['mean_signed']:+.3g}"
                      f" m/s over {err['pixels']} of {body['pixels']} pixels; {truth}")
     max_depth = summary.get("render_params", {}).get("max_depth", -1)
-    if (static and bodies and (max_depth == -1 or max_depth > 2)
-            and (static.get("velocity_error_m_s") or {}).get("p95_abs")
-            and static["velocity_error_m_s"]["p95_abs"] > MULTIPATH_P95_M_S):
+    # with sensor noise, the noise-free reconstruction says what multipath alone does
+    # (issue 42: a noisy capture's static error was blamed on multipath)
+    clean = summary.get("static_surfaces_without_noise", static)
+    multipath = (static and bodies and (max_depth == -1 or max_depth > 2)
+                 and _static_p95(clean) > MULTIPATH_P95_M_S)
+    if static and _static_p95(static) > max(MULTIPATH_P95_M_S, 2 * _static_p95(clean)):
+        lines.append("  note: " + NOISE_NOTE.format(p95=_static_p95(static),
+                                                    clean=_static_p95(clean))
+                     + ("; what remains without it is multipath, which -P max_depth=2 "
+                        "removes" if multipath else ""))
+    elif multipath:
         lines.append(f"  note: {MULTIPATH_NOTE} (-P max_depth=2)")
     rotating = summary.get("velocity", {}).get("rotating_bodies")
     if rotating and summary["velocity"].get("calibration") == "inverse-square":

@@ -110,6 +110,13 @@ def _as_numpy(v) -> np.ndarray:
     return np.stack([np.asarray(v[i], dtype=np.float64) for i in range(3)], axis=-1)
 
 
+#: film offsets (pixels) of the rays tried again where the pixel-centre ray hits nothing:
+#: a centre ray can pass exactly through the crease of two meshes (issue 42: the demo's
+#: truth had a NaN at pixel (2, 125), on the closed box's edge where the ceiling meets a
+#: wall); a ten-thousandth of a pixel to each side finds the surface there
+CRACK_NUDGES = ((0.0, 0.0), (1e-4, 0.0), (-1e-4, 0.0), (0.0, 1e-4), (0.0, -1e-4))
+
+
 def _trace_pixel_centres(scene, width: int, height: int, start: float, mid: float,
                          end: float):
     """The width x height pixel-centre rays of the camera at mid-exposure against the
@@ -122,23 +129,37 @@ def _trace_pixel_centres(scene, width: int, height: int, start: float, mid: floa
     from ..integrators.camera import is_pinhole
 
     mi = require_variant()
-    ray, si, body = _trace(mi, scene, *_pixel_centres(mi, width, height, mid), start, end)
-    dr.eval(si.p, si.n, ray.d, body)
-    p, n = _as_numpy(si.p), _as_numpy(si.n)
-    d = np.broadcast_to(_as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    ray_o = None if is_pinhole(scene.sensor) else np.broadcast_to(_as_numpy(ray.o), p.shape)
-    return p, n, ray_o, d, np.asarray(body, dtype=np.int64)
+    pinhole = is_pinhole(scene.sensor)
+    out = None
+    for nudge in CRACK_NUDGES:
+        ray, si, body = _trace(mi, scene, *_pixel_centres(mi, width, height, mid, nudge),
+                               start, end)
+        dr.eval(si.p, si.n, ray.d, body)
+        p, n = _as_numpy(si.p), _as_numpy(si.n)
+        d = np.broadcast_to(_as_numpy(ray.d), p.shape).copy()  # (parallel rays: one direction)
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        ray_o = None if pinhole else np.broadcast_to(_as_numpy(ray.o), p.shape).copy()
+        traced = [p, n, ray_o, d, np.asarray(body, dtype=np.int64)]
+        if out is None:
+            out = traced
+        else:  # a centre ray that missed takes the nudged ray's hit
+            filled = (out[4] == -2) & (traced[4] != -2)
+            for kept, new in zip(out, traced):
+                if kept is not None:
+                    kept[filled] = new[filled]
+        if not np.any(out[4] == -2):
+            break
+    return tuple(out)
 
 
-def _pixel_centres(mi, width: int, height: int, time: float):
-    """(film positions, times) of the width x height pixel centres at ``time``,
-    normalized over the crop window as Mitsuba's sensors take them."""
+def _pixel_centres(mi, width: int, height: int, time: float, nudge=(0.0, 0.0)):
+    """(film positions, times) of the width x height pixel centres (moved by ``nudge``
+    pixels) at ``time``, normalized over the crop window as Mitsuba's sensors take them."""
     import drjit as dr
 
     index = dr.arange(mi.UInt32, width * height)
-    position = mi.Point2f((mi.Float(index % width) + 0.5) / width,
-                          (mi.Float(index // width) + 0.5) / height)
+    position = mi.Point2f((mi.Float(index % width) + (0.5 + nudge[0])) / width,
+                          (mi.Float(index // width) + (0.5 + nudge[1])) / height)
     return position, dr.full(mi.Float, time, width * height)
 
 
