@@ -94,8 +94,8 @@ def cross_seed_gradient(dscene, target, names=None, spp: int | None = 64, seeds=
     if seed_a == seed_b:
         raise DerivativeError(f"cross_seed_gradient: seeds {seed_a} and {seed_b} are the "
                               "same: the cross loss needs two independent renders")
-    other = gradient(dscene, lambda image: 0.0, names=[], spp=spp, seed=seed_b,
-                     params=params, method=method)
+    other = gradient(dscene, residual_weighted_loss(dscene.mi, None), names=[], spp=spp,
+                     seed=seed_b, params=params, method=method)
     residual_b = residual(other.image, target, mask)
     out = gradient(dscene, residual_weighted_loss(dscene.mi, residual_b), names=names,
                    spp=spp, seed=seed_a, params=params, method=method)
