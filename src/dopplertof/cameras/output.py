@@ -15,6 +15,8 @@ from ..tof.output import prepare_folder
 MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
          "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn"),
          "mask_unwrap_failed": ("unwrap_failed", "the frequencies' wrap counts disagree"),
+         "mask_out_of_range": ("out_of_range", "nearer than the operating range or "
+                               "unwrapped beyond max_range_m"),
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces (all False when "
                                   "kept: --keep-mixed-pixels)")}
 
