@@ -387,6 +387,33 @@ def write_npy(path, array: np.ndarray) -> None:
             f.write(np.ascontiguousarray(array.T if header["fortran_order"] else array).data)
 
 
+#: PLY's names of the NumPy types write_ply takes
+_PLY_NAMES = {"f4": "float", "f8": "double", "u1": "uchar", "i1": "char", "i2": "short",
+              "u2": "ushort", "i4": "int", "u4": "uint"}
+
+
+def write_ply(path, columns: dict, comment: str = "") -> None:
+    """A binary little-endian PLY point cloud: ``columns`` (name -> 1-D array, all of one
+    length) as the properties of ``element vertex``, in their order and NumPy types."""
+    arrays = [np.asarray(v) for v in columns.values()]
+    count = len(arrays[0]) if arrays else 0
+    if any(a.ndim != 1 or len(a) != count for a in arrays):
+        raise ValueError("write_ply: columns must be 1-D arrays of one length")
+    dtype = np.dtype([(name, "<" + a.dtype.str[1:]) for name, a in zip(columns, arrays)])
+    table = np.empty(count, dtype)
+    for name, a in zip(columns, arrays):
+        table[name] = a
+    header = ["ply", "format binary_little_endian 1.0"]
+    header += [f"comment {line}" for line in comment.splitlines()]
+    header += [f"element vertex {count}"]
+    header += [f"property {_PLY_NAMES[a.dtype.str[1:]]} {name}"
+               for name, a in zip(columns, arrays)]
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(("\n".join(header + ["end_header"]) + "\n").encode("ascii"))
+            f.write(table.tobytes())
+
+
 def write_json(path, data: dict) -> None:
     """``data`` as JSON (float32 values as their shortest decimal: :func:`json_ready`)."""
     with atomic_path(path) as tmp:
