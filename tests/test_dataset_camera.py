@@ -176,3 +176,36 @@ def test_a_mesh_of_the_wrong_size_is_one_line_naming_the_file_and_its_size(tmp_p
     assert "Traceback" not in err and not (tmp_path / "out").exists()
     (shapes / "zz_centimetres.ply").unlink()
     config_from_mapping(data, "<test>", str(tmp_path))  # (the unit mesh alone is fine)
+
+
+def test_dataset_show_draws_a_row_per_sample_quickly_and_refuses_bad_input(tiny, tmp_path,
+                                                                            capsys):
+    """`dopplertof dataset show DIR --samples ... -o preview.png`: a row of 6 panels per
+    sample (raw, camera depth, truth, error, velocity truth, camera velocity), hatched
+    NaN, in well under 5 s; a wrong item or output is one line, exit 2, nothing written."""
+    import time
+
+    from PIL import Image
+
+    from dopplertof.cli import main
+    from dopplertof.previews import NO_SIGNAL_COLOUR
+
+    one, three = tmp_path / "one.png", tmp_path / "three.png"
+    started = time.perf_counter()
+    assert main(["dataset", "show", tiny[1], "--samples", "1", "-o", str(one)]) == 0
+    assert main(["dataset", "show", tiny[1], "-o", str(three)]) == 0
+    assert time.perf_counter() - started < 5.0
+    small, big = Image.open(one), Image.open(three)
+    assert abs(big.width - small.width) < 0.1 * small.width and big.height > 2 * small.height
+    pixels = np.asarray(big.convert("RGB")).reshape(-1, 3)
+    magenta = [int(NO_SIGNAL_COLOUR[k:k + 2], 16) for k in (1, 3, 5)]
+    assert np.all(pixels == magenta, axis=1).sum() > 50  # (the hatching of masked pixels)
+    capsys.readouterr()
+    for argv, words in ((["--samples", "0,7"], "--samples 0,7: the dataset holds items 0-2"),
+                        (["--samples", "a"], "--samples must be item numbers"),
+                        (["-o", str(tmp_path / "x.jpg")], "-o must be a .png file")):
+        argv = argv if "-o" in argv else argv + ["-o", str(tmp_path / "bad.png")]
+        assert main(["dataset", "show", tiny[1]] + argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err, err
+    assert not (tmp_path / "bad.png").exists() and not (tmp_path / "x.jpg").exists()
