@@ -255,6 +255,38 @@ def output_folder(folder, name: str):
         os.close(owner)
 
 
+@contextlib.contextmanager
+def new_folder(folder):
+    """A folder written whole, subfolders and all (issue 41: dataset exports): yields a
+    staging folder (a hidden sibling of ``folder``) that becomes ``folder`` in one rename
+    when the block ends without an exception; on any failure it is removed and nothing
+    is left. A ``folder`` that exists and is not empty is refused (an OutputError before
+    anything is written: nothing is overwritten)."""
+    target = check_output_folder(folder)
+    if os.path.isdir(target) and os.listdir(target):
+        raise OutputError(f"{target} exists and is not empty: nothing there is overwritten; "
+                          "choose a new folder")
+    parent = os.path.dirname(target)
+    created = _missing_folders(parent)
+    try:
+        os.makedirs(parent, exist_ok=True)
+        staging = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.staging-", dir=parent)
+    except OSError as exc:
+        _remove_created(created)
+        raise write_error(target, exc) from exc
+    try:
+        yield staging
+        if INTERRUPT_SEEN.is_set():
+            raise KeyboardInterrupt
+        if os.path.isdir(target):
+            os.rmdir(target)  # (empty)
+        os.rename(staging, target)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        _remove_created(created)
+        raise
+
+
 def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseException:
     """``exc`` with a staging path in its message replaced by the output's own path."""
     if isinstance(exc, WriteError) and exc.path.startswith(staging + os.sep):

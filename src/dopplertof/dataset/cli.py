@@ -31,6 +31,8 @@ def add_subcommand(subparsers) -> None:
                    "(default: the first 4)")
     d.add_argument("--split", default="full", help="with show: full (default), ideal or "
                    "direct")
+    d.add_argument("--format", dest="export_format", metavar="flat|torf",
+                   help="with export: FLAT's Kinect layout or TöRF's (docs/dataset.md)")
     _cluster_options(d)
     d.set_defaults(func=cmd_dataset)
 
@@ -43,10 +45,13 @@ def cmd_dataset(args) -> int:
         return cmd_verify(args.folder)
     if args.config == "show" and args.folder is not None:
         return cmd_show(args)
+    if args.config == "export" and args.folder is not None:
+        return cmd_export(args)
     if args.folder is not None:
         raise DatasetError(f"unexpected argument {args.folder!r}: `dopplertof dataset CONFIG "
                            "-o DIR` renders, `dopplertof dataset verify DIR` checks, "
-                           "`dopplertof dataset show DIR -o preview.png` draws")
+                           "`dopplertof dataset show DIR -o preview.png` draws, `dopplertof dataset export "
+                           "DIR --format flat -o OUT` exports")
     if args.output is None:
         raise DatasetError("the dataset folder is missing: dopplertof dataset CONFIG -o DIR")
     config = load_config(args.config)
@@ -106,4 +111,16 @@ def cmd_show(args) -> int:
     started = time.perf_counter()
     show_dataset(args.folder, args.samples, args.output, args.split)
     print(f"wrote {args.output} ({time.perf_counter() - started:.1f} s)")
+    return 0
+
+
+def cmd_export(args) -> int:
+    """Write the dataset folder in FLAT's or TöRF's layout into the new folder -o."""
+    from .config import DatasetError
+    from .export import FORMATS, export_dataset
+
+    if args.export_format is None:
+        raise DatasetError(f"dataset export needs --format ({', '.join(FORMATS)})")
+    info = export_dataset(args.folder, args.export_format, args.output)
+    print(f"exported {info['samples']} samples as {info['format']} -> {args.output}")
     return 0
