@@ -180,9 +180,9 @@ def test_a_mesh_of_the_wrong_size_is_one_line_naming_the_file_and_its_size(tmp_p
 
 def test_dataset_show_draws_a_row_per_sample_quickly_and_refuses_bad_input(tiny, tmp_path,
                                                                             capsys):
-    """`dopplertof dataset show DIR --samples ... -o preview.png`: a row of 6 panels per
-    sample (raw, camera depth, truth, error, velocity truth, camera velocity), hatched
-    NaN, in well under 5 s; a wrong item or output is one line, exit 2, nothing written."""
+    """`dopplertof dataset show DIR --samples ... -o preview.png`: a row of 8 panels per
+    sample (raw, camera depth, truth, error, velocity truth, camera velocity, flow,
+    instances), hatched NaN, in well under 5 s; a wrong item or output is one line, exit 2, nothing written."""
     import time
 
     from PIL import Image
@@ -209,3 +209,22 @@ def test_dataset_show_draws_a_row_per_sample_quickly_and_refuses_bad_input(tiny,
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err, err
     assert not (tmp_path / "bad.png").exists() and not (tmp_path / "x.jpg").exists()
+
+
+def test_the_docs_pytorch_loop_runs(tiny):
+    """docs/dataset.md's PyTorch block, as written (its folder: the test's dataset; worker
+    processes: 0), one epoch."""
+    import os
+    import re
+
+    torch = pytest.importorskip("torch", reason="PyTorch is not installed (not a "
+                                "dependency of dopplertof): the docs' loop is not run")
+    with open(os.path.join(os.path.dirname(EXAMPLE), "..", "docs", "dataset.md")) as f:
+        blocks = re.findall(r"```python\n(.*?)```", f.read(), re.S)
+    code = next(b for b in blocks if "class DopplerToF" in b)
+    code = code.replace('"out/dataset"', repr(tiny[1])).replace("num_workers=2",
+                                                                 "num_workers=0")
+    namespace = {}
+    exec(compile(code, "docs/dataset.md", "exec"), namespace)
+    assert namespace["inputs"].shape[1] == 6 + 1 and namespace["target"].dtype == torch.float32
+    assert len(namespace["loader"].dataset) == 3

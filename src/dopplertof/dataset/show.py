@@ -1,7 +1,8 @@
 """``dopplertof dataset show DIR [--samples 0,1,2] -o preview.png`` (issue 41): a row
 per sample of what a network sees and learns: the first raw frame, the camera's depth
-beside the truth and their error, the radial velocity truth and the camera's; masked
-pixels hatched as in every preview (:mod:`dopplertof.previews`)."""
+beside the truth and their error, the radial velocity truth and the camera's, the optical
+flow's magnitude and the instances, each with its colour bar; masked pixels hatched as
+in every preview (:mod:`dopplertof.previews`)."""
 
 from __future__ import annotations
 
@@ -59,6 +60,13 @@ def sample_panels(sample: dict, item: int) -> list:
     if measured is not None:
         panels.append(Panel(measured, "camera velocity", "m/s", "RdBu_r",
                             ColourScale(-speed, speed)))
+    flow = np.where(sample["mask"], np.linalg.norm(sample["flow"], axis=-1), np.nan)
+    instance = np.where(sample["instance"] >= 0, sample["instance"], np.nan).astype(np.float64)
+    panels += [Panel(flow, "optical flow |du, dv|", "px over the sequence", "magma",
+                     ColourScale.fitted(flow, 0.0)),
+               Panel(instance, "instances (0: backdrop)", "id", "viridis",
+                     ColourScale.fitted(instance, -0.5, max(np.nanmax(instance), 0) + 0.5
+                                        if np.isfinite(instance).any() else 1.0))]
     return panels
 
 
