@@ -200,6 +200,9 @@ def test_dataset_show_draws_a_row_per_sample_quickly_and_refuses_bad_input(tiny,
     pixels = np.asarray(big.convert("RGB")).reshape(-1, 3)
     magenta = [int(NO_SIGNAL_COLOUR[k:k + 2], 16) for k in (1, 3, 5)]
     assert np.all(pixels == magenta, axis=1).sum() > 50  # (the hatching of masked pixels)
+    stats = tmp_path / "stats.png"
+    assert main(["dataset", "show", tiny[1], "--stats", "-o", str(stats)]) == 0
+    assert Image.open(stats).width > 600
     capsys.readouterr()
     for argv, words in ((["--samples", "0,7"], "--samples 0,7: the dataset holds items 0-2"),
                         (["--samples", "a"], "--samples must be item numbers"),
@@ -228,3 +231,18 @@ def test_the_docs_pytorch_loop_runs(tiny):
     exec(compile(code, "docs/dataset.md", "exec"), namespace)
     assert namespace["inputs"].shape[1] == 6 + 1 and namespace["target"].dtype == torch.float32
     assert len(namespace["loader"].dataset) == 3
+
+
+def test_the_statistics_page_counts_what_the_samples_hold(tiny):
+    from dopplertof.dataset.show import dataset_statistics
+
+    ds = Dataset(tiny[1])
+    stats = dataset_statistics(ds, [0, 2])
+    samples = [ds[0], ds[2]]
+    np.testing.assert_allclose(stats["valid"]["truth"], [s["truth_valid"].mean() for s in samples])
+    np.testing.assert_allclose(stats["valid"]["ideal"],
+                               [s["camera_valid_ideal"].mean() for s in samples])
+    assert len(stats["distance"]) == 4  # (TINY: two objects a sample)
+    wrap = 299792458.0 / (2 * 30e6)  # paper-dtof: one frequency
+    errors = np.concatenate(stats["error"]["direct"])
+    assert errors.max() <= wrap / 2 + 1e-6 and np.median(errors) < 0.05

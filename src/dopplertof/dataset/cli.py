@@ -29,6 +29,9 @@ def add_subcommand(subparsers) -> None:
                                           "the folder written")
     d.add_argument("--samples", metavar="I,J,...", help="with show: the items to draw "
                    "(default: the first 4)")
+    d.add_argument("--stats", action="store_true", help="with show: one page of the "
+                   "dataset's statistics (depths, speeds, objects, valid fractions, the "
+                   "camera's error per split) over --samples (default: every item)")
     d.add_argument("--split", default="full", help="with show: full (default), ideal or "
                    "direct")
     d.add_argument("--format", dest="export_format", metavar="flat|torf",
@@ -109,7 +112,7 @@ def cmd_show(args) -> int:
     if args.output is None:
         raise DatasetError("dataset show needs -o preview.png")
     started = time.perf_counter()
-    show_dataset(args.folder, args.samples, args.output, args.split)
+    show_dataset(args.folder, args.samples, args.output, args.split, args.stats)
     print(f"wrote {args.output} ({time.perf_counter() - started:.1f} s)")
     return 0
 

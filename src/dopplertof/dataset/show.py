@@ -70,9 +70,11 @@ def sample_panels(sample: dict, item: int) -> list:
     return panels
 
 
-def show_dataset(folder, samples, output: str, split: str = "full") -> str:
+def show_dataset(folder, samples, output: str, split: str = "full",
+                 statistics: bool = False) -> str:
     """Draw ``samples`` (``--samples`` text or None) of the dataset in ``folder`` into
-    the PNG ``output`` (written atomically); returns its path."""
+    the PNG ``output`` (written atomically); ``statistics``: the one-page statistics of
+    those samples (None: every sample) instead; returns its path."""
     from .. import io
     from ..previews import NO_SIGNAL_NOTE, draw
     from .reader import Dataset
@@ -83,6 +85,10 @@ def show_dataset(folder, samples, output: str, split: str = "full") -> str:
     ds = Dataset(folder, split=split)
     if not len(ds):
         raise DatasetError(f"{folder}: the dataset holds no sample to show")
+    if statistics:
+        indices = list(range(len(ds))) if samples is None else parse_samples(samples, len(ds))
+        write_statistics(ds, indices, output, f"{folder}: statistics of {len(indices)} items")
+        return output
     indices = parse_samples(samples, len(ds))
     rows = [sample_panels(ds[i], i) for i in indices]
     columns = max(len(r) for r in rows)
@@ -94,3 +100,75 @@ def show_dataset(folder, samples, output: str, split: str = "full") -> str:
                    caption=caption, columns=columns)
     io.save_png(output, drawing)
     return output
+
+
+def dataset_statistics(ds, indices) -> dict:
+    """What the statistics page plots, over items ``indices`` of ``ds``: truth depths
+    and |radial velocities| where truth_valid holds, the objects' distances and speeds,
+    each item's valid fractions and, per split, the camera's |depth error| (modulo its
+    unambiguous range: a one-frequency camera's depth wraps) and predicted depth std over
+    its valid pixels."""
+    from ..cameras.unwrap import unambiguous_range
+    from .sample import CAMERA_SPLITS
+
+    stats = {"depth": [], "speed": [], "distance": [], "object_speed": [],
+             "valid": {"truth": [], **{s: [] for s in CAMERA_SPLITS}},
+             "error": {s: [] for s in CAMERA_SPLITS}, "std": {s: [] for s in CAMERA_SPLITS}}
+    for item in indices:
+        sample, description = ds[item], ds.attributes(item)["description"]
+        trusted = sample.get("truth_valid", sample["mask"])
+        stats["depth"].append(sample["depth"][trusted])
+        stats["speed"].append(np.abs(sample["velocity_gt"][trusted]))
+        centre = np.asarray(description["camera"]["rest"])[:3, 3]
+        for obj in description["objects"]:
+            stats["distance"].append(np.linalg.norm(np.asarray(obj["centre_m"]) - centre))
+            stats["object_speed"].append(np.linalg.norm(obj["velocity_m_s"]))
+        stats["valid"]["truth"].append(trusted.mean())
+        for split, suffix in CAMERA_SPLITS.items():
+            valid = sample.get(f"camera_valid{suffix}")
+            if valid is None:  # (layout 1)
+                continue
+            stats["valid"][split].append(valid.mean())
+            wrap = unambiguous_range(sample["camera_frequencies"] * 1e6)
+            error = (sample[f"camera_depth{suffix}"] - sample["depth"])[valid]
+            stats["error"][split].append(np.abs(error - wrap * np.round(error / wrap)))
+            stats["std"][split].append(sample[f"camera_confidence{suffix}"][valid])
+    return stats
+
+
+def write_statistics(ds, indices, output: str, title: str) -> None:
+    """The one-page statistics figure (:func:`dataset_statistics`) as a PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .. import io
+
+    stats = dataset_statistics(ds, indices)
+    fig = Figure(figsize=(12.0, 6.4), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3)
+    for ax, values, label in ((axes[0, 0], stats["depth"], "truth depth (m), truth_valid pixels"),
+                              (axes[0, 1], stats["speed"], "|radial velocity truth| (m/s), "
+                               "truth_valid pixels"),
+                              (axes[0, 2], [stats["distance"]], "object distance (m)"),
+                              (axes[1, 0], [stats["object_speed"]], "object speed (m/s)")):
+        data = np.concatenate([np.ravel(v) for v in values]) if values else np.zeros(0)
+        ax.hist(data[np.isfinite(data)], bins=30, color="#4477aa")
+        ax.set_xlabel(label)
+        ax.set_ylabel("count")
+    splits = list(stats["valid"])
+    axes[1, 1].bar(splits, [np.mean(stats["valid"][s]) if stats["valid"][s] else 0.0
+                            for s in splits], color="#66aa55")
+    axes[1, 1].set_ylabel("mean valid fraction (truth_valid; camera_valid per split)")
+    cameras = [s for s in splits if stats["error"].get(s)]
+    for offset, key, name in ((-0.2, "error", "|camera - truth| mod range"),
+                              (0.2, "std", "predicted std")):
+        axes[1, 2].bar(np.arange(len(cameras)) + offset,
+                       [np.median(np.concatenate(stats[key][s])) if np.concatenate(
+                           stats[key][s]).size else 0.0 for s in cameras], 0.4, label=name)
+    axes[1, 2].set_xticks(np.arange(len(cameras)), cameras)
+    axes[1, 2].set_yscale("log")
+    axes[1, 2].set_ylabel("camera depth, median over valid pixels (m)")
+    axes[1, 2].legend(fontsize=8)
+    fig.suptitle(title)
+    io.save_figure(fig, output)
