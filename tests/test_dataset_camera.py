@@ -246,3 +246,22 @@ def test_the_statistics_page_counts_what_the_samples_hold(tiny):
     wrap = 299792458.0 / (2 * 30e6)  # paper-dtof: one frequency
     errors = np.concatenate(stats["error"]["direct"])
     assert errors.max() <= wrap / 2 + 1e-6 and np.median(errors) < 0.05
+
+
+def test_a_layout_1_folder_is_still_read_and_an_unknown_layout_is_named(tiny, tmp_path):
+    """Layout 2 (issue 41) adds keys only: a reader reads layout 1's folders (without
+    the camera's outputs) and names a layout it does not know."""
+    import json
+    import shutil
+
+    for version, ok in ((1, True), (3, False)):
+        folder = tmp_path / f"layout{version}"
+        shutil.copytree(tiny[1], folder)
+        info = json.loads((folder / "dataset.json").read_text())
+        info["layout_version"] = version
+        (folder / "dataset.json").write_text(json.dumps(info))
+        if ok:
+            assert len(Dataset(folder)) == 3
+        else:
+            with pytest.raises(DatasetError, match="layout version 3, this reader reads 1, 2"):
+                Dataset(folder)
