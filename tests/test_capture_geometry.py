@@ -124,3 +124,28 @@ def test_a_camera_capture_gives_the_pose_of_each_raw_frame_and_its_distortion(tm
     np.testing.assert_allclose((points - ON_PLANE) @ NORMAL, 0.0, atol=1e-4)
     undistorted = _world(camera, camera["pose_camera_to_world"], truth, _rays(camera))
     assert np.abs((undistorted - ON_PLANE) @ NORMAL).max() > 1e-3  # (the distortion matters)
+
+
+def test_an_orthographic_capture_has_no_k_and_refuses_a_pointcloud(tmp_path, capsys):
+    """camera.json of an orthographic camera: K None, its projection named, a pose with
+    unit axes (the sensor's scale, its extent, left out); --pointcloud is one line,
+    exit 2, before anything renders."""
+    from dopplertof.cli import main
+
+    text = TILTED_PLANE.replace('<sensor type="perspective">\n        <float name="fov" value="20"/>',
+                                '<sensor type="orthographic">').replace(
+        'up="0, 1, 0"/></transform>', 'up="0, 1, 0"/><scale x="0.5" y="0.5"/></transform>')
+    assert 'type="orthographic"' in text and "scale" in text
+    scene = tmp_path / "ortho.xml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    assert main(["capture", str(scene), "--spp", "4", "-o", str(out), "--quiet",
+                 "--pointcloud"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--pointcloud needs a pinhole" in err and len(err.splitlines()) == 1
+    assert not out.exists()
+    assert main(["capture", str(scene), "--spp", "4", "-o", str(out), "--quiet"]) == 0
+    camera = json.loads((out / "camera.json").read_text())
+    assert camera["K"] is None and camera["projection"] == "OrthographicCamera"
+    pose = np.array(camera["pose_camera_to_world"])
+    np.testing.assert_allclose(pose[:3, :3], np.diag([-1.0, -1.0, 1.0]), atol=1e-6)

@@ -317,6 +317,11 @@ def _cmd_capture(args) -> int:
     noise = _noise_model(args, args.noise)
     prepare_folder(args.output)
     scene = _load_scene(args)
+    from .integrators.camera import is_pinhole
+
+    if args.pointcloud and not is_pinhole(scene.sensor):
+        raise UsageError(f"--pointcloud needs a pinhole (perspective) sensor; {args.scene} "
+                         f"has a {scene.sensor.class_name()}")
 
     def report(spec, seconds):
         if not args.quiet:

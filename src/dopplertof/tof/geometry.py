@@ -26,26 +26,32 @@ UNITS = {"K": "px", "distortion_k1_k2_p1_p2_k3": "1", "pose_camera_to_world":
 
 
 def camera_pose(scene, time: float) -> np.ndarray:
-    """Camera-to-world (4x4, OpenCV axes) of ``scene``'s sensor at absolute ``time`` (s)."""
+    """Camera-to-world (4x4, OpenCV axes, unit axes: a sensor's scale, an orthographic
+    camera's extent, is left out) of ``scene``'s sensor at absolute ``time`` (s)."""
     from ..integrators.camera import rest_frame
 
     frame = rest_frame(scene.sensor)
     if scene.sensor_motion is not None:
         frame = scene.sensor_motion.relative_matrix(time) @ frame
+    frame[:3, :3] = frame[:3, :3] / np.linalg.norm(frame[:3, :3], axis=0)
     return frame @ MITSUBA_TO_OPENCV
 
 
 def intrinsics(scene) -> dict:
-    """K, the lens distortion and the resolution of ``scene``'s pinhole."""
+    """K, the lens distortion and the resolution of ``scene``'s pinhole (another sensor,
+    an orthographic one: K None and its ``projection`` named)."""
     import mitsuba as mi
 
-    from ..integrators.camera import pinhole_intrinsics
+    from ..integrators.camera import is_pinhole, pinhole_intrinsics
 
     width, height = (int(v) for v in scene.sensor.film().size())
-    fov = float(mi.traverse(scene.sensor)["x_fov"][0])
-    return {"K": pinhole_intrinsics(width, height, fov).tolist(),
-            "distortion_k1_k2_p1_p2_k3": list(scene.lens_distortion or (0.0,) * 5),
-            "resolution": [width, height], "fov_x_deg": fov, "convention": CONVENTION}
+    out = {"resolution": [width, height], "projection": scene.sensor.class_name(),
+           "distortion_k1_k2_p1_p2_k3": list(scene.lens_distortion or (0.0,) * 5),
+           "convention": CONVENTION, "K": None}
+    if is_pinhole(scene.sensor):
+        fov = float(mi.traverse(scene.sensor)["x_fov"][0])
+        out.update(K=pinhole_intrinsics(width, height, fov).tolist(), fov_x_deg=fov)
+    return out
 
 
 def camera_geometry(scene, time: float, frames=()) -> dict:
@@ -89,7 +95,11 @@ def point_cloud(geometry: dict, depth, amplitude, velocity, velocity_gt) -> dict
     pixel (k mod W, k div W)): x, y, z (world, m, the pose at mid-exposure), nx, ny, nz
     (the normal of the neighbouring points' central differences, turned towards the
     camera), radial_velocity and radial_velocity_gt (m/s, > 0 receding), amplitude and
-    valid (1 where the camera reports a depth; x, y, z and the normal NaN elsewhere)."""
+    valid (1 where the camera reports a depth; x, y, z and the normal NaN elsewhere). A
+    ValueError for a sensor without K (not a pinhole)."""
+    if geometry.get("K") is None:
+        raise ValueError(f"pointcloud.ply needs a pinhole perspective camera, not a "
+                         f"{geometry.get('projection')}: run without --pointcloud")
     pose = np.asarray(geometry["pose_camera_to_world"], np.float64)
     depth = np.asarray(depth, np.float64)
     camera_points = depth[..., None] * pixel_rays(geometry)
