@@ -53,8 +53,8 @@ def cmd_dataset(args) -> int:
     if args.folder is not None:
         raise DatasetError(f"unexpected argument {args.folder!r}: `dopplertof dataset CONFIG "
                            "-o DIR` renders, `dopplertof dataset verify DIR` checks, "
-                           "`dopplertof dataset show DIR -o preview.png` draws, `dopplertof dataset export "
-                           "DIR --format flat -o OUT` exports")
+                           "`dopplertof dataset show DIR -o preview.png` draws, "
+                           "`dopplertof dataset export DIR --format flat -o OUT` exports")
     if args.output is None:
         raise DatasetError("the dataset folder is missing: dopplertof dataset CONFIG -o DIR")
     config = load_config(args.config)

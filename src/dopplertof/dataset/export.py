@@ -103,7 +103,8 @@ def _export_flat(ds, staging: str) -> dict:
     names = []
     for item in range(len(ds)):
         attributes = ds.attributes(item)
-        preset, where = attributes["camera_preset"], f"{ds.folder}: sample {attributes['index']}"
+        preset = attributes["camera_preset"]
+        where = f"{ds.folder}: sample {attributes['index']}"
         order = flat_channel_frames(preset, where)
         sample = ds[item]
         if sample["depth"].shape != FLAT_SHAPE:
@@ -160,7 +161,8 @@ def _export_torf(ds, staging: str) -> dict:
         scan = os.path.join(staging, f"sample_{int(attributes['index']):08d}")
         for folder in ("tof", "depth", "color", "cams"):
             os.makedirs(os.path.join(scan, folder))
-        files = {"tof/0000.npy": torf_tof(sample["camera_phase"][k], sample["camera_amplitude"]),
+        files = {"tof/0000.npy": torf_tof(sample["camera_phase"][k],
+                                          sample["camera_amplitude"]),
                  "depth/0000.npy": np.nan_to_num(sample["depth"]).astype(np.float32),
                  "color/0000.npy": np.nan_to_num(sample["albedo"]).astype(np.float32),
                  "cams/depth_range.npy": np.float32(SPEED_OF_LIGHT / (frequencies[k] * 1e6))}

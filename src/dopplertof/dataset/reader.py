@@ -27,9 +27,9 @@ class Dataset:
     plus ``index`` and ``seed``, where ``raw`` is the split's raw frames: ``full``
     (noise, global illumination), ``ideal`` (no noise) or ``direct`` (no multipath,
     no noise), and the ``camera_*`` outputs (camera_depth, camera_amplitude...) are the
-    split's reconstruction by the camera. ``ds.units[key]`` is each array's unit; ``ds.attributes(i)`` the
-    sample's scene (XML), description, seeds and camera preset, ``ds.scene(i)`` the
-    loaded scene. Files are opened per
+    split's reconstruction by the camera. ``ds.units[key]`` is each array's unit;
+    ``ds.attributes(i)`` the sample's scene (XML), description, seeds and camera preset,
+    ``ds.scene(i)`` the loaded scene. Files are opened per
     item, so that the object can be handed to forked loader processes.
 
     Integrity (issue 39): a shard that is missing, truncated, damaged, of another

@@ -41,7 +41,8 @@ UNITS = {
     "raw": "DN", "raw_ideal": "DN", "raw_direct": "DN", "raw_variance": "DN^2",
     "depth": "m", "depth_z": "m", "velocity_gt": "m/s", "velocity_along_ray": "m/s",
     "flow": "px", "scene_flow": "m", "instance": "1", "mask": "1", "normals": "1",
-    "albedo": "1", "incidence": "deg", "grazing": "1", "truth_valid": "1", "K": "px", "pose": "m", "pose_start": "m", "pose_end": "m",
+    "albedo": "1", "incidence": "deg", "grazing": "1", "truth_valid": "1", "K": "px",
+    "pose": "m", "pose_start": "m", "pose_end": "m",
     "camera_velocity": "m/s", "camera_angular_velocity": "rad/s",
     "camera_frequencies": "MHz",
     **{f"camera_{name}{suffix}": unit for suffix in CAMERA_SPLITS.values()
@@ -77,9 +78,10 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
 
 
 def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tuple:
-    """(description, scene XML, loaded scene, truth) of sample ``index``: its first drawing in which
-    no object encloses the camera and something is visible (an object, when it has
-    any); drawn again up to MAX_DRAWS times, then a DatasetError saying why (issue 41)."""
+    """(description, scene XML, loaded scene, truth) of sample ``index``: its first
+    drawing in which no object encloses the camera and something is visible (an object,
+    when it has any); drawn again up to MAX_DRAWS times, then a DatasetError saying why
+    (issue 41)."""
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera
@@ -148,7 +150,8 @@ def camera_outputs(readings: dict, preset, cosine: np.ndarray) -> dict:
                   "phase": np.stack([g.phase for g in recon.frequencies])}
         if recon.velocity is not None:
             arrays["radial_velocity"] = recon.velocity
-        out.update({f"camera_{k}{suffix}": np.asarray(v, np.float32) for k, v in arrays.items()})
+        out.update({f"camera_{k}{suffix}": np.asarray(v, np.float32)
+                    for k, v in arrays.items()})
         masks = {name: getattr(recon, attribute) for name, (attribute, _) in MASKS.items()}
         masks["valid"] = ~recon.masked
         out.update({f"camera_{k}{suffix}": np.asarray(v, bool) for k, v in masks.items()})
