@@ -13,27 +13,21 @@ import pytest
 
 plyfile = pytest.importorskip("plyfile")
 
+from test_cameras import SCENE_XML  # noqa: E402
+
 #: the camera moves along +x at SPEED m/s; a plane at z = 3 turned 30 degrees about y
 SPEED = 1.0
-TILTED_PLANE = """<scene version="3.0.0">
-    <integrator type="dopplertof"><integer name="max_depth" value="2"/></integrator>
-    <sensor type="perspective">
-        <float name="fov" value="20"/>
-        <animation name="to_world">
-            <transform time="0"><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/></transform>
-            <transform time="0.1"><lookat origin="0.1, 0, 0" target="0.1, 0, 1" up="0, 1, 0"/></transform>
-        </animation>
-        <float name="shutter_open" value="0"/><float name="shutter_close" value="0.02"/>
-        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
-        <film type="hdrfilm"><integer name="width" value="7"/><integer name="height" value="5"/>
-            <rfilter type="box"/></film>
-    </sensor>
-    <emitter type="point"><point name="position" x="0" y="0" z="0"/><rgb name="intensity" value="10"/></emitter>
-    <shape type="rectangle"><bsdf type="diffuse"/>
-        <transform name="to_world"><scale value="50"/><rotate y="1" angle="210"/><translate z="3"/></transform>
-    </shape>
-</scene>
-"""
+TILTED_PLANE = (SCENE_XML  # (test_cameras' plane, turned, seen by a moving camera)
+                .replace('<float name="fov" value="6"/>', '<float name="fov" value="20"/>')
+                .replace('<transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 1" '
+                         'up="0, 1, 0"/></transform>',
+                         '<animation name="to_world"><transform time="0"><lookat origin="0, 0, 0" '
+                         'target="0, 0, 1" up="0, 1, 0"/></transform><transform time="0.1">'
+                         '<lookat origin="0.1, 0, 0" target="0.1, 0, 1" up="0, 1, 0"/>'
+                         '</transform></animation>')
+                .replace('name="width" value="4"', 'name="width" value="7"')
+                .replace('name="height" value="4"', 'name="height" value="5"')
+                .replace('angle="180"', 'angle="210"'))
 #: the plane's normal and a point on it
 NORMAL, ON_PLANE = np.array([np.sin(np.radians(210)), 0.0, np.cos(np.radians(210))]), np.array(
     [0.0, 0.0, 3.0])
