@@ -108,7 +108,12 @@ def _add_capture_command(sub) -> None:
                        "depth reconstruction, exact truth, previews and summary.json")
     # ---- what to capture, and where to
     _add_scene_argument(c)
-    c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP})")
+    c.add_argument("-o", "--output", required=True, help=f"output folder ({FOLDER_HELP}); "
+                   "it holds camera.json (K, distortion, poses) with every capture")
+    c.add_argument("--pointcloud", action="store_true",
+                   help="also write pointcloud.ply: the camera's depth unprojected into the "
+                   "world, one vertex per pixel (x, y, z, normal, radial velocity and its "
+                   "truth, amplitude, valid)")
     c.add_argument("--spp", type=int, help="samples per pixel per capture (default: the "
                    "scene's sampler)")
     _add_seed_option(c)
@@ -310,6 +315,11 @@ def _cmd_capture(args) -> int:
     noise = _noise_model(args, args.noise)
     prepare_folder(args.output)
     scene = _load_scene(args)
+    from .integrators.camera import is_pinhole
+
+    if args.pointcloud and not is_pinhole(scene.sensor):
+        raise UsageError(f"--pointcloud needs a pinhole (perspective) sensor; {args.scene} "
+                         f"has a {scene.sensor.class_name()}")
 
     def report(spec, seconds):
         if not args.quiet:
@@ -326,7 +336,7 @@ def _cmd_capture(args) -> int:
                                 max_depth_std=args.max_depth_std,
                                 keep_mixed_pixels=args.keep_mixed_pixels,
                                 checkpoint=args.checkpoint)
-    result.write(args.output)
+    result.write(args.output, pointcloud=args.pointcloud)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         remove_checkpoint(args.checkpoint)
     print_warnings(result.summary)

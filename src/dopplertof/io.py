@@ -256,6 +256,38 @@ def output_folder(folder, name: str):
         os.close(owner)
 
 
+@contextlib.contextmanager
+def new_folder(folder):
+    """A folder written whole, subfolders and all (issue 41: dataset exports): yields a
+    staging folder (a hidden sibling of ``folder``) that becomes ``folder`` in one rename
+    when the block ends without an exception; on any failure it is removed and nothing
+    is left. A ``folder`` that exists and is not empty is refused (an OutputError before
+    anything is written: nothing is overwritten)."""
+    target = check_output_folder(folder)
+    if os.path.isdir(target) and os.listdir(target):
+        raise OutputError(f"{target} exists and is not empty: nothing there is overwritten; "
+                          "choose a new folder")
+    parent = os.path.dirname(target)
+    created = _missing_folders(parent)
+    try:
+        os.makedirs(parent, exist_ok=True)
+        staging = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.staging-", dir=parent)
+    except OSError as exc:
+        _remove_created(created)
+        raise write_error(target, exc) from exc
+    try:
+        yield staging
+        if INTERRUPT_SEEN.is_set():
+            raise KeyboardInterrupt
+        if os.path.isdir(target):
+            os.rmdir(target)  # (empty)
+        os.rename(staging, target)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        _remove_created(created)
+        raise
+
+
 def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseException:
     """``exc`` with a staging path in its message replaced by the output's own path."""
     if isinstance(exc, WriteError) and exc.path.startswith(staging + os.sep):
@@ -386,6 +418,33 @@ def write_npy(path, array: np.ndarray) -> None:
             header = np.lib.format.header_data_from_array_1_0(array)
             np.lib.format.write_array_header_1_0(f, header)
             f.write(np.ascontiguousarray(array.T if header["fortran_order"] else array).data)
+
+
+#: PLY's names of the NumPy types write_ply takes
+_PLY_NAMES = {"f4": "float", "f8": "double", "u1": "uchar", "i1": "char", "i2": "short",
+              "u2": "ushort", "i4": "int", "u4": "uint"}
+
+
+def write_ply(path, columns: dict, comment: str = "") -> None:
+    """A binary little-endian PLY point cloud: ``columns`` (name -> 1-D array, all of one
+    length) as the properties of ``element vertex``, in their order and NumPy types."""
+    arrays = [np.asarray(v) for v in columns.values()]
+    count = len(arrays[0]) if arrays else 0
+    if any(a.ndim != 1 or len(a) != count for a in arrays):
+        raise ValueError("write_ply: columns must be 1-D arrays of one length")
+    dtype = np.dtype([(name, "<" + a.dtype.str[1:]) for name, a in zip(columns, arrays)])
+    table = np.empty(count, dtype)
+    for name, a in zip(columns, arrays):
+        table[name] = a
+    header = ["ply", "format binary_little_endian 1.0"]
+    header += [f"comment {line}" for line in comment.splitlines()]
+    header += [f"element vertex {count}"]
+    header += [f"property {_PLY_NAMES[a.dtype.str[1:]]} {name}"
+               for name, a in zip(columns, arrays)]
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(("\n".join(header + ["end_header"]) + "\n").encode("ascii"))
+            f.write(table.tobytes())
 
 
 def write_json(path, data: dict) -> None:

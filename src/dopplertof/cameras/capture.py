@@ -27,6 +27,7 @@ from ..params import RenderParams
 from ..scene.scene import keyframe_coverage_warning
 from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
                            error_stats)
+from ..tof.geometry import camera_geometry, intrinsics
 from ..tof.ground_truth import camera_forward, ground_truth, mixed_footprints
 from . import radiometry
 from . import sensor as camera_sensor
@@ -51,6 +52,9 @@ class CameraResult:
     mixed_footprints: np.ndarray | None = None
     #: what reaches the pixels (for :meth:`read_again`)
     light: "PixelLight | None" = None
+    #: camera.json's content (:func:`dopplertof.tof.geometry.camera_geometry`: the pose at
+    #: mid-sequence and at each raw frame)
+    geometry: dict | None = None
 
     def read_again(self, noise_seed: int | None, keep_mixed_pixels: bool = False):
         """(Readout, CameraReconstruction) of the same renders with another noise draw
@@ -66,11 +70,12 @@ class CameraResult:
     def depth(self):
         return self.reconstruction.depth
 
-    def write(self, folder) -> list:
-        """Every file (docs/cameras.md) into ``folder`` (created if missing)."""
+    def write(self, folder, pointcloud: bool = False) -> list:
+        """Every file (docs/cameras.md) into ``folder`` (created if missing); with
+        ``pointcloud`` also pointcloud.ply."""
         from .output import write_camera_result
 
-        return write_camera_result(self, folder)
+        return write_camera_result(self, folder, pointcloud)
 
 
 # ---- The frames' render settings -------------------------------------------------------
@@ -150,6 +155,8 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
     result.summary = _summary(scene, preset, result, records, spp, seed, noise, noise_seed,
                               _time.perf_counter() - started, keep_mixed_pixels)
     result.summary["intrinsics"] = _intrinsics(scene)
+    result.geometry = camera_geometry(scene, truth.time,
+                                      [(r["name"], r["window_s"]) for r in records])
     if preset.absolute:
         result.summary["noise"]["radiometry"] = _radiometry_summary(preset, result, ambient)
     return result
@@ -178,17 +185,9 @@ def _radiometry_summary(preset: CameraPreset, result: CameraResult, ambient: flo
 
 def _intrinsics(scene) -> dict:
     """K and the lens distortion of the capture's pinhole (OpenCV's conventions)."""
-    import mitsuba as mi
-
-    from ..integrators.camera import pinhole_intrinsics
-
-    width, height = (int(v) for v in scene.sensor.film().size())
-    fov = float(mi.traverse(scene.sensor)["x_fov"][0])
-    return {"K": pinhole_intrinsics(width, height, fov).tolist(),
-            "distortion_k1_k2_p1_p2_k3": list(scene.lens_distortion or (0.0,) * 5),
-            "convention": "OpenCV: pixel (i, j) centre at (i + 0.5, j + 0.5), x right, "
-                          "y down, z forward; depth.npy is the range along each pixel's "
-                          "(distorted) ray"}
+    found = intrinsics(scene)
+    return {"K": found["K"], "distortion_k1_k2_p1_p2_k3": found["distortion_k1_k2_p1_p2_k3"],
+            "convention": found["convention"]}
 
 
 # ---- Absolute radiometry ---------------------------------------------------------------

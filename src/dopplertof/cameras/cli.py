@@ -171,7 +171,7 @@ def run_camera_capture(args, load_defines) -> int:
                             checkpoint=args.checkpoint,
                             keep_mixed_pixels=args.keep_mixed_pixels,
                             ambient_irradiance=args.ambient_irradiance)
-    result.write(args.output)
+    result.write(args.output, pointcloud=args.pointcloud)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         from ..tof.checkpoint import remove_checkpoint
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import io
 from ..tof import figures
+from ..tof.geometry import write_camera_files
 from ..tof.output import prepare_folder
 
 #: the masks written, file stem -> (attribute of the reconstruction, what it means)
@@ -24,12 +25,15 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
                                   "unless kept: --keep-mixed-pixels)")}
 
 
-def write_camera_result(result, folder) -> list:
+def write_camera_result(result, folder, pointcloud: bool = False) -> list:
     """Every file of a camera frame into ``folder``, all or nothing (the output set
     "capture" of :func:`dopplertof.io.output_folder`, as a ToF capture's: an interrupted
     write leaves the earlier capture whole, issue 39); returns the paths in order."""
     with io.output_folder(prepare_folder(folder), "capture") as staged:
         _write_camera_files(result, staged.path)
+        recon = result.reconstruction
+        write_camera_files(staged.path, result.geometry, pointcloud, recon.depth,
+                           recon.amplitude, recon.velocity, result.velocity_gt)
     return staged.written
 
 

@@ -283,7 +283,8 @@ def unwrap_likelihood(depths, variances, frequencies_hz, max_range: float | None
             _best_two(d[:, i:i + CHUNK], w[:, i:i + CHUNK], ranges, searched, separation)
             for i in range(0, d.shape[1], CHUNK))))
     finite = np.isfinite(best_depth) & np.isfinite(best_chi2)
-    difference = runner_up - best_chi2
+    with np.errstate(invalid="ignore"):  # (no candidate at all: inf - inf, not finite)
+        difference = runner_up - best_chi2
     ambiguous = finite & (difference < gap)
     threshold = _chi2_quantile(inconsistency_p, len(f) - 1)
     inconsistent = finite & ~ambiguous & (best_chi2 > threshold)

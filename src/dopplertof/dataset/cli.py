@@ -17,13 +17,25 @@ def add_subcommand(subparsers) -> None:
                     "depth, velocity, flow, instances, normals, albedo, K, pose). A rerun "
                     "resumes at the first unfinished shard.")
     d.add_argument("config", help="dataset configuration (.toml; examples/dataset.toml), "
-                                  "or `verify` to check the dataset folder FOLDER")
+                                  "or `verify`, `show` or `export` with the dataset folder "
+                                  "FOLDER")
     d.add_argument("folder", nargs="?", metavar="FOLDER",
                    help="`dopplertof dataset verify FOLDER`: every sample read and its "
                         "checksum compared; says what a rerun would render again (exit 0: "
-                        "nothing, 1: something)")
+                        "nothing, 1: something). `show FOLDER -o preview.png`: a row of "
+                        "images per sample. `export FOLDER --format flat|torf -o OUT`")
     d.add_argument("-o", "--output", help=f"dataset folder ({FOLDER_HELP}); required "
-                                          "to render")
+                                          "to render; with show: the .png; with export: "
+                                          "the folder written")
+    d.add_argument("--samples", metavar="I,J,...", help="with show: the items to draw "
+                   "(default: the first 4)")
+    d.add_argument("--stats", action="store_true", help="with show: one page of the "
+                   "dataset's statistics (depths, speeds, objects, valid fractions, the "
+                   "camera's error per split) over --samples (default: every item)")
+    d.add_argument("--split", default="full", help="with show: full (default), ideal or "
+                   "direct")
+    d.add_argument("--format", dest="export_format", metavar="flat|torf",
+                   help="with export: FLAT's Kinect layout or TöRF's (docs/dataset.md)")
     _cluster_options(d)
     d.set_defaults(func=cmd_dataset)
 
@@ -34,9 +46,15 @@ def cmd_dataset(args) -> int:
 
     if args.config == "verify" and args.folder is not None:
         return cmd_verify(args.folder)
+    if args.config == "show" and args.folder is not None:
+        return cmd_show(args)
+    if args.config == "export" and args.folder is not None:
+        return cmd_export(args)
     if args.folder is not None:
         raise DatasetError(f"unexpected argument {args.folder!r}: `dopplertof dataset CONFIG "
-                           "-o DIR` renders, `dopplertof dataset verify DIR` checks")
+                           "-o DIR` renders, `dopplertof dataset verify DIR` checks, "
+                           "`dopplertof dataset show DIR -o preview.png` draws, "
+                           "`dopplertof dataset export DIR --format flat -o OUT` exports")
     if args.output is None:
         raise DatasetError("the dataset folder is missing: dopplertof dataset CONFIG -o DIR")
     config = load_config(args.config)
@@ -82,3 +100,30 @@ def cmd_verify(folder: str) -> int:
           f"{planned} samples present and intact; a rerun would render again: "
           f"{', '.join(redo) if redo else 'nothing'}")
     return 1 if redo else 0
+
+
+def cmd_show(args) -> int:
+    """Draw a row per sample of the dataset folder into the -o PNG."""
+    import time
+
+    from .config import DatasetError
+    from .show import show_dataset
+
+    if args.output is None:
+        raise DatasetError("dataset show needs -o preview.png")
+    started = time.perf_counter()
+    show_dataset(args.folder, args.samples, args.output, args.split, args.stats)
+    print(f"wrote {args.output} ({time.perf_counter() - started:.1f} s)")
+    return 0
+
+
+def cmd_export(args) -> int:
+    """Write the dataset folder in FLAT's or TöRF's layout into the new folder -o."""
+    from .config import DatasetError
+    from .export import FORMATS, export_dataset
+
+    if args.export_format is None:
+        raise DatasetError(f"dataset export needs --format ({', '.join(FORMATS)})")
+    info = export_dataset(args.folder, args.export_format, args.output)
+    print(f"exported {info['samples']} samples as {info['format']} -> {args.output}")
+    return 0

@@ -27,6 +27,13 @@ BACKDROPS = ("room", "wall", "none")
 LIGHT_PLACEMENTS = ("camera", "offset")
 #: mesh files a mesh folder may hold
 MESH_EXTENSIONS = (".obj", ".ply")
+#: a mesh's largest |vertex coordinate| must lie in [MESH_LEAST_REACH, MESH_MOST_REACH]:
+#: it fits the cube [-1, 1]^3 that objects.size scales (a mesh in centimetres is 100 times
+#: too large, issue 41)
+MESH_LEAST_REACH, MESH_MOST_REACH = 0.05, 1.01
+#: a shape's bounding radius per unit of size (a mesh fits the cube [-1, 1]^3)
+BOUNDING_RADIUS = {"sphere": 1.0, "cube": math.sqrt(3.0), "rectangle": math.sqrt(2.0),
+                   "mesh": math.sqrt(3.0)}
 #: the largest turn of a body within half a sequence (the keyframes' interpolation takes
 #: the short arc: below pi it is the drawn rotation)
 MAX_HALF_TURN = 0.9 * math.pi
@@ -62,7 +69,9 @@ SCHEMA = {
                              "splits (2: direct light only)", 5),
                "camera": (str, None, "a camera preset's name or a preset .toml file "
                           "(dopplertof cameras --list)", "paper-dtof"),
-               "light_intensity": ("range", _range(0), "point light, W/sr", [20.0, 20.0])},
+               "light_intensity": ("range", _range(0), "point light, W/sr", [20.0, 20.0]),
+               "grazing_deg": (float, lambda x: 0 < x <= 90, "incidence angle beyond which "
+                               "a pixel's depth and velocity truth is flagged grazing", 80.0)},
     "backdrop": {"kind": (str, lambda x: x in BACKDROPS, "one of " + ", ".join(BACKDROPS),
                           "room"),
                  "size": ("floats", lambda v: len(v) == 3 and min(v) > 0,
@@ -73,7 +82,8 @@ SCHEMA = {
                 "shapes": ("names", lambda v: set(v) <= set(SHAPES),
                            "drawn from " + ", ".join(SHAPES), ["sphere", "cube"]),
                 "mesh_folder": (str, None, "folder of .obj/.ply meshes (each fits the "
-                                "cube [-1, 1]^3; scaled by size)", ""),
+                                "cube [-1, 1]^3 and reaches past MESH_LEAST_REACH of it; "
+                                "scaled by size)", ""),
                 "materials": ("names", lambda v: set(v) <= set(MATERIALS),
                               "drawn from " + ", ".join(MATERIALS), ["diffuse"]),
                 "size": ("range", _range(1e-3), "radius or half-size, m", [0.2, 0.5]),
@@ -223,6 +233,8 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
         if not mesh_files(os.path.join(base_dir, folder)):
             raise DatasetError(f"{source}: objects.mesh_folder {folder!r} holds no "
                                f"{'/'.join(MESH_EXTENSIONS)} file")
+        _check_mesh_sizes(os.path.join(base_dir, folder), objects["size"], source)
+    _check_clearance(objects, source)
     camera = values["render"]["camera"]
     if camera.endswith(".toml"):
         camera = values["render"]["camera"] = os.path.join(base_dir, camera)
@@ -231,6 +243,46 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+
+
+def bounding_radius(shape: str, size: float) -> float:
+    """The radius (m) of the sphere about an object's centre that holds it."""
+    return BOUNDING_RADIUS[shape] * size
+
+
+def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
+    """Every mesh fits the cube [-1, 1]^3 and fills a part of it (one line naming the
+    first that does not, its extent and what objects.size makes of it)."""
+    import numpy as np
+
+    from ..scene.meshes import mesh_file_bounds
+
+    for path in mesh_files(folder):
+        try:
+            bounds = mesh_file_bounds(path)
+        except (OSError, ValueError) as e:
+            raise DatasetError(f"{source}: objects.mesh_folder: {path}: unreadable ({e})") \
+                from None
+        reach = float(np.abs(bounds).max())
+        if not MESH_LEAST_REACH <= reach <= MESH_MOST_REACH:
+            extent = " x ".join(f"{x:.4g}" for x in bounds[1] - bounds[0])
+            raise DatasetError(
+                f"{source}: objects.mesh_folder: {path} spans {extent} (largest |coordinate| "
+                f"{reach:.4g}): scaled by objects.size {size} it would reach "
+                f"{reach * size[0]:.4g}-{reach * size[1]:.4g} m; a mesh must fit the cube "
+                f"[-1, 1]^3 and reach past {MESH_LEAST_REACH} of it: rescale it (a mesh in "
+                "centimetres is 100 times too large)")
+
+
+def _check_clearance(objects: dict, source: str) -> None:
+    """Objects can be drawn clear of the camera: the farthest distance exceeds the
+    smallest object's bounding radius (nearer draws are drawn again: generate.py)."""
+    radius = min(bounding_radius(shape, objects["size"][0]) for shape in objects["shapes"])
+    if objects["distance"][1] <= radius:
+        raise DatasetError(
+            f"{source}: objects.distance {objects['distance']}: every object of size "
+            f"{objects['size']} would enclose or touch the camera (bounding radius "
+            f"{radius:.3g} m): place them farther than their size")
 
 
 def _check_spins(values: dict, preset, source: str) -> None:

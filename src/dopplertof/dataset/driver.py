@@ -31,8 +31,10 @@ from .config import DatasetConfig, DatasetError
 from .shards import shard_name, shard_state
 
 DATASET_JSON = "dataset.json"
-#: format of the folder (a reader refuses another)
-LAYOUT_VERSION = 1
+#: format of the folder (2, 2026-12-03, issue 41: the camera's outputs, incidence,
+#: grazing and truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
+LAYOUT_VERSION = 2
+READABLE_LAYOUTS = (1, 2)
 #: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
 SPLITS = {"full": "raw", "ideal": "raw_ideal", "direct": "raw_direct"}
 
@@ -170,10 +172,10 @@ def load_dataset_json(folder: str) -> dict:
             info = json.load(f)
     except (OSError, ValueError) as e:
         raise DatasetError(f"{path}: not a dataset folder ({e})") from None
-    if not isinstance(info, dict) or info.get("layout_version") != LAYOUT_VERSION:
+    if not isinstance(info, dict) or info.get("layout_version") not in READABLE_LAYOUTS:
         version = info.get("layout_version") if isinstance(info, dict) else None
         raise DatasetError(f"{path}: layout version {version!r}, this reader reads "
-                           f"{LAYOUT_VERSION}")
+                           f"{', '.join(map(str, READABLE_LAYOUTS))}")
     return info
 
 

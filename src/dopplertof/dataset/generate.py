@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from ..sampling import seed_words
-from .config import DatasetConfig, mesh_files
+from .config import DatasetConfig, bounding_radius, mesh_files
 
 #: the dataset's copy of the mesh folder (its scenes name meshes relative to the dataset)
 MESH_DIR = "meshes"
@@ -31,10 +31,14 @@ DOMAIN = 0x0D5E7
 OPENCV_TO_MITSUBA = np.diag([-1.0, -1.0, 1.0, 1.0])
 
 
-def sample_rng(config: DatasetConfig, index: int) -> np.random.Generator:
-    """The random stream of sample ``index`` (depends on the seed and the index only)."""
+#: how many times a sample is drawn again (an object enclosing or touching the camera,
+#: nothing visible: issue 41) before it fails
+MAX_DRAWS = 16
+def sample_rng(config: DatasetConfig, index: int, draw: int = 0) -> np.random.Generator:
+    """The random stream of sample ``index``'s ``draw``-th drawing (depends on the seed,
+    the index and the draw only; draw 0 is the stream of layout 1)."""
     low, high = seed_words(config[""]["seed"])
-    entropy = [low, high or 0, int(index), DOMAIN]
+    entropy = [low, high or 0, int(index), DOMAIN] + ([int(draw)] if draw else [])
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy)))
 
 
@@ -72,11 +76,12 @@ def rigid_motion_matrix(rest, velocity, angular_velocity, centre, tau: float) ->
     return shift @ turn @ back @ np.asarray(rest, np.float64)
 
 
-def draw_scene(config: DatasetConfig, index: int, preset) -> dict:
-    """The description of sample ``index``: times, camera, light, backdrop, objects."""
+def draw_scene(config: DatasetConfig, index: int, preset, draw: int = 0) -> dict:
+    """The description of sample ``index`` (its ``draw``-th drawing): times, camera,
+    light, backdrop, objects."""
     from ..cameras.capture import sequence_window
 
-    rng = sample_rng(config, index)
+    rng = sample_rng(config, index, draw)
     first, last = sequence_window(preset)
     times = {"start": first, "mid": 0.5 * (first + last), "end": last}
     width, height = config["render"]["resolution"]
@@ -86,7 +91,7 @@ def draw_scene(config: DatasetConfig, index: int, preset) -> dict:
     count = int(rng.integers(config["objects"]["count"][0], config["objects"]["count"][1] + 1))
     objects = [_draw_object(config, rng, k, camera["rest"], (tan_x, tan_y))
                for k in range(count)]
-    return {"index": int(index), "times_s": times, "camera": camera,
+    return {"index": int(index), "draw": int(draw), "times_s": times, "camera": camera,
             "light": {"placement": config["light"]["placement"],
                       "offset_m": list(config["light"]["offset"]),
                       "intensity": _uniform(rng, config["render"]["light_intensity"])},
@@ -145,6 +150,19 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
                          "roughness": _uniform(rng, objects["roughness"])},
             "centre_m": centre.tolist(), "rest": rest.tolist(),
             "velocity_m_s": velocity, "angular_velocity_rad_s": spin}
+
+
+def enclosed_camera(description: dict) -> str | None:
+    """The first object whose bounding sphere holds the camera's centre at mid-exposure
+    (it encloses or touches the camera), said in words; None when none does."""
+    centre = np.asarray(description["camera"]["rest"])[:3, 3]
+    for obj in description["objects"]:
+        gap = float(np.linalg.norm(np.asarray(obj["centre_m"]) - centre))
+        radius = bounding_radius(obj["shape"], obj["size_m"])
+        if gap <= radius:
+            return (f"{obj['id']} ({obj['shape']}, size {obj['size_m']:.3g} m) is "
+                    f"{gap:.3g} m from the camera, within its bounding radius {radius:.3g} m")
+    return None
 
 
 def mesh_folder(config: DatasetConfig) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 from ..arguments import check_choice, check_index, check_path
 from .config import DatasetError
 from .driver import SPLITS, load_dataset_json
+from .sample import CAMERA_OUTPUTS, CAMERA_SPLITS
 from .shards import DamagedSample, index_span, read_group, sample_group, shard_state
 
 #: what the reader does with a missing, damaged or misplaced shard
@@ -25,9 +26,10 @@ class Dataset:
     ``raw``, ``raw_ideal``, ``raw_direct``, ``depth``, ``velocity_gt``, ``flow``...)
     plus ``index`` and ``seed``, where ``raw`` is the split's raw frames: ``full``
     (noise, global illumination), ``ideal`` (no noise) or ``direct`` (no multipath,
-    no noise). ``ds.units[key]`` is each array's unit; ``ds.attributes(i)`` the
-    sample's scene (XML), description, seeds and camera preset, ``ds.scene(i)`` the
-    loaded scene. Files are opened per
+    no noise), and the ``camera_*`` outputs (camera_depth, camera_amplitude...) are the
+    split's reconstruction by the camera. ``ds.units[key]`` is each array's unit;
+    ``ds.attributes(i)`` the sample's scene (XML), description, seeds and camera preset,
+    ``ds.scene(i)`` the loaded scene. Files are opened per
     item, so that the object can be handed to forked loader processes.
 
     Integrity (issue 39): a shard that is missing, truncated, damaged, of another
@@ -86,6 +88,10 @@ class Dataset:
     def __getitem__(self, item: int) -> dict:
         sample, attributes = self._read(item)
         sample["raw"] = sample[SPLITS[self.split]]
+        suffix = CAMERA_SPLITS[self.split]
+        for name in CAMERA_OUTPUTS if suffix else ():  # the split's camera outputs
+            if f"camera_{name}{suffix}" in sample:
+                sample[f"camera_{name}"] = sample[f"camera_{name}{suffix}"]
         sample.update(index=np.int64(attributes["index"]),
                       seed=np.int64(attributes["render_seed"]))
         return sample

@@ -21,13 +21,32 @@ from .config import DatasetConfig
 from .generate import camera_pose, draw_scene
 from .scene_text import scene_xml
 
-#: every array of a sample: key -> unit (an HDF5 attribute of each dataset)
+#: the key suffix of each split's camera outputs (``camera_depth`` is the full split's,
+#: ``camera_depth_ideal`` the ideal one's...; the reader's split picks them as it picks raw)
+CAMERA_SPLITS = {"full": "", "ideal": "_ideal", "direct": "_direct"}
+#: what the camera reports from one split's raw frames (issue 41): name -> unit, stored as
+#: ``camera_<name><suffix>``; the masks are :data:`dopplertof.cameras.output.MASKS`'
+CAMERA_OUTPUTS = {"depth": "m", "depth_z": "m", "amplitude": "DN", "confidence": "m",
+                  "phase": "rad", "radial_velocity": "m/s", "valid": "1",
+                  "mask_saturated": "1", "mask_low_confidence": "1",
+                  "mask_unwrap_failed": "1", "mask_out_of_range": "1",
+                  "mask_mixed_footprint": "1"}
+#: camera outputs a preset may not give (velocity: heterodyne frames only); the camera's
+#: velocity is camera_radial_velocity (camera_velocity is the ego-motion, layout 1)
+OPTIONAL_OUTPUTS = ("radial_velocity",)
+
+#: every array of a sample: key -> unit (an HDF5 attribute of each dataset); a sample of a
+#: preset without heterodyne frames has no ``camera_radial_velocity*``
 UNITS = {
     "raw": "DN", "raw_ideal": "DN", "raw_direct": "DN", "raw_variance": "DN^2",
     "depth": "m", "depth_z": "m", "velocity_gt": "m/s", "velocity_along_ray": "m/s",
     "flow": "px", "scene_flow": "m", "instance": "1", "mask": "1", "normals": "1",
-    "albedo": "1", "K": "px", "pose": "m", "pose_start": "m", "pose_end": "m",
+    "albedo": "1", "incidence": "deg", "grazing": "1", "truth_valid": "1", "K": "px",
+    "pose": "m", "pose_start": "m", "pose_end": "m",
     "camera_velocity": "m/s", "camera_angular_velocity": "rad/s",
+    "camera_frequencies": "MHz",
+    **{f"camera_{name}{suffix}": unit for suffix in CAMERA_SPLITS.values()
+       for name, unit in CAMERA_OUTPUTS.items()},
 }
 
 
@@ -43,15 +62,13 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
     """(arrays, attributes) of sample ``index`` (see :data:`UNITS`) of the dataset in
     ``folder`` (its scenes' meshes are in ``folder/meshes``)."""
     from ..cameras.preset import load_preset
-    from ..scene import load_string
 
     render = config["render"]
     preset = load_preset(render["camera"])
-    description = draw_scene(config, index, preset)
-    text = scene_xml(description, render["spp"], render["max_depth"])
-    scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)
-    arrays = _raw_frames(scene, preset, render["spp"], description)
-    arrays.update(sample_truth(scene, description))
+    description, text, scene, truth = drawn_sample(config, index, preset, folder)
+    arrays, readings = _raw_frames(scene, preset, render["spp"], description)
+    arrays.update(truth)
+    arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
     attributes = {"index": int(index), "render_seed": description["render_seed"],
                   "noise_seed": description["noise_seed"], "scene_xml": text,
                   "description": json.dumps(description, sort_keys=True),
@@ -60,9 +77,45 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
     return arrays, attributes
 
 
-def _raw_frames(scene, preset, spp: int, description: dict) -> dict:
-    """The three splits' raw frames, their predicted noise variance and the photon scale."""
+def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tuple:
+    """(description, scene XML, loaded scene, truth) of sample ``index``: its first
+    drawing in which no object encloses the camera and something is visible (an object,
+    when it has any); drawn again up to MAX_DRAWS times, then a DatasetError saying why
+    (issue 41)."""
+    from ..scene import load_string
+    from .config import DatasetError
+    from .generate import MAX_DRAWS, enclosed_camera
+
+    render = config["render"]
+    for draw in range(MAX_DRAWS):
+        description = draw_scene(config, index, preset, draw)
+        problem = enclosed_camera(description)
+        if problem is None:
+            text = scene_xml(description, render["spp"], render["max_depth"])
+            scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)
+            truth = sample_truth(scene, description, render["grazing_deg"])
+            problem = nothing_visible(truth, description)
+            if problem is None:
+                return description, text, scene, truth
+    raise DatasetError(f"sample {index}: drawn {MAX_DRAWS} times, never usable; the last: "
+                       f"{problem} (objects.distance, objects.size, objects.spread)")
+
+
+def nothing_visible(truth: dict, description: dict) -> str | None:
+    """Why the sample shows nothing worth storing (no pixel hits anything; or it has
+    objects and none is seen), or None."""
+    if not truth["mask"].any():
+        return "no pixel sees anything"
+    if description["objects"] and not (truth["instance"] >= 1).any():
+        return f"none of its {len(description['objects'])} objects is seen"
+    return None
+
+
+def _raw_frames(scene, preset, spp: int, description: dict) -> tuple[dict, dict]:
+    """The three splits' raw frames, their predicted noise variance and the photon scale;
+    and each split's reconstruction by the camera (split -> CameraReconstruction)."""
     from ..cameras.capture import capture_camera
+    from ..cameras.reconstruct import reconstruct
     from ..cameras.sensor import read_frames
 
     seed = description["render_seed"]
@@ -75,14 +128,40 @@ def _raw_frames(scene, preset, spp: int, description: dict) -> dict:
                                  [f.integration_s for f in preset.frames], preset.sensor,
                                  preset.contrast, None,
                                  photons_per_unit=full.readout.photons_per_unit)
-    return {"raw": full.readout.raw, "raw_ideal": full.readout.raw_ideal.astype(np.float32),
-            "raw_direct": direct_readout.raw_ideal.astype(np.float32),
-            "raw_variance": full.readout.variance.astype(np.float32),
-            "photons_per_unit": float(full.readout.photons_per_unit)}
+    readings = {"full": full.reconstruction, "ideal": full.read_again(None)[1],
+                "direct": reconstruct(direct_readout, preset, full.mixed_footprints)}
+    return ({"raw": full.readout.raw, "raw_ideal": full.readout.raw_ideal.astype(np.float32),
+             "raw_direct": direct_readout.raw_ideal.astype(np.float32),
+             "raw_variance": full.readout.variance.astype(np.float32),
+             "photons_per_unit": float(full.readout.photons_per_unit)}, readings)
 
 
-def sample_truth(scene, description: dict) -> dict:
-    """Depth, velocities, flow, scene flow, instances, normals, albedo, K and poses."""
+def camera_outputs(readings: dict, preset, cosine: np.ndarray) -> dict:
+    """``camera_*`` arrays of every split (:data:`CAMERA_OUTPUTS`) from each split's
+    reconstruction; ``cosine``: (H, W) each pixel's ray with the optical axis (the truth's
+    depth_z / depth: NaN where the ray hits nothing, and so is camera_depth_z)."""
+    from ..cameras.output import MASKS
+
+    out = {"camera_frequencies": np.asarray(preset.frequencies_mhz, np.float64)}
+    for split, recon in readings.items():
+        suffix = CAMERA_SPLITS[split]
+        arrays = {"depth": recon.depth, "depth_z": recon.depth * cosine,
+                  "amplitude": recon.amplitude, "confidence": np.sqrt(recon.depth_variance),
+                  "phase": np.stack([g.phase for g in recon.frequencies])}
+        if recon.velocity is not None:
+            arrays["radial_velocity"] = recon.velocity
+        out.update({f"camera_{k}{suffix}": np.asarray(v, np.float32)
+                    for k, v in arrays.items()})
+        masks = {name: getattr(recon, attribute) for name, (attribute, _) in MASKS.items()}
+        masks["valid"] = ~recon.masked
+        out.update({f"camera_{k}{suffix}": np.asarray(v, bool) for k, v in masks.items()})
+    return out
+
+
+def sample_truth(scene, description: dict, grazing_deg: float = 80.0) -> dict:
+    """Depth, velocities, flow, scene flow, instances, normals, albedo, K and poses; the
+    incidence angle, the pixels seeing a surface beyond ``grazing_deg`` (grazing) and
+    those whose depth and velocity truth holds (truth_valid: a hit, not grazing)."""
     from ..tof.ground_truth import ground_truth
 
     times = description["times_s"]
@@ -94,7 +173,10 @@ def sample_truth(scene, description: dict) -> dict:
     points = truth.camera_origin + truth.depth[..., None] * truth.direction  # (H, W, 3)
     instance = _instances(scene, truth.body, description)
     flow, scene_flow = _flows(scene, description, truth.body, points)
-    toward = np.where((np.sum(truth.normal * truth.direction, -1) > 0)[..., None], -1.0, 1.0)
+    cosine = np.sum(truth.normal * truth.direction, -1)
+    toward = np.where((cosine > 0)[..., None], -1.0, 1.0)
+    incidence = np.where(hit, np.degrees(np.arccos(np.clip(np.abs(cosine), 0.0, 1.0))), np.nan)
+    grazing = hit & ~(incidence <= grazing_deg)
     normals = (truth.normal * toward) @ pose[:3, :3]  # world -> camera: R^T n
     K = intrinsics(width, height, description["fov_deg"])
     z = truth.direction @ pose[:3, 2]
@@ -102,14 +184,15 @@ def sample_truth(scene, description: dict) -> dict:
     out = {"depth": truth.depth, "depth_z": truth.depth * z, "velocity_gt": truth.velocity,
            "velocity_along_ray": truth.velocity_point, "flow": flow,
            "scene_flow": scene_flow, "normals": np.where(hit[..., None], normals, np.nan),
-           "albedo": _albedo(instance, description), "K": K, "pose": pose,
+           "albedo": _albedo(instance, description), "incidence": incidence,
+           "K": K, "pose": pose,
            "pose_start": camera_pose(camera, -half), "pose_end": camera_pose(camera, half),
            "camera_velocity": np.asarray(camera["velocity_m_s"]),
            "camera_angular_velocity": np.asarray(camera["angular_velocity_rad_s"])}
     exact = ("K", "pose", "pose_start", "pose_end", "camera_velocity",
              "camera_angular_velocity")  # (small: kept in float64)
     out = {k: np.asarray(v, np.float64 if k in exact else np.float32) for k, v in out.items()}
-    out.update(instance=instance, mask=hit)
+    out.update(instance=instance, mask=hit, grazing=grazing, truth_valid=hit & ~grazing)
     return out
 
 

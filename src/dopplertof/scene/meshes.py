@@ -121,7 +121,7 @@ def _ply_problem(data: bytes) -> str | None:
 
 
 def _ply_header(text: str) -> tuple[str, list]:
-    """(format, [(element name, count, [(value type, list count type or None)])])."""
+    """(format, [(element name, count, [(value type, list count type or None, name)])])."""
     fmt, elements = None, []
     for line in text.splitlines()[1:]:
         words = line.split()
@@ -137,7 +137,7 @@ def _ply_header(text: str) -> tuple[str, list]:
                 (None, words[1])
             if value_type not in _PLY_TYPES or (count_type and count_type not in _PLY_TYPES):
                 raise ValueError(f"unknown property type in {line.strip()!r}")
-            elements[-1][2].append((value_type, count_type))
+            elements[-1][2].append((value_type, count_type, words[-1]))
         else:
             raise ValueError(f"unexpected line {line.strip()!r}")
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
@@ -165,7 +165,7 @@ def _ply_row_length(row: list, properties) -> int | None:
     """How many numbers an ASCII row of these properties takes (a list: its count and
     its values); None when a list's count is not a number."""
     position = 0
-    for _, count_type in properties:
+    for _, count_type, _ in properties:
         if count_type is None:
             position += 1
         elif position >= len(row):
@@ -182,11 +182,50 @@ def _ply_min_row_bytes(properties) -> int:
     """The fewest bytes a binary row of these properties takes (a face list: its count
     and three indices)."""
     size = 0
-    for value_type, count_type in properties:
+    for value_type, count_type, _ in properties:
         value = np.dtype(_PLY_TYPES[value_type]).itemsize
         size += value if count_type is None else \
             np.dtype(_PLY_TYPES[count_type]).itemsize + 3 * value
     return size
+
+
+# ---- Extent ------------------------------------------------------------------------
+
+def mesh_file_bounds(path: str) -> np.ndarray:
+    """(2, 3): the smallest and largest vertex coordinates of an .obj or a .ply file
+    (a ValueError naming what it cannot read: a PLY whose vertices are not its first
+    element of scalar properties)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if os.fspath(path).lower().endswith(".obj"):
+        points = np.array([line.split()[1:4] for line in data.decode("latin-1").splitlines()
+                           if line.startswith("v ")], np.float64)
+    else:
+        points = _ply_vertices(data)
+    if points.size == 0:
+        raise ValueError("no vertices")
+    return np.stack([points.min(axis=0), points.max(axis=0)])
+
+
+def _ply_vertices(data: bytes) -> np.ndarray:
+    """(N, 3) x, y, z of a PLY file's vertex element (its first)."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise ValueError("not a PLY file")
+    fmt, elements = _ply_header(data[:end].decode("ascii"))
+    name, count, properties = elements[0] if elements else ("", 0, [])
+    if name != "vertex" or any(c is not None for _, c, _ in properties):
+        raise ValueError("the vertices are not the first element of scalar properties")
+    names = [n for _, _, n in properties]
+    body = data[data.index(b"\n", end) + 1:]
+    if fmt == "ascii":
+        rows = np.array([line.split()[:len(names)] for line in
+                         body.decode("latin-1").splitlines()[:count]], np.float64)
+        return rows[:, [names.index(a) for a in "xyz"]]
+    order = "<" if fmt == "binary_little_endian" else ">"
+    dtype = np.dtype([(n, order + _PLY_TYPES[t]) for t, _, n in properties])
+    table = np.frombuffer(body, dtype, count=count)
+    return np.stack([table[a].astype(np.float64) for a in "xyz"], axis=-1)
 
 
 # ---- Meshes as loaded -----------------------------------------------------------------

@@ -37,6 +37,7 @@ from ..modulation import SPEED_OF_LIGHT
 from ..params import CAPTURE_HETERO_FREQUENCY, RenderParams, frequency_problem
 from ..scene.scene import keyframe_coverage_warning
 from . import reconstruct as rec
+from .geometry import camera_geometry
 from .ground_truth import GroundTruth, ground_truth, light_colocation, mixed_footprints
 from .noise import NoiseModel, apply_noise
 from . import precision as prec
@@ -144,6 +145,8 @@ class CaptureResult:
     summary: dict = field(default_factory=dict)
     #: predicted standard deviations (precision.Uncertainty) with mc_batches, else None
     uncertainty: object = None
+    #: camera.json's content (:func:`dopplertof.tof.geometry.camera_geometry`)
+    geometry: dict | None = None
 
     @property
     def velocity(self):
@@ -169,12 +172,13 @@ class CaptureResult:
                                  mod["hetero_frequency"], mod["waveform"])
         return model, mod["g_0"] * self.radiance.mean(axis=-1, dtype=np.float64)
 
-    def write(self, folder) -> list:
-        """Write every array (.npy), its preview (.png), the side-by-side figure and
-        summary.json into ``folder`` (created if missing); returns the paths."""
+    def write(self, folder, pointcloud: bool = False) -> list:
+        """Write every array (.npy), its preview (.png), the side-by-side figure,
+        camera.json (and ``pointcloud``: pointcloud.ply) and summary.json into ``folder``
+        (created if missing); returns the paths."""
         from .output import write_result
 
-        return write_result(self, folder)
+        return write_result(self, folder, pointcloud)
 
 
 # ---- Settings ----------------------------------------------------------------------
@@ -278,7 +282,7 @@ def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
         summary["precision"] = _precision_summary(scene, settings, uncertainty, reconstruction,
                                                   truth, limit_counts, records)
     return CaptureResult(captures, rendered, radiance, reconstruction, noise_free, truth,
-                         summary, uncertainty)
+                         summary, uncertainty, camera_geometry(scene, truth.time))
 
 
 @dataclass(frozen=True)

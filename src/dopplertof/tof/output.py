@@ -1,4 +1,5 @@
-"""Files of a capture: arrays (.npy), previews (.png), the comparison figure, summary.json.
+"""Files of a capture: arrays (.npy), previews (.png), the comparison figure, camera.json
+(and pointcloud.ply when asked: :mod:`.geometry`), summary.json.
 
 All writes are atomic (:mod:`dopplertof.io`), and the folder's files are replaced all or
 nothing (the output set "capture" of :func:`dopplertof.io.output_folder`).
@@ -13,6 +14,7 @@ import numpy as np
 from .. import io, previews
 from . import figures
 from . import reconstruct as rec
+from .geometry import write_camera_files
 
 
 #: an output folder that cannot be used
@@ -26,11 +28,12 @@ def prepare_folder(folder, create: bool = False) -> str:
     return io.make_output_folder(folder) if create else io.check_output_folder(folder)
 
 
-def write_result(result, folder) -> list:
+def write_result(result, folder, pointcloud: bool = False) -> list:
     """Every file of a capture (see the module docstring) into ``folder`` (created if
     missing), all or nothing (:func:`dopplertof.io.output_folder`: the files of an
     earlier capture there are replaced together, those it wrote and this one does not
-    are removed); returns the paths in the order written."""
+    are removed); camera.json, and pointcloud.ply with ``pointcloud`` (issue 41);
+    returns the paths in the order written."""
     summary = result.summary
     noisy = " (with sensor noise)" if summary.get("noise") else ""
     recon, truth = result.reconstruction, result.truth
@@ -46,8 +49,16 @@ def write_result(result, folder) -> list:
         if getattr(result, "uncertainty", None) is not None:
             # NaN where the noise-free reconstruction is
             write_uncertainty(result.uncertainty, path, result.noise_free or recon, truth)
+        _write_geometry(result, path, pointcloud)
         io.write_json(path("summary.json"), summary)
     return staged.written
+
+
+def _write_geometry(result, path, pointcloud: bool) -> None:
+    """camera.json and (``pointcloud``) pointcloud.ply of a capture."""
+    recon = result.reconstruction
+    write_camera_files(path, result.geometry, pointcloud, recon.depth, recon.amplitude,
+                       recon.velocity, result.truth.velocity)
 
 
 #: why a pixel of a truth map is NaN: its pixel-centre ray hits nothing
