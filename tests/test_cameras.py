@@ -560,3 +560,40 @@ def test_keyframes_shorter_than_the_raw_frames_warn_once_naming_both_spans(tmp_p
     assert "the keyframes (0 to 0.0015 s) cover" in warnings[0]
     assert f"of the raw frames ({first:g} to {last:g} s)" in warnings[0]
     assert last - first > 0.01
+
+
+def _three_phase(steps):
+    return [(30.0, p, 5e-4, i * 1e-3) for i, p in enumerate(steps)]
+
+
+@pytest.mark.parametrize("frames, old, new, message", [
+    # issue 39's 2026-12-03 campaign: presets accepted by `cameras`, then silently wrong
+    (None, "frequency_mhz = 30.0", "frequency_mhz = 1e12", "frames[0].frequency_mhz out of range"),  # P05
+    (None, "frequency_mhz = 30.0", "frequency_mhz = 1e6", "frames[0].frequency_mhz out of range"),  # P06
+    (None, "frequency_mhz = 30.0", "frequency_mhz = 1e-9", "frames[0].frequency_mhz out of range"),  # P07
+    ((0.0, 1e-6, 2e-6), None, None, "too close together to give a phase"),  # P09
+    ((0.0, 180.0, 180.000001), None, None, "too close together to give a phase"),  # P10
+    (None, "offset_dn = 2048.0", "offset_dn = 1e9", "past the 12-bit ADC"),  # P15
+    (None, "contrast = 0.8", "contrast = 1e-300", "modulation.contrast out of range"),  # P16
+    (None, "fov_deg = 20.0", "fov_deg = 179.999", "optics.fov_deg out of range"),  # P22
+    (None, "max_range_m = ", "max_range_m = 1e-9 #", "reconstruction.max_range_m out of range"),  # P23
+    (None, "integration_s = 0.0005", "integration_s = 1e-15", "integration_s out of range"),  # P39
+])
+def test_campaign_presets_that_passed_are_refused_naming_the_key(tmp_path, frames, old, new,
+                                                                 message):
+    text = preset_text(_three_phase(frames) if frames else four_phase(30.0))
+    if old:
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / "campaign.toml"
+    path.write_text(text)
+    done = run_cli("cameras", str(path))
+    assert done.returncode == 2 and message in done.stderr and str(path) in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_one_frequency_depths_beyond_the_reported_range_are_flagged(tmp_path):
+    """P23: a single-frequency camera's max_range_m was printed, not applied."""
+    preset, result = _plane_through(tmp_path, four_phase(30.0), 3.0, 0.0, 4e-3,
+                                    max_range=2.0)
+    assert result.reconstruction.out_of_range.all() and np.isnan(result.depth).all()

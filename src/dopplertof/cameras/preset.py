@@ -63,7 +63,8 @@ SCHEMA = {
          "description": (str, None, "one line"),
          "sources": (list, None, "the documents its numbers come from")},
     "optics": {"resolution": (list, None, "[width, height] pixels"),
-               "fov_deg": (float, lambda x: 0 < x < 180, "horizontal field of view, degrees"),
+               "fov_deg": (float, lambda x: 0.1 <= x <= 160, "a pinhole's horizontal field "
+                           "of view, 0.1 to 160 degrees (a wider lens is no pinhole)"),
                "pixel_pitch_um": (float, _positive, "micrometres"),
                "f_number": (float, lambda x: 0.3 <= x <= 64, "the lens's f-number N"),
                "transmission": (float, _fraction, "lens and band-pass filter transmission at "

@@ -131,9 +131,9 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
                   f"over wrap counts of {len(groups)} frequencies (inverse-variance mean; "
                   f"flagged where a wrong wrap comes within chi^2 {LIKELIHOOD_GAP:g} or the "
                   "frequencies disagree beyond their noise)")
-    else:
-        beyond = np.zeros(saturated.shape, bool)
+    else:  # one frequency: the wrapped depth, flagged beyond the range the camera reports
         depth, failed = groups[0].depth, np.zeros(saturated.shape, bool)
+        beyond = depth > max_range
         range_m = min(max_range, tof_rec.wrap_distance(groups[0].frequency_mhz * 1e6))
         variance = groups[0].depth_variance
         method = "N-phase least-squares fit, one frequency (wraps at the range)"
