@@ -1,0 +1,166 @@
+"""FMCW lidar (issue 43): the chirp's parameters, the beat spectra of a moving plane at
+their closed-form frequencies, range and velocity from the peaks, the energy of the
+spectra, a spinning sphere's Doppler spread against its angular velocity, the command
+and its folder."""
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from analytic import FOV, INTENSITY, RHO, plane_scene
+
+import dopplertof
+from dopplertof.cli import main
+from dopplertof.fmcw import Chirp, FMCWError, fmcw
+from dopplertof.tof.ground_truth import ground_truth
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SPHERE = os.path.join(ROOT, "examples", "translating_sphere.xml")
+EXPOSURE = 0.0015  # plane_scene's
+
+
+@pytest.mark.parametrize("values,message", [
+    ({"bandwidth": 0.0}, "bandwidth B must be > 0"),
+    ({"bandwidth": -1e9}, "bandwidth B must be > 0"),
+    ({"chirp_time": 0.0}, "chirp_time T must be > 0"),
+    ({"bins": 1}, "bins M must be an integer >= 2"),
+    ({"bins": 2.5}, "bins M must be an integer >= 2"),
+    ({"wavelength": 199e-9}, "wavelength must be within 200 nm - 20 um"),
+    ({"wavelength": 20.1e-6}, "wavelength must be within"),
+    ({"bandwidth": math.nan}, "bandwidth must be a finite number"),
+])
+def test_bad_chirp_parameters_are_refused_in_one_line(values, message):
+    with pytest.raises(FMCWError) as info:
+        Chirp(**values)
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_range_and_velocity_invert_the_beats():
+    chirp = Chirp(wavelength=1550e-9, bandwidth=2e9, chirp_time=5e-6, bins=8)
+    f_up, f_down = chirp.beats(2 * 7.25, 2 * -1.5)
+    assert f_up - f_down == pytest.approx(2 * (2 * -1.5) / 1550e-9)
+    assert chirp.range_and_velocity(f_up, f_down) == pytest.approx((7.25, -1.5), rel=1e-12)
+    assert chirp.frequencies()[[0, 1, 7]] == pytest.approx([0.0, 2e5, 1.4e6])
+
+
+def _plane(z0, velocity, spp=16, res=1, chirp=None):
+    """The moving plane's FMCW frame, and the plane's distance at the traced time."""
+    scene = dopplertof.load_dict(plane_scene(z0, velocity, exposure=EXPOSURE, res=res, spp=spp))
+    chirp = chirp or Chirp(bandwidth=1e9, chirp_time=10e-6, bins=64)
+    result = fmcw(scene, chirp, spp=spp)
+    assert result.summary["time_s"] == pytest.approx(0.5 * EXPOSURE)
+    return result, chirp, z0 + velocity * 0.5 * EXPOSURE
+
+
+@pytest.mark.parametrize("velocity", [0.5, -0.8])
+def test_a_moving_plane_beats_at_the_closed_form_frequencies(velocity):
+    """Up and down peaks within one bin of (B/T) 2d/c +- 2v/lambda; range and velocity
+    within 1% of the truth and of the closed form (v > 0 receding: f_up > f_down)."""
+    result, chirp, distance = _plane(3.0, velocity)
+    f_up, f_down = chirp.beats(2 * distance, 2 * velocity)
+    assert abs(result.peaks[0, 0, 0] - f_up) < chirp.bin_width
+    assert abs(result.peaks[0, 0, 1] - f_down) < chirp.bin_width
+    peak_bins = np.argmax(result.spectrum[0, 0], axis=-1)
+    assert abs(peak_bins[0] - f_up / chirp.bin_width) <= 1
+    assert abs(peak_bins[1] - f_down / chirp.bin_width) <= 1
+    assert (result.peaks[0, 0, 0] > result.peaks[0, 0, 1]) == (velocity > 0)
+    assert result.range[0, 0] == pytest.approx(distance, rel=0.01)
+    assert abs(result.range[0, 0] - distance) < chirp.record()["range_per_bin_m"]
+    assert result.velocity[0, 0] == pytest.approx(velocity, rel=0.01)
+    assert result.range_gt[0, 0] == pytest.approx(distance, rel=1e-4)
+    assert result.velocity_gt[0, 0] == pytest.approx(velocity, rel=1e-3)
+
+
+def test_the_spectra_hold_the_pixel_radiance():
+    """Each chirp's spectrum sums to the pixel's radiance, rho I d_z^3 / (pi z^2)
+    averaged over the pixel (a point light at the camera, a diffuse plane at z)."""
+    result, _, z = _plane(2.0, 0.3, spp=64)
+    s = math.tan(math.radians(FOV) / 2)
+    a = np.linspace(-s, s, 401)
+    A, B = np.meshgrid(a, a)
+    d_z = 1.0 / np.sqrt(1.0 + A ** 2 + B ** 2)
+    expected = float(np.mean(RHO * INTENSITY * d_z ** 3 / (math.pi * z ** 2)))
+    sums = result.spectrum[0, 0].astype(np.float64).sum(axis=-1)
+    assert sums == pytest.approx([expected, expected], rel=2e-3)
+
+
+def test_a_plane_beyond_the_last_bin_has_no_peak():
+    """Beats past the last bin are dropped: no spectrum, NaN range and velocity."""
+    result, chirp, _ = _plane(3.0, 0.5, chirp=Chirp(bandwidth=1e9, chirp_time=10e-6, bins=8))
+    assert 6.0 > chirp.max_path_length
+    assert not result.spectrum.any()
+    assert np.isnan(result.range).all() and np.isnan(result.velocity).all()
+
+
+def _spinning_sphere(omega: float, res: int, spp: int) -> dict:
+    """A unit sphere 4 m in front of the camera spinning about +y at ``omega`` rad/s."""
+    import mitsuba as mi
+
+    T = mi.ScalarTransform4f
+    pose = lambda t: T().translate([0, 0, 4]).rotate([0, 1, 0], math.degrees(omega * t))  # noqa: E731
+    scene = plane_scene(10.0, 0.0, exposure=EXPOSURE, res=res, spp=spp)
+    scene["sensor"]["fov"] = 30.0
+    scene["sphere"] = {"type": "sphere", "bsdf": {"type": "ref", "id": "white"},
+                       "to_world": dopplertof.Animation([(0.0, pose(0.0)),
+                                                         (EXPOSURE, pose(EXPOSURE))])}
+    del scene["plane"]
+    return scene
+
+
+def test_a_spinning_sphere_spreads_its_doppler_by_its_angular_velocity():
+    """Each pixel's velocity is its surface point's velocity along the ray,
+    omega (y x (p - c)) . d, from the sphere's angular velocity alone, within half the
+    change of that closed form to the pixel's neighbours (a footprint averages over its
+    pixel) plus one bin's velocity; the spread across the sphere follows omega."""
+    omega, centre = 2.0, np.array([0.0, 0.0, 4.0])
+    scene = dopplertof.load_dict(_spinning_sphere(omega, res=32, spp=16))
+    chirp = Chirp(bandwidth=10e9, chirp_time=40e-6, bins=2048)
+    result = fmcw(scene, chirp, spp=16)
+    truth = ground_truth(scene)  # (its depths and ray directions: the hit points)
+    p = truth.depth[..., None] * truth.direction
+    u = omega * np.cross([0.0, 1.0, 0.0], p - centre)
+    closed_form = np.sum(u * truth.direction, axis=-1)
+    on = np.isfinite(truth.depth) & (truth.body == 0)
+    assert result.velocity_gt[on] == pytest.approx(closed_form[on], abs=1e-3)
+    # pixels wholly on the sphere (their neighbours too)
+    inner = on & np.roll(on, 1, 0) & np.roll(on, -1, 0) & np.roll(on, 1, 1) & np.roll(on, -1, 1)
+    step = np.max([np.abs(np.roll(closed_form, k, axis) - closed_form)
+                   for k in (1, -1) for axis in (0, 1)], axis=0)
+    bound = 0.5 * step + chirp.record()["velocity_per_bin_m_s"]
+    error = np.abs(result.velocity - closed_form)
+    assert inner.sum() > 400 and (error[inner] < bound[inner]).all()
+    # the angular velocity fitted to the measured velocities (they are linear in omega)
+    fitted = omega * np.polyfit(closed_form[inner], result.velocity[inner], 1)[0]
+    assert fitted == pytest.approx(omega, rel=0.015)  # (0.991 omega: footprints average)
+    assert np.ptp(result.velocity[inner]) > 3.0  # (omega R = 2 m/s at the limbs)
+
+
+def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["fmcw", SPHERE, "-o", str(out), "--spp", "4", "-D", "res=8",
+                 "--bandwidth", "10", "--chirp-time", "1", "--bins", "512",
+                 "-P", "max_depth=2"])
+    assert code == 0
+    shapes = {name: np.load(out / f"{name}.npy").shape
+              for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
+                           "velocity_gt")}
+    assert shapes == {"spectrum": (8, 8, 2, 512), "frequencies": (512,), "range": (8, 8),
+                      "velocity": (8, 8), "range_gt": (8, 8), "velocity_gt": (8, 8)}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["issue"] == 43 and summary["chirp"]["bins"] == 512
+    errors = summary["errors"]
+    assert errors["range_m"]["pixels"] == 64
+    assert errors["range_m"]["median_abs"] < 0.02
+    assert errors["velocity_m_s"]["median_abs"] < 0.1  # the sphere at -10 m/s, the wall at 0
+    velocity = np.load(out / "velocity.npy")
+    assert np.nanmin(velocity) < -9.0
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_bad_chirp_options_exit_2_in_one_line(tmp_path, capsys):
+    code = main(["fmcw", SPHERE, "-o", str(tmp_path / "out"), "--bins", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "bins M must be" in err
+    assert not (tmp_path / "out").exists()
