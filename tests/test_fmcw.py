@@ -164,3 +164,39 @@ def test_bad_chirp_options_exit_2_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "bins M must be" in err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("moving", ["camera", "light"])
+def test_a_moving_camera_or_light_shifts_the_beats_by_its_own_rate(moving):
+    """A static plane 3 m ahead: the camera (its light on it) approaching at 0.6 m/s
+    reads -0.6 m/s; a light alone moving toward the plane at 0.6 m/s shortens the
+    light's leg only: dL/dt = -0.6 m/s, velocity -0.3 m/s (half the path's rate)."""
+    camera, light = (0.6, None) if moving == "camera" else (0.0, 0.6)
+    scene = dopplertof.load_dict(plane_scene(3.0, 0.0, exposure=EXPOSURE, res=1, spp=16,
+                                             camera_velocity=camera, light_velocity=light))
+    chirp = Chirp(bandwidth=1e9, chirp_time=10e-6, bins=64)
+    result = fmcw(scene, chirp, spp=16)
+    t0 = 0.5 * EXPOSURE
+    if moving == "camera":
+        f_up, f_down = chirp.beats(2 * (3.0 - camera * t0), -2 * camera)
+        expected = -camera
+    else:  # the light leaves the camera for the plane: its leg is 3 - v t0 long
+        f_up, f_down = chirp.beats(3.0 + 3.0 - light * t0, -light)
+        expected = -0.5 * light
+    assert result.peaks[0, 0] == pytest.approx([f_up, f_down], abs=0.05 * chirp.bin_width)
+    assert result.velocity[0, 0] == pytest.approx(expected, rel=0.01)
+
+
+def test_the_street_example_reads_the_car_and_the_pedestrian():
+    """examples/fmcw_street.xml with the chirp its header gives: the car's pixels read
+    its approach (about -10 m/s along the rays) and the walls stand still."""
+    scene = dopplertof.load_file(os.path.join(ROOT, "examples", "fmcw_street.xml"),
+                                 {"res": "24", "spp": "8"})
+    result = fmcw(scene, Chirp(bandwidth=4e9, chirp_time=10e-6, bins=1024), spp=8)
+    truth = ground_truth(scene)
+    car, walker = truth.body == 0, truth.body == 1
+    assert car.sum() > 10 and walker.sum() > 3
+    error = np.abs(result.velocity - result.velocity_gt)
+    assert np.median(result.velocity_gt[car]) < -9.5
+    assert np.median(error[car]) < 0.1 and np.median(error[walker]) < 0.1
+    assert np.nanmedian(np.abs(result.velocity[truth.body == -1])) < 0.01
