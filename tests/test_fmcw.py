@@ -13,7 +13,7 @@ from analytic import FOV, INTENSITY, RHO, plane_scene
 
 import dopplertof
 from dopplertof.cli import main
-from dopplertof.fmcw import Chirp, FMCWError, fmcw
+from dopplertof.fmcw import Chirp, FMCWError, fmcw, spectrum_peaks
 from dopplertof.tof.ground_truth import ground_truth
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -43,6 +43,20 @@ def test_range_and_velocity_invert_the_beats():
     assert f_up - f_down == pytest.approx(2 * (2 * -1.5) / 1550e-9)
     assert chirp.range_and_velocity(f_up, f_down) == pytest.approx((7.25, -1.5), rel=1e-12)
     assert chirp.frequencies()[[0, 1, 7]] == pytest.approx([0.0, 2e5, 1.4e6])
+
+
+def test_peaks_are_found_strongest_first_at_their_split_beats():
+    """Two beats split linearly between bins (the splat's rule), at 3.25 and 9.6 bins:
+    found at exactly those, the stronger first; a third asked for is NaN."""
+    chirp = Chirp(bandwidth=1e9, chirp_time=1e-6, bins=16)
+    spectrum = np.zeros(16)
+    for position, power in ((3.25, 1.0), (9.6, 2.0)):
+        low = int(position)
+        spectrum[low] += power * (1 - (position - low))
+        spectrum[low + 1] += power * (position - low)
+    beats, heights = spectrum_peaks(spectrum, chirp, count=3)
+    assert beats[:2] == pytest.approx([9.6e6, 3.25e6], rel=1e-12)
+    assert np.isnan(beats[2]) and heights[2] == 0 and heights[0] > heights[1] > 0
 
 
 def _plane(z0, velocity, spp=16, res=1, chirp=None):
@@ -141,13 +155,16 @@ def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["fmcw", SPHERE, "-o", str(out), "--spp", "4", "-D", "res=8",
                  "--bandwidth", "10", "--chirp-time", "1", "--bins", "512",
-                 "-P", "max_depth=2"])
+                 "-P", "max_depth=2", "--returns", "2"])
     assert code == 0
     shapes = {name: np.load(out / f"{name}.npy").shape
               for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
-                           "velocity_gt")}
+                           "velocity_gt", "returns_range", "returns_velocity")}
     assert shapes == {"spectrum": (8, 8, 2, 512), "frequencies": (512,), "range": (8, 8),
-                      "velocity": (8, 8), "range_gt": (8, 8), "velocity_gt": (8, 8)}
+                      "velocity": (8, 8), "range_gt": (8, 8), "velocity_gt": (8, 8),
+                      "returns_range": (8, 8, 2), "returns_velocity": (8, 8, 2)}
+    points = np.load(out / "points.npy")
+    assert points.shape[1] == 5 and 64 <= len(points) <= 128
     summary = json.loads((out / "summary.json").read_text())
     assert summary["issue"] == 43 and summary["chirp"]["bins"] == 512
     errors = summary["errors"]
@@ -237,6 +254,15 @@ def test_a_mirror_adds_a_peak_at_its_longer_path():
         assert np.abs(np.array(strongest) * chirp.bin_width - expected).max() <= chirp.bin_width
     assert result.range[0, 0] == pytest.approx(3.0, abs=0.5 * chirp.record()["range_per_bin_m"])
     assert result.velocity[0, 0] == pytest.approx(0.0, abs=1e-6)
+    # two returns: the mirrored path's, then the plane's; each a point along the pixel's ray
+    two = fmcw(scene, chirp, spp=64, returns=2)
+    assert two.returns_range[0, 0] == pytest.approx([3.0, 4.0], abs=0.5 * chirp.record()[
+        "range_per_bin_m"])
+    assert two.returns_velocity[0, 0] == pytest.approx([0.0, 0.0], abs=1e-6)
+    assert two.points.shape == (2, 5)
+    assert two.points[:, :3] == pytest.approx(two.returns_range[0, 0][:, None] * [0, 0, 1],
+                                               abs=1e-6)
+    assert two.points[0, 4] > two.points[1, 4] > 0  # (peak heights, strongest first)
 
 
 def test_the_spectra_hold_stock_mitsuba_path_radiance_at_every_pixel():

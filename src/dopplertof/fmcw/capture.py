@@ -4,7 +4,9 @@ the up and down peaks, the exact truth and the errors (docs/fmcw.md; issue 43).
 The output folder (the set "fmcw" of :func:`dopplertof.io.output_folder`, all or
 nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
 frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
-pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; summary.json.
+pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; points.npy, the point
+cloud with velocity (K, 5: x, y, z, radial velocity, peak height); with more than one
+return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); summary.json.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from .. import io
 from ..tof.capture import error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
 from ..tof.output import prepare_folder
-from .chirp import Chirp
+from .chirp import Chirp, FMCWError
 
 
 @dataclass
@@ -32,8 +34,13 @@ class FMCWResult:
     range_gt: np.ndarray  #: (H, W) the truth's depth along the pixel-centre ray, m
     #: (H, W) the truth's hit point velocity along the ray, relative to the camera, m/s
     velocity_gt: np.ndarray
-    peaks: np.ndarray  #: (H, W, 2) the up and down peaks, Hz (NaN: none)
+    peaks: np.ndarray  #: (H, W, 2) the strongest up and down peaks, Hz (NaN: none)
     summary: dict = field(default_factory=dict)
+    #: (H, W, N) range and velocity of the N strongest returns (the first: range, velocity)
+    returns_range: np.ndarray | None = None
+    returns_velocity: np.ndarray | None = None
+    #: (K, 5) x, y, z (m, world), radial velocity (m/s), peak height of every return
+    points: np.ndarray | None = None
 
     def write(self, folder) -> list:
         """Every file into ``folder`` (created if missing), all or nothing; returns the
@@ -41,43 +48,65 @@ class FMCWResult:
         with io.output_folder(prepare_folder(folder), "fmcw") as staged:
             path = staged.path
             for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
-                         "velocity_gt"):
+                         "velocity_gt", "points"):
                 io.write_npy(path(f"{name}.npy"), getattr(self, name))
+            if self.returns_range.shape[-1] > 1:
+                io.write_npy(path("returns_range.npy"), self.returns_range)
+                io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
             io.write_json(path("summary.json"), self.summary)
         return staged.written
 
 
-def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp) -> np.ndarray:
-    """(..., 2) the strongest beat (Hz) of each spectrum of ``spectrum`` (..., 2, M): the
-    centroid of the highest bin and its two neighbours (exact for one beat split
-    linearly between two bins); NaN where a spectrum is zero."""
-    m = np.argmax(spectrum, axis=-1)
-    lo, hi = np.maximum(m - 1, 0), np.minimum(m + 1, chirp.bins - 1)
-    index = np.stack([lo, m, hi], axis=-1)
-    weights = np.take_along_axis(spectrum, index, axis=-1).astype(np.float64)
-    weights[..., 0] = np.where(lo < m, weights[..., 0], 0.0)  # (no bin twice at an edge)
-    weights[..., 2] = np.where(hi > m, weights[..., 2], 0.0)
-    total = weights.sum(axis=-1)
+def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp, count: int = 1):
+    """The ``count`` strongest peaks of each spectrum of ``spectrum`` (..., M): their
+    beats (..., count) in Hz and their heights (the peak bins' values), strongest
+    first. A peak is a bin above its left neighbour and not below its right one; its beat
+    is the centroid of the bin and its two neighbours (exact for one beat split linearly
+    between two bins). NaN beats and zero heights where a spectrum has fewer peaks."""
+    s = spectrum.astype(np.float64)
+    padded = np.concatenate([np.zeros(s.shape[:-1] + (1,)), s, np.zeros(s.shape[:-1] + (1,))],
+                            axis=-1)
+    peak = (s > padded[..., :-2]) & (s >= padded[..., 2:])
+    order = np.argsort(np.where(peak, -s, np.inf), axis=-1, kind="stable")[..., :count]
+    height = np.where(np.take_along_axis(peak, order, axis=-1),
+                      np.take_along_axis(s, order, axis=-1), 0.0)
+    index = order[..., None] + np.array([-1, 0, 1])  # (..., count, 3)
+    weights = np.take_along_axis(padded[..., None, :], index + 1, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        centre = (weights * index).sum(axis=-1) / total
-    return np.where(total > 0, centre * chirp.bin_width, np.nan)
+        centre = (weights * index).sum(axis=-1) / weights.sum(axis=-1)
+    return np.where(height > 0, centre * chirp.bin_width, np.nan), height
+
+
+def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.ndarray):
+    """(K, 5): x, y, z (m, world, at t0), radial velocity (m/s) and peak height of every
+    return with a range, placed along its pixel-centre ray from the camera centre."""
+    found = np.isfinite(ranges)  # (H, W, N)
+    directions = np.broadcast_to(truth.direction[:, :, None, :], ranges.shape + (3,))
+    points = truth.camera_origin + ranges[found][:, None] * directions[found]
+    return np.column_stack([points, velocities[found], heights[found]])
 
 
 def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
-         params=None) -> FMCWResult:
+         params=None, returns: int = 1) -> FMCWResult:
     """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (default: 1550 nm,
-    1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's)."""
+    1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's), with
+    the ``returns`` strongest returns of every pixel."""
     from .trace import fmcw_params, render_spectra
 
     chirp = Chirp() if chirp is None else chirp
     if not isinstance(chirp, Chirp):
         raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
+    if isinstance(returns, bool) or not isinstance(returns, int) or returns < 1:
+        raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     params = fmcw_params(scene, params)
     started = _time.perf_counter()
     spectrum, t0 = render_spectra(scene, chirp, spp, seed, params)
     seconds = _time.perf_counter() - started
-    peaks = spectrum_peaks(spectrum, chirp)
-    range_, velocity = chirp.range_and_velocity(peaks[..., 0], peaks[..., 1])
+    # the k-th strongest up peak pairs with the k-th strongest down one (a path has the
+    # same power in both chirps)
+    beats, heights = spectrum_peaks(spectrum, chirp, returns)  # (H, W, 2, N)
+    ranges, velocities = chirp.range_and_velocity(beats[:, :, 0], beats[:, :, 1])
+    range_, velocity = ranges[..., 0], velocities[..., 0]
     truth = ground_truth(scene, params)
     spp = scene.spp if spp is None else spp
     summary = {
@@ -90,6 +119,9 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
                    "velocity_m_s": error_stats(velocity, truth.velocity_point)},
         "no_peak_pixels": int(np.isnan(range_).sum()),
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
+        "returns": returns, "points": int(np.isfinite(ranges).sum()),
     }
     return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
-                      truth.depth, truth.velocity_point, peaks, summary)
+                      truth.depth, truth.velocity_point, beats[..., 0], summary,
+                      ranges, velocities,
+                      point_cloud(truth, ranges, velocities, heights[:, :, 0]))

@@ -31,6 +31,9 @@ def add_subcommand(sub) -> None:
                    help="duration T of one chirp, microseconds (default 10)")
     g.add_argument("--bins", type=int, default=256, metavar="M",
                    help="spectrum bins of width 1/T, M >= 2 (default 256)")
+    f.add_argument("--returns", type=int_at_least(1, "a positive integer"), default=1,
+                   metavar="N", help="the N strongest returns of every pixel "
+                   "(returns_range.npy, returns_velocity.npy and points.npy; default 1)")
     add_defines_option(f)
     add_params_option(f, "override an integrator parameter, e.g. -P max_depth=3")
     f.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
@@ -61,7 +64,7 @@ def run_fmcw(args) -> int:
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
     result = fmcw(scene, chirp, spp=args.spp, seed=args.seed,
-                  params=parse_pairs(args.params, "-P") or None)
+                  params=parse_pairs(args.params, "-P") or None, returns=args.returns)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
     return 0
