@@ -154,7 +154,7 @@ def test_a_spinning_sphere_spreads_its_doppler_by_its_angular_velocity():
 def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["fmcw", SPHERE, "-o", str(out), "--spp", "4", "-D", "res=8",
-                 "--bandwidth", "10", "--chirp-time", "1", "--bins", "512",
+                 "--bandwidth", "10", "--chirp-time", "10", "--bins", "512",
                  "-P", "max_depth=2", "--returns", "2"])
     assert code == 0
     shapes = {name: np.load(out / f"{name}.npy").shape
@@ -163,6 +163,8 @@ def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     assert shapes == {"spectrum": (8, 8, 2, 512), "frequencies": (512,), "range": (8, 8),
                       "velocity": (8, 8), "range_gt": (8, 8), "velocity_gt": (8, 8),
                       "returns_range": (8, 8, 2), "returns_velocity": (8, 8, 2)}
+    assert all((out / f"{name}.png").stat().st_size > 0
+               for name in ("range", "range_gt", "velocity", "velocity_gt"))
     points = np.load(out / "points.npy")
     assert points.shape[1] == 5 and 64 <= len(points) <= 128
     summary = json.loads((out / "summary.json").read_text())
@@ -171,6 +173,9 @@ def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     assert errors["range_m"]["pixels"] == 64
     assert errors["range_m"]["median_abs"] < 0.02
     assert errors["velocity_m_s"]["median_abs"] < 0.1  # the sphere at -10 m/s, the wall at 0
+    sphere, static = summary["regions"]
+    assert sphere["velocity_gt_median_m_s"] < -9.0 and static["velocity_gt_median_m_s"] == 0
+    assert sphere["velocity_m_s"]["median_abs"] < 0.1 and sphere["pixels"] > 4
     velocity = np.load(out / "velocity.npy")
     assert np.nanmin(velocity) < -9.0
     assert "wrote" in capsys.readouterr().out

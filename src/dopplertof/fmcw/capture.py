@@ -6,7 +6,8 @@ nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
 frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
 pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; points.npy, the point
 cloud with velocity (K, 5: x, y, z, radial velocity, peak height); with more than one
-return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); summary.json.
+return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); previews of the
+four maps (.png); summary.json.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import io
-from ..tof.capture import error_stats
+from ..tof.capture import STATIC_SURFACES, error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
 from ..tof.output import prepare_folder
 from .chirp import Chirp, FMCWError
@@ -53,8 +54,31 @@ class FMCWResult:
             if self.returns_range.shape[-1] > 1:
                 io.write_npy(path("returns_range.npy"), self.returns_range)
                 io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
+            self._write_previews(path)
             io.write_json(path("summary.json"), self.summary)
         return staged.written
+
+
+    def _write_previews(self, path) -> None:
+        """range.png, velocity.png and their truth's, each pair on one colour scale."""
+        from ..tof import figures
+
+        c = self.summary["chirp"]
+        chirp = (f"{c['wavelength_nm']:g} nm, B {c['bandwidth_GHz']:g} GHz over "
+                 f"{c['chirp_time_us']:g} us")
+        finite = np.concatenate([a[np.isfinite(a)] for a in (self.range, self.range_gt)])
+        lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
+                  if finite.size else (None, None))
+        limit = figures.truth_limit(self.velocity_gt, self.velocity)
+        for name, title in (("range", f"FMCW range, strongest return ({chirp})"),
+                            ("range_gt", "true distance along the pixel-centre ray")):
+            figures.write_map(path(f"{name}.png"), getattr(self, name), title, "m",
+                              vmin=lo, vmax=hi)
+        for name, title in (("velocity", f"FMCW radial velocity ({chirp})"),
+                            ("velocity_gt", "true velocity along the ray u.d")):
+            figures.write_map(path(f"{name}.png"), getattr(self, name), title,
+                              "m/s (+ receding, - approaching)", cmap="RdBu_r", vmax=limit,
+                              symmetric=True)
 
 
 def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp, count: int = 1):
@@ -75,6 +99,18 @@ def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp, count: int = 1):
     with np.errstate(invalid="ignore", divide="ignore"):
         centre = (weights * index).sum(axis=-1) / weights.sum(axis=-1)
     return np.where(height > 0, centre * chirp.bin_width, np.nan), height
+
+
+def regions(scene, truth, range_: np.ndarray, velocity: np.ndarray) -> list:
+    """Range and velocity errors per moving body and over the static surfaces (the
+    pixels whose centre ray hits them; a body's silhouette mixes it with what is behind)."""
+    parts = [(", ".join(body.names), truth.body == k) for k, body in enumerate(scene.bodies)]
+    parts.append((STATIC_SURFACES, truth.body == -1))
+    return [{"name": name, "pixels": int(on.sum()),
+             "range_m": error_stats(range_[on], truth.depth[on]),
+             "velocity_m_s": error_stats(velocity[on], truth.velocity_point[on]),
+             "velocity_gt_median_m_s": float(np.median(truth.velocity_point[on]))}
+            for name, on in parts if on.any()]
 
 
 def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.ndarray):
@@ -117,6 +153,7 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         "velocity_sign": "positive receding (dL/dt > 0)",
         "errors": {"range_m": error_stats(range_, truth.depth),
                    "velocity_m_s": error_stats(velocity, truth.velocity_point)},
+        "regions": regions(scene, truth, range_, velocity),
         "no_peak_pixels": int(np.isnan(range_).sum()),
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
         "returns": returns, "points": int(np.isfinite(ranges).sum()),

@@ -87,5 +87,7 @@ def format_summary(summary: dict, folder: str) -> str:
         f"m/s per bin, up to {c['max_range_m']:.4g} m); {summary['render_seconds']:.1f} s",
         f"  range:    {stat(e['range_m'], 'm')}",
         f"  velocity: {stat(e['velocity_m_s'], 'm/s')}",
+        *(f"  {r['name']}: velocity {stat(r['velocity_m_s'], 'm/s')} (truth median "
+          f"{r['velocity_gt_median_m_s']:.3g} m/s)" for r in summary["regions"]),
         f"wrote {folder}",
     ])
