@@ -295,3 +295,22 @@ def test_the_spectra_hold_stock_mitsuba_path_radiance_at_every_pixel():
     difference = np.abs(ours[..., 0].mean(0) - stock.mean(0))
     assert (difference <= 5 * error).all(), (difference / error).max()
     assert ours[..., 0].mean() == pytest.approx(stock.mean(), rel=0.01)
+
+
+@pytest.mark.parametrize("variant", ["llvm_ad_mono", "llvm_ad_spectral"])
+def test_the_other_variants_read_the_plane(variant):
+    """Monochrome and spectral variants: the same range and velocity (their colour is
+    reduced as the RGB variant's: the mean of what the film would get)."""
+    dopplertof.set_variant(variant)
+    result, chirp, distance = _plane(3.0, 0.5)
+    assert result.range[0, 0] == pytest.approx(distance, rel=0.01)
+    assert result.velocity[0, 0] == pytest.approx(0.5, rel=0.01)
+
+
+def test_a_frame_too_large_for_memory_is_refused_before_tracing(monkeypatch):
+    from dopplertof.fmcw import trace
+
+    monkeypatch.setattr(trace, "MAX_SPECTRUM_VALUES", 1000)
+    scene = dopplertof.load_dict(plane_scene(3.0, 0.5, res=4, spp=4))
+    with pytest.raises(ValueError, match="4x4 pixels x 2 chirps x 64 bins is 2,048 spectrum"):
+        fmcw(scene, Chirp(bins=64), spp=4)

@@ -39,6 +39,10 @@ from .chirp import SPEED_OF_LIGHT
 #: lanes per pass (as the D-ToF pipeline's bound)
 MAX_LANES = 1 << 21
 
+#: the most spectrum values (pixels x 2 x bins) a frame may hold: 4 GiB on the host in
+#: float64, 2 GiB on the device in float32
+MAX_SPECTRUM_VALUES = 1 << 29
+
 
 class VelocityFields:
     """The velocities (m/s) of the scene's material points at t0, each moving part's as
@@ -204,6 +208,10 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
 
     mi, p, spp, seed = _resolve(scene, spp, seed, fmcw_params(scene, params))
     width, height = (int(v) for v in scene.sensor.film().crop_size())
+    if width * height * 2 * chirp.bins > MAX_SPECTRUM_VALUES:
+        raise ValueError(f"{width}x{height} pixels x 2 chirps x {chirp.bins} bins is "
+                         f"{width * height * 2 * chirp.bins:,} spectrum values, over the "
+                         f"{MAX_SPECTRUM_VALUES:,} a frame may hold: fewer bins or pixels")
     setup = integrator_class(mi)().prepared(scene, p, spp, int(seed))
     start, t0, end = mid_exposure(scene, p)
     fields = VelocityFields(mi, scene, t0, end - start)
