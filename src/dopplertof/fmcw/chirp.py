@@ -16,8 +16,8 @@ one chirp), bin m centred on m / T: the one-sided spectrum of the beat sampled a
 range L / 2 (light at the camera); radial velocity (dL/dt) / 2 = lambda (f_up - f_down) / 4,
 positive receding as in the rest of the project.
 
-No NumPy or Mitsuba here: the command line checks its options with this module before
-anything heavy loads.
+No Mitsuba here: the command line checks its options with this module before the
+scene loads.
 """
 
 from __future__ import annotations
@@ -25,7 +25,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-SPEED_OF_LIGHT = 299_792_458.0  #: m/s (the value of dopplertof.modulation)
+import numpy as np
+
+from ..modulation import SPEED_OF_LIGHT
 
 #: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared
 WAVELENGTH_RANGE = (200e-9, 20e-6)
@@ -85,8 +87,6 @@ class Chirp:
 
     def frequencies(self):
         """The bins' centre frequencies (Hz), a NumPy array of M."""
-        import numpy as np
-
         return np.arange(self.bins, dtype=np.float64) * self.bin_width
 
     def beats(self, path_length, length_rate):

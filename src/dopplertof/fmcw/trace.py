@@ -27,17 +27,14 @@ from dataclasses import replace
 import drjit as dr
 import numpy as np
 
-from ..params import RenderParams
 from ..integrators.path_steps import (PassLayout, _as_colour, advance, film_position,
                                       lane_streams, loop_settings, shade, survive,
                                       vertex_numbers)
+from ..modulation import SPEED_OF_LIGHT
+from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
 from ..tof.ground_truth import camera_origin, mid_exposure, velocity_field
-from .chirp import SPEED_OF_LIGHT
-
-#: lanes per pass (as the D-ToF pipeline's bound)
-MAX_LANES = 1 << 21
 
 #: the most spectrum values (pixels x 2 x bins) a frame may hold: 4 GiB on the host in
 #: float64, 2 GiB on the device in float32
@@ -204,7 +201,7 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
     over ``spp`` samples of its contributions at their up (0) and down (1) beats; and
     t0, the time traced."""
     from ..integrators.dtof_path import integrator_class
-    from ..integrators.pipeline import _resolve
+    from ..integrators.pipeline import DEFAULT_MAX_LANES, _resolve
 
     mi, p, spp, seed = _resolve(scene, spp, seed, fmcw_params(scene, params))
     width, height = (int(v) for v in scene.sensor.film().crop_size())
@@ -216,7 +213,7 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
     start, t0, end = mid_exposure(scene, p)
     fields = VelocityFields(mi, scene, t0, end - start)
     n_pixels = width * height
-    per_pass = max(1, MAX_LANES // n_pixels)
+    per_pass = max(1, DEFAULT_MAX_LANES // n_pixels)  # (the D-ToF passes' bound)
     total = np.zeros(n_pixels * 2 * chirp.bins)
     with dr.suspend_grad():
         for s0 in range(0, spp, per_pass):
