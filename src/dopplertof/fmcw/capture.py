@@ -123,10 +123,13 @@ def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.n
 
 
 def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
-         params=None, returns: int = 1) -> FMCWResult:
+         params=None, returns: int = 1, beam: str = "flood",
+         beam_intensity: float = 1.0) -> FMCWResult:
     """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (default: 1550 nm,
     1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's), with
-    the ``returns`` strongest returns of every pixel."""
+    the ``returns`` strongest returns of every pixel, lit by ``beam``: "flood" (the
+    scene's emitters) or "collimated" (each pixel's own beam of ``beam_intensity`` W/sr;
+    :mod:`.beam`)."""
     from .trace import fmcw_params, render_spectra
 
     chirp = Chirp() if chirp is None else chirp
@@ -136,7 +139,7 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     params = fmcw_params(scene, params)
     started = _time.perf_counter()
-    spectrum, t0 = render_spectra(scene, chirp, spp, seed, params)
+    spectrum, t0 = render_spectra(scene, chirp, spp, seed, params, beam, beam_intensity)
     seconds = _time.perf_counter() - started
     # the k-th strongest up peak pairs with the k-th strongest down one (a path has the
     # same power in both chirps)
@@ -157,6 +160,8 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         "no_peak_pixels": int(np.isnan(range_).sum()),
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
         "returns": returns, "points": int(np.isfinite(ranges).sum()),
+        "beam": {"kind": beam, "intensity_W_sr": beam_intensity if beam == "collimated"
+                 else None},
     }
     return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
                       truth.depth, truth.velocity_point, beats[..., 0], summary,

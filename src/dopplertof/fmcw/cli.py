@@ -31,6 +31,12 @@ def add_subcommand(sub) -> None:
                    help="duration T of one chirp, microseconds (default 10)")
     g.add_argument("--bins", type=int, default=256, metavar="M",
                    help="spectrum bins of width 1/T, M >= 2 (default 256)")
+    g.add_argument("--beam", choices=("flood", "collimated"), default="flood",
+                   help="flood: the scene's lights light everything (default); collimated: "
+                   "each pixel its own beam from the camera centre, no other light")
+    g.add_argument("--beam-intensity", type=_positive_float, default=1.0, metavar="W_SR",
+                   help="with --beam collimated: the beam's radiant intensity within each "
+                   "pixel's cone, W/sr (default 1)")
     f.add_argument("--returns", type=int_at_least(1, "a positive integer"), default=1,
                    metavar="N", help="the N strongest returns of every pixel "
                    "(returns_range.npy, returns_velocity.npy and points.npy; default 1)")
@@ -38,6 +44,20 @@ def add_subcommand(sub) -> None:
     add_params_option(f, "override an integrator parameter, e.g. -P max_depth=3")
     f.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
     f.set_defaults(func=run_fmcw)
+
+
+def _positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
 
 
 def chirp_of(args):
@@ -64,7 +84,8 @@ def run_fmcw(args) -> int:
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
     result = fmcw(scene, chirp, spp=args.spp, seed=args.seed,
-                  params=parse_pairs(args.params, "-P") or None, returns=args.returns)
+                  params=parse_pairs(args.params, "-P") or None, returns=args.returns,
+                  beam=args.beam, beam_intensity=args.beam_intensity)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
     return 0

@@ -35,6 +35,7 @@ from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
 from ..tof.ground_truth import camera_origin, mid_exposure, velocity_field
+from .beam import Beam
 
 #: the most spectrum values (pixels x 2 x bins) a frame may hold: 4 GiB on the host in
 #: float64, 2 GiB on the device in float32
@@ -123,6 +124,17 @@ def _grey(mi, value, wavelengths):
     return sum(colour[i] for i in range(len(colour))) * (1.0 / len(colour))
 
 
+def _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel, wavelengths):
+    """Vertex ``v``'s emitter hit and light sample at their beats (the scene's lights;
+    ``rate_hit``: dL/dt to the vertex, moving at ``u_here``)."""
+    splat.add(pixel, _grey(mi, v.emitted * v.mis_hit, wavelengths), v.length_hit, rate_hit,
+              v.hit_emitter)
+    ds = v.em_sample
+    rate_em = rate_hit + dr.dot(ds.d, fields.at_light_sample(static, ds, numbers[0], v) - u_here)
+    splat.add(pixel, _grey(mi, v.em_value * v.mis_em, wavelengths), v.length_em, rate_em,
+              v.active_em)
+
+
 def lane_start(mi, setup, layout: PassLayout, streams, t0: float):
     """Each lane's camera ray at t0 (its film position and lens point as the D-ToF
     integrator's), its weight and its length to the ray's origin, and the bodies' and
@@ -139,7 +151,7 @@ def lane_start(mi, setup, layout: PassLayout, streams, t0: float):
 
 @dr.syntax
 def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: SpectrumSplat,
-                  t0: float):
+                  t0: float, beam: Beam):
     """One pass: every lane's path, its contributions splatted into ``splat``."""
     static = setup.scene.static
     streams = lane_streams(mi, setup, layout)
@@ -147,6 +159,8 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
     wavelengths, pixel = ray.wavelengths, layout.pixel
+
+    spot = beam.start(mi, setup, layout, streams, ray.time, frames, fields)  # (collimated)
 
     # ---- Loop state: the D-ToF loop's, with the path's rate and its last vertex's velocity
     beta, length, rate = mi.Spectrum(ray_weight), mi.Float(offset), mi.Float(0.0)
@@ -165,16 +179,18 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
                   hide_direct_emitters, mi.Float, bsdf_ctx)
 
-        # ---- The contributions at their beats: the emitter hit, the light sample ----
+        # ---- The contributions at their beats ----
         u_here = fields.at_surface(si.p, winner)
         rate_hit = rate + dr.dot(ray.d, u_here - u_prev)
-        splat.add(pixel, _grey(mi, v.emitted * v.mis_hit, wavelengths), v.length_hit,
-                  rate_hit, v.hit_emitter)
-        ds = v.em_sample
-        rate_em = rate_hit + dr.dot(ds.d, fields.at_light_sample(static, ds, numbers[0], v)
-                                    - u_here)
-        splat.add(pixel, _grey(mi, v.em_value * v.mis_em, wavelengths), v.length_em, rate_em,
-                  v.active_em)
+        if dr.hint(beam.collimated, mode="scalar"):  # the direct return, the lane's spot
+            for value, beat_length, beat_rate, lit in (
+                    beam.direct(si, ray, v, beta, depth, rate_hit, bsdf_ctx),
+                    beam.from_spot(static, frames, si, ray, v, beta, depth, max_depth,
+                                   rate_hit, u_here, spot, bsdf_ctx)):
+                splat.add(pixel, _grey(mi, value, wavelengths), beat_length, beat_rate, lit)
+        else:  # the emitter hit and the light sample
+            _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel,
+                       wavelengths)
 
         # ---- Continue the path ----
         length, rate, u_prev = v.length_hit, rate_hit, u_here
@@ -196,10 +212,11 @@ def fmcw_params(scene, params=None) -> RenderParams:
                    adaptive_sampling=False, samples_per_pass=-1)
 
 
-def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
+def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str = "flood",
+                   beam_intensity: float = 1.0):
     """The (H, W, 2, M) float64 spectra of ``scene`` (a DopplerScene): each pixel's mean
-    over ``spp`` samples of its contributions at their up (0) and down (1) beats; and
-    t0, the time traced."""
+    over ``spp`` samples of its contributions at their up (0) and down (1) beats, lit by
+    ``beam`` (:mod:`.beam`); and t0, the time traced."""
     from ..integrators.dtof_path import integrator_class
     from ..integrators.pipeline import DEFAULT_MAX_LANES, _resolve
 
@@ -212,6 +229,7 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
     setup = integrator_class(mi)().prepared(scene, p, spp, int(seed))
     start, t0, end = mid_exposure(scene, p)
     fields = VelocityFields(mi, scene, t0, end - start)
+    lidar_beam = Beam(mi, scene, beam, beam_intensity, t0)
     n_pixels = width * height
     per_pass = max(1, DEFAULT_MAX_LANES // n_pixels)  # (the D-ToF passes' bound)
     total = np.zeros(n_pixels * 2 * chirp.bins)
@@ -220,6 +238,6 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None):
             layout = PassLayout(mi, n_pixels, min(per_pass, spp - s0),
                                 dr.opaque(mi.UInt32, s0), 1)
             splat = SpectrumSplat(mi, chirp, n_pixels)
-            trace_spectra(mi, setup, layout, fields, splat, t0)
+            trace_spectra(mi, setup, layout, fields, splat, t0, lidar_beam)
             total += splat.values.numpy()
     return (total / spp).reshape(height, width, 2, chirp.bins), t0
