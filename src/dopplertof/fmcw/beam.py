@@ -49,6 +49,9 @@ class Beam:
         self.mi = mi
         self.collimated = kind == "collimated"
         self.intensity = float(intensity)
+        #: what ``shade`` takes for its light samples' visibility: traced (None), or none
+        #: visible where the beam is the only light (no shadow rays to the scene's lights)
+        self.light_samples_visible = mi.Bool(False) if self.collimated else None
         if self.collimated:
             sensor = scene.sensor
             if not is_pinhole(sensor) or getattr(scene, "lens_distortion", None) is not None:

@@ -177,7 +177,7 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, mi.Float, bsdf_ctx)
+                  hide_direct_emitters, mi.Float, bsdf_ctx, beam.light_samples_visible)
 
         # ---- The contributions at their beats ----
         u_here = fields.at_surface(si.p, winner)
