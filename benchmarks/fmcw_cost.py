@@ -6,7 +6,7 @@ median of each compared. The FMCW time is the spectra only (fmcw.trace.render_sp
 tracing, the atomic splats and their copy to the host), not the peaks or the truth.
 
     .venv/bin/python benchmarks/fmcw_cost.py [--scene FILE] [--res 64] [--spp 64]
-        [--bins 256] [--repeats 3] [--beam flood|collimated]
+        [--bins 256] [--repeats 3] [--beam flood|collimated] [--speckle]
 
 The last line reads `fmcw / dtof time: X`.
 """
@@ -29,6 +29,7 @@ def main(argv=None) -> None:
     p.add_argument("--bins", type=int, default=256)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--beam", default="flood", choices=("flood", "collimated"))
+    p.add_argument("--speckle", action="store_true", help="with the coherent sums")
     args = p.parse_args(argv)
 
     import dopplertof
@@ -39,7 +40,8 @@ def main(argv=None) -> None:
     scene = dopplertof.load_file(args.scene, {"res": args.res})
     chirp = Chirp(bandwidth=10e9, chirp_time=1e-6, bins=args.bins)
     runs = {"dtof": lambda: dopplertof.render(scene, spp=args.spp, progress=False),
-            "fmcw": lambda: render_spectra(scene, chirp, args.spp, beam=args.beam)}
+            "fmcw": lambda: render_spectra(scene, chirp, args.spp, beam=args.beam,
+                                           speckle=args.speckle)}
     times = {name: [] for name in runs}
     for name, run in runs.items():  # warm-up: compile the kernels
         run()
@@ -50,7 +52,7 @@ def main(argv=None) -> None:
             times[name].append(time.perf_counter() - start)
     median = {name: statistics.median(t) for name, t in times.items()}
     print(f"{os.path.basename(args.scene)} {args.res}x{args.res}, {args.spp} spp, "
-          f"{args.bins} bins, {args.beam} beam: dtof {median['dtof']:.3f} s, fmcw {median['fmcw']:.3f} s")
+          f"{args.bins} bins, {args.beam} beam{', speckle' if args.speckle else ''}: dtof {median['dtof']:.3f} s, fmcw {median['fmcw']:.3f} s")
     print(f"fmcw / dtof time: {median['fmcw'] / median['dtof']:.2f}")
 
 

@@ -69,6 +69,7 @@ BOUNCE_EMITTER = 0
 BOUNCE_BSDF_LOBE = 2
 BOUNCE_BSDF_DIR = 3
 BOUNCE_RR = 5
+BOUNCE_SPARE = 6  #: the two spare numbers (FMCW's speckle phases; issue 43)
 
 # TEA rounds: 8 to derive a lane's stream keys (once per path) and 6 for its time
 # numbers; the many numbers along a path use the cheaper integer hash below.

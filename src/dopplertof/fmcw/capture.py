@@ -6,8 +6,8 @@ nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
 frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
 pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; points.npy, the point
 cloud with velocity (K, 5: x, y, z, radial velocity, peak height); with more than one
-return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); previews of the
-four maps (.png); summary.json.
+return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); with speckle,
+speckle.npy (H, W, 2, M); previews of the four maps (.png); summary.json.
 """
 
 from __future__ import annotations
@@ -42,6 +42,9 @@ class FMCWResult:
     returns_velocity: np.ndarray | None = None
     #: (K, 5) x, y, z (m, world), radial velocity (m/s), peak height of every return
     points: np.ndarray | None = None
+    #: (H, W, 2, M) float32 with speckle: each bin's |coherent sum of the paths'
+    #: amplitudes at random phases|^2 / spp, whose expectation is ``spectrum``
+    speckle: np.ndarray | None = None
 
     def write(self, folder) -> list:
         """Every file into ``folder`` (created if missing), all or nothing; returns the
@@ -54,6 +57,8 @@ class FMCWResult:
             if self.returns_range.shape[-1] > 1:
                 io.write_npy(path("returns_range.npy"), self.returns_range)
                 io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
+            if self.speckle is not None:
+                io.write_npy(path("speckle.npy"), self.speckle)
             self._write_previews(path)
             io.write_json(path("summary.json"), self.summary)
         return staged.written
@@ -123,13 +128,14 @@ def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.n
 
 
 def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
-         params=None, returns: int = 1, beam: str = "flood",
-         beam_intensity: float = 1.0) -> FMCWResult:
+         params=None, returns: int = 1, beam: str = "flood", beam_intensity: float = 1.0,
+         speckle: bool = False) -> FMCWResult:
     """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (default: 1550 nm,
     1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's), with
     the ``returns`` strongest returns of every pixel, lit by ``beam``: "flood" (the
     scene's emitters) or "collimated" (each pixel's own beam of ``beam_intensity`` W/sr;
-    :mod:`.beam`)."""
+    :mod:`.beam`); ``speckle`` adds the spectra of random path phases summed coherently
+    (:attr:`FMCWResult.speckle`)."""
     from .trace import fmcw_params, render_spectra
 
     chirp = Chirp() if chirp is None else chirp
@@ -139,7 +145,8 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     params = fmcw_params(scene, params)
     started = _time.perf_counter()
-    spectrum, t0 = render_spectra(scene, chirp, spp, seed, params, beam, beam_intensity)
+    spectrum, t0, speckled = render_spectra(scene, chirp, spp, seed, params, beam,
+                                            beam_intensity, speckle)
     seconds = _time.perf_counter() - started
     # the k-th strongest up peak pairs with the k-th strongest down one (a path has the
     # same power in both chirps)
@@ -160,10 +167,12 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         "no_peak_pixels": int(np.isnan(range_).sum()),
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
         "returns": returns, "points": int(np.isfinite(ranges).sum()),
+        "speckle": bool(speckle),
         "beam": {"kind": beam, "intensity_W_sr": beam_intensity if beam == "collimated"
                  else None},
     }
     return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
                       truth.depth, truth.velocity_point, beats[..., 0], summary,
                       ranges, velocities,
-                      point_cloud(truth, ranges, velocities, heights[:, :, 0]))
+                      point_cloud(truth, ranges, velocities, heights[:, :, 0]),
+                      None if speckled is None else speckled.astype(np.float32))

@@ -37,6 +37,9 @@ def add_subcommand(sub) -> None:
     g.add_argument("--beam-intensity", type=_positive_float, default=1.0, metavar="W_SR",
                    help="with --beam collimated: the beam's radiant intensity within each "
                    "pixel's cone, W/sr (default 1)")
+    f.add_argument("--speckle", action="store_true",
+                   help="also speckle.npy: each path at a random phase, summed coherently "
+                   "per bin (its expectation is spectrum.npy)")
     f.add_argument("--returns", type=int_at_least(1, "a positive integer"), default=1,
                    metavar="N", help="the N strongest returns of every pixel "
                    "(returns_range.npy, returns_velocity.npy and points.npy; default 1)")
@@ -85,7 +88,8 @@ def run_fmcw(args) -> int:
     scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
     result = fmcw(scene, chirp, spp=args.spp, seed=args.seed,
                   params=parse_pairs(args.params, "-P") or None, returns=args.returns,
-                  beam=args.beam, beam_intensity=args.beam_intensity)
+                  beam=args.beam, beam_intensity=args.beam_intensity,
+                  speckle=args.speckle)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
     return 0

@@ -27,6 +27,7 @@ from dataclasses import replace
 import drjit as dr
 import numpy as np
 
+from .. import sampling
 from ..integrators.path_steps import (PassLayout, _as_colour, advance, film_position,
                                       lane_streams, loop_settings, shade, survive,
                                       vertex_numbers)
@@ -92,18 +93,26 @@ def _affine(V):
 
 class SpectrumSplat:
     """The spectra of a pass's pixels, (pixels, 2, M) in one flat Float, and how a
-    contribution adds to them."""
+    contribution adds to them; with ``speckle`` also each bin's coherent sum of the
+    contributions' amplitudes sqrt(value) e^(i phase), its real and imaginary parts."""
 
-    def __init__(self, mi, chirp, n_pixels: int):
+    def __init__(self, mi, chirp, n_pixels: int, speckle: bool = False):
         self.mi = mi
         self.bins = chirp.bins
-        self.values = dr.zeros(mi.Float, n_pixels * 2 * chirp.bins)
-        dr.make_opaque(self.values)
+        size = n_pixels * 2 * chirp.bins
+        self.values = dr.zeros(mi.Float, size)
+        self.real = dr.zeros(mi.Float, size) if speckle else None
+        self.imag = dr.zeros(mi.Float, size) if speckle else None
+        for array in (self.values, self.real, self.imag):
+            if array is not None:
+                dr.make_opaque(array)
         self.per_metre = dr.opaque(mi.Float, chirp.slope / SPEED_OF_LIGHT / chirp.bin_width)
         self.per_rate = dr.opaque(mi.Float, 1.0 / (chirp.wavelength * chirp.bin_width))
 
-    def add(self, pixel, value, path_length, rate, active):
-        """Add ``value`` at the beats of paths of ``path_length`` and ``rate`` (dL/dt)."""
+    def add(self, pixel, value, path_length, rate, active, phase=None):
+        """Add ``value`` at the beats of paths of ``path_length`` and ``rate`` (dL/dt);
+        with speckle also its amplitude at ``phase`` (a fraction of a turn; both chirps
+        share it: it is the path's)."""
         mi = self.mi
         centre, doppler = path_length * self.per_metre, rate * self.per_rate  # in bins
         for chirp, position in enumerate((centre + doppler, centre - doppler)):
@@ -112,10 +121,15 @@ class SpectrumSplat:
             upper = position - mi.Float(low)
             base = (pixel * 2 + chirp) * self.bins
             inside = active & (value != 0.0) & (position < self.bins - 1)
-            dr.scatter_reduce(dr.ReduceOp.Add, self.values, value * (1.0 - upper),
-                              base + low, inside)
-            dr.scatter_reduce(dr.ReduceOp.Add, self.values, value * upper,
-                              base + low + 1, inside)
+            for index, share in ((base + low, 1.0 - upper), (base + low + 1, upper)):
+                dr.scatter_reduce(dr.ReduceOp.Add, self.values, value * share, index, inside)
+                if self.real is not None:  # (the split keeps each bin's expected power)
+                    amplitude = dr.sqrt(dr.maximum(value * share, 0.0))
+                    sin, cos = dr.sincos(dr.two_pi * phase)
+                    dr.scatter_reduce(dr.ReduceOp.Add, self.real, amplitude * cos, index,
+                                      inside)
+                    dr.scatter_reduce(dr.ReduceOp.Add, self.imag, amplitude * sin, index,
+                                      inside)
 
 
 def _grey(mi, value, wavelengths):
@@ -124,15 +138,25 @@ def _grey(mi, value, wavelengths):
     return sum(colour[i] for i in range(len(colour))) * (1.0 / len(colour))
 
 
-def _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel, wavelengths):
+def path_phases(streams, depth):
+    """The random phases (fractions of a turn) of the two contributions at surface hit
+    ``depth``: the emitter hit or direct return, and the light sample or the beam's spot
+    (the hit's two spare stream dimensions)."""
+    stage = depth + 1
+    return tuple(streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_SPARE + k))
+                 for k in (0, 1))
+
+
+def _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel, wavelengths,
+               phases):
     """Vertex ``v``'s emitter hit and light sample at their beats (the scene's lights;
-    ``rate_hit``: dL/dt to the vertex, moving at ``u_here``)."""
+    ``rate_hit``: dL/dt to the vertex, moving at ``u_here``; ``phases``: theirs)."""
     splat.add(pixel, _grey(mi, v.emitted * v.mis_hit, wavelengths), v.length_hit, rate_hit,
-              v.hit_emitter)
+              v.hit_emitter, phases[0])
     ds = v.em_sample
     rate_em = rate_hit + dr.dot(ds.d, fields.at_light_sample(static, ds, numbers[0], v) - u_here)
     splat.add(pixel, _grey(mi, v.em_value * v.mis_em, wavelengths), v.length_em, rate_em,
-              v.active_em)
+              v.active_em, phases[1])
 
 
 def lane_start(mi, setup, layout: PassLayout, streams, t0: float):
@@ -182,15 +206,17 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
         # ---- The contributions at their beats ----
         u_here = fields.at_surface(si.p, winner)
         rate_hit = rate + dr.dot(ray.d, u_here - u_prev)
+        phases = path_phases(streams, depth)  # (speckle only)
         if dr.hint(beam.collimated, mode="scalar"):  # the direct return, the lane's spot
-            for value, beat_length, beat_rate, lit in (
+            for (value, beat_length, beat_rate, lit), phase in zip((
                     beam.direct(si, ray, v, beta, depth, rate_hit, bsdf_ctx),
                     beam.from_spot(static, frames, si, ray, v, beta, depth, max_depth,
-                                   rate_hit, u_here, spot, bsdf_ctx)):
-                splat.add(pixel, _grey(mi, value, wavelengths), beat_length, beat_rate, lit)
+                                   rate_hit, u_here, spot, bsdf_ctx)), phases):
+                splat.add(pixel, _grey(mi, value, wavelengths), beat_length, beat_rate, lit,
+                          phase)
         else:  # the emitter hit and the light sample
             _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel,
-                       wavelengths)
+                       wavelengths, phases)
 
         # ---- Continue the path ----
         length, rate, u_prev = v.length_hit, rate_hit, u_here
@@ -213,10 +239,11 @@ def fmcw_params(scene, params=None) -> RenderParams:
 
 
 def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str = "flood",
-                   beam_intensity: float = 1.0):
+                   beam_intensity: float = 1.0, speckle: bool = False):
     """The (H, W, 2, M) float64 spectra of ``scene`` (a DopplerScene): each pixel's mean
     over ``spp`` samples of its contributions at their up (0) and down (1) beats, lit by
-    ``beam`` (:mod:`.beam`); and t0, the time traced."""
+    ``beam`` (:mod:`.beam`); t0, the time traced; and with ``speckle`` the spectra of the
+    coherent sums, |sum of sqrt(value) e^(i phase)|^2 / spp per bin (else None)."""
     from ..integrators.dtof_path import integrator_class
     from ..integrators.pipeline import DEFAULT_MAX_LANES, _resolve
 
@@ -233,11 +260,16 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
     n_pixels = width * height
     per_pass = max(1, DEFAULT_MAX_LANES // n_pixels)  # (the D-ToF passes' bound)
     total = np.zeros(n_pixels * 2 * chirp.bins)
+    coherent = np.zeros(n_pixels * 2 * chirp.bins, np.complex128) if speckle else None
     with dr.suspend_grad():
         for s0 in range(0, spp, per_pass):
             layout = PassLayout(mi, n_pixels, min(per_pass, spp - s0),
                                 dr.opaque(mi.UInt32, s0), 1)
-            splat = SpectrumSplat(mi, chirp, n_pixels)
+            splat = SpectrumSplat(mi, chirp, n_pixels, speckle)
             trace_spectra(mi, setup, layout, fields, splat, t0, lidar_beam)
             total += splat.values.numpy()
-    return (total / spp).reshape(height, width, 2, chirp.bins), t0
+            if speckle:
+                coherent += splat.real.numpy() + 1j * splat.imag.numpy()
+    shape = (height, width, 2, chirp.bins)
+    return ((total / spp).reshape(shape), t0,
+            None if coherent is None else (np.abs(coherent) ** 2 / spp).reshape(shape))
