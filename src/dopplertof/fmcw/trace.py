@@ -11,10 +11,12 @@ material points (bodies, camera and lights by their analytic motion at t0):
     dL/dt = sum over segments a -> b of  d_ab . (u_b - u_a)
 
 (d_ab the segment's unit direction). Each contribution (emitter hit or light sample,
-with its MIS weight) adds its value (the mean of its colour channels) to its pixel's up
-and down spectra at |f_up| and |f_down| (:class:`.chirp.Chirp`), split linearly between
-the two nearest bins; beats past the last bin are dropped. Pixels average their own
-samples (a box filter).
+with its MIS weight; with a collimated beam, :mod:`.beam`'s direct return and light from
+the beam's spot) adds its value (the mean of its colour channels) to its pixel's up and
+down spectra at |f_up| and |f_down| (:class:`.chirp.Chirp`), split linearly between the
+two nearest bins; beats past the last bin are dropped. Pixels average their own samples
+(a box filter). With speckle each contribution also adds its amplitude at a random phase
+to its bins' coherent sums.
 
 The adds are atomic (``dr.scatter_reduce`` from the path loop), so a spectrum is
 reproducible to float32 rounding, not bitwise as the D-ToF images are.
