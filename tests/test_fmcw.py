@@ -188,18 +188,19 @@ def test_bad_chirp_options_exit_2_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("moving", ["camera", "light"])
+@pytest.mark.parametrize("moving", ["camera", "light", "camera with its beam"])
 def test_a_moving_camera_or_light_shifts_the_beats_by_its_own_rate(moving):
-    """A static plane 3 m ahead: the camera (its light on it) approaching at 0.6 m/s
-    reads -0.6 m/s; a light alone moving toward the plane at 0.6 m/s shortens the
-    light's leg only: dL/dt = -0.6 m/s, velocity -0.3 m/s (half the path's rate)."""
-    camera, light = (0.6, None) if moving == "camera" else (0.0, 0.6)
+    """A static plane 3 m ahead: the camera (its light on it, or a collimated beam from
+    it) approaching at 0.6 m/s reads -0.6 m/s; a light alone moving toward the plane at
+    0.6 m/s shortens the light's leg only: dL/dt = -0.6 m/s, velocity -0.3 m/s (half the
+    path's rate)."""
+    camera, light = (0.0, 0.6) if moving == "light" else (0.6, None)
     scene = dopplertof.load_dict(plane_scene(3.0, 0.0, exposure=EXPOSURE, res=1, spp=16,
                                              camera_velocity=camera, light_velocity=light))
     chirp = Chirp(bandwidth=1e9, chirp_time=10e-6, bins=64)
-    result = fmcw(scene, chirp, spp=16)
+    result = fmcw(scene, chirp, spp=16, beam="collimated" if "beam" in moving else "flood")
     t0 = 0.5 * EXPOSURE
-    if moving == "camera":
+    if moving != "light":
         f_up, f_down = chirp.beats(2 * (3.0 - camera * t0), -2 * camera)
         expected = -camera
     else:  # the light leaves the camera for the plane: its leg is 3 - v t0 long
