@@ -410,3 +410,11 @@ def test_speckle_is_fully_developed_around_the_spectrum():
     ratios = np.concatenate([r.ravel() for r in ratios])
     assert ratios.mean() == pytest.approx(1.0, abs=0.31)
     assert ratios.std() / ratios.mean() == pytest.approx(1.0, abs=0.44)
+
+
+def test_a_file_in_the_way_of_the_folder_exits_2_before_rendering(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["fmcw", SPHERE, "-o", str(blocker), "--spp", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a folder" in err and blocker.read_text() == "x"
