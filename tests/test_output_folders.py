@@ -24,7 +24,7 @@ def _subparsers():
 
 
 @pytest.mark.parametrize("command", ["render", "capture", "demo", "figures", "sweep",
-                                     "report", "animate"])
+                                     "report", "animate", "fmcw"])
 def test_every_command_help_states_the_folder_rule(command):
     text = " ".join(_subparsers()[command].format_help().split())
     assert FOLDER_HELP in text

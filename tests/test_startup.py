@@ -20,7 +20,7 @@ HEAVY = ("mitsuba", "drjit", "matplotlib", "dask", "scipy")
 HELP_HEAVY = HEAVY + ("numpy", "h5py")
 #: the packages whose names are imported on first use (dopplertof.lazy.lazy_exports)
 LAZY_PACKAGES = ("dopplertof", "dopplertof.cameras", "dopplertof.dataset", "dopplertof.diff",
-                 "dopplertof.experiments", "dopplertof.render")
+                 "dopplertof.experiments", "dopplertof.render", "dopplertof.fmcw")
 
 
 def in_fresh_python(code: str):
@@ -44,7 +44,7 @@ def cli_in_fresh_python(*argv, heavy=HEAVY) -> tuple:
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["capture", "--help"], ["fit", "--help"],
-                                  ["render"], ["sweep", "--help"]],
+                                  ["render"], ["sweep", "--help"], ["fmcw", "--help"]],
                          ids=lambda a: " ".join(a))
 def test_help_and_argparse_errors_import_nothing_heavy(argv):
     """Not NumPy either: the package's names and the subcommands' modules are
@@ -123,6 +123,12 @@ def test_lazy_names_are_what_they_name_after_every_module_is_imported():
     (["capture", SPHERE, "-o", "{tmp}/out", "-P", "hetro_frequency=1"], "did you mean"),
     (["capture", SPHERE, "-o", "{tmp}/out", "--spp", "0"], "spp must be >= 1"),
     (["precision", SPHERE, "-P", "w_gg=20"], "did you mean 'w_g'"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "--bandwidth", "0"], "bandwidth B must be > 0"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "--chirp-time", "-1"], "chirp_time T must be > 0"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "--bins", "1"], "bins M must be an integer >= 2"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "--wavelength", "150"], "wavelength must be within"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "--wavelength", "25000"], "wavelength must be within"),
+    (["fmcw", SPHERE, "-o", "{tmp}/out", "-P", "max_dept=3"], "did you mean 'max_depth'"),
 ], ids=lambda v: " ".join(v[3:]) if isinstance(v, list) else None)
 def test_usage_errors_come_before_mitsuba_loads(tmp_path, argv, expected):
     code, err, imported = cli_in_fresh_python(*[a.format(tmp=tmp_path) for a in argv])

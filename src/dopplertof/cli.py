@@ -41,11 +41,13 @@ def _parser() -> argparse.ArgumentParser:
     from .dataset import cli as dataset_cli
     from .diff.cli import add_subcommand
     from .experiments.cli import add_subcommands
+    from .fmcw import cli as fmcw_cli
 
     add_subcommands(sub)  # sweep, report, animate
     add_subcommand(sub)  # fit
     cameras_cli.add_subcommand(sub)  # cameras
     dataset_cli.add_subcommand(sub)  # dataset
+    fmcw_cli.add_subcommand(sub)  # fmcw
     return p
 
 

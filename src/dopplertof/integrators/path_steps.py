@@ -212,11 +212,12 @@ def vertex_numbers(streams, depth, u_em_first, u_dir_first):
 class Vertex:
     """What a path finds at one surface hit: the emission it hits and the light sample
     it takes (each as its contribution without the modulation, its MIS weight and its
-    full path length), and the BSDF sample that continues it."""
+    full path length), and the BSDF sample that continues it (``em_sample``: the light
+    sample's DirectionSample3f, where the FMCW loop reads its point and direction)."""
 
     __slots__ = ("valid", "through", "hit_emitter", "emitted", "mis_hit", "length_hit",
                  "active_em", "em_value", "mis_em", "length_em", "active_next", "bs",
-                 "bsdf_weight")
+                 "bsdf_weight", "em_sample")
 
 
 def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
@@ -264,6 +265,7 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
     v.mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
     v.em_value = beta * bsdf_val * em_weight
     v.length_em = length_hit + F(ds.dist)
+    v.em_sample = ds
     v.valid, v.through, v.hit_emitter, v.length_hit = valid, through, hit_emitter, length_hit
     v.active_em, v.active_next = active_em, active_next
     return v

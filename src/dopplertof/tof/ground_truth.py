@@ -68,14 +68,21 @@ def mid_exposure(scene, params=None) -> tuple[float, float, float]:
     return start, start + 0.5 * exposure, start + exposure
 
 
-def body_velocity(motion, points: np.ndarray, time: float, exposure: float) -> np.ndarray:
-    """Velocity (m/s) of world points ``points`` (N, 3) moving with ``motion`` at ``time``,
-    by a central difference of the analytic relative transform (float64)."""
+def velocity_field(motion, time: float, exposure: float) -> np.ndarray:
+    """The 4x4 matrix V (float64) that maps a world point moving with ``motion``, where
+    it is at ``time``, to its velocity (m/s): V = dRel/dt Rel^-1, dRel/dt by a central
+    difference of the analytic relative transform (dt = 1e-6 of ``exposure``)."""
     dt = 1e-6 * exposure
     now_inverse = np.linalg.inv(motion.relative_matrix(time))
     rate = (motion.relative_matrix(time + dt) - motion.relative_matrix(time - dt)) / (2 * dt)
+    return rate @ now_inverse
+
+
+def body_velocity(motion, points: np.ndarray, time: float, exposure: float) -> np.ndarray:
+    """Velocity (m/s) of world points ``points`` (N, 3) moving with ``motion`` at ``time``,
+    by a central difference of the analytic relative transform (float64)."""
     homogeneous = np.concatenate([points, np.ones((len(points), 1))], axis=1)
-    return (homogeneous @ (rate @ now_inverse).T)[:, :3]
+    return (homogeneous @ velocity_field(motion, time, exposure).T)[:, :3]
 
 
 def ground_truth(scene, params=None) -> GroundTruth:

@@ -1,0 +1,178 @@
+"""One FMCW frame of a scene: its spectra, range and radial velocity per pixel from
+the up and down peaks, the exact truth and the errors (docs/fmcw.md; issue 43).
+
+The output folder (the set "fmcw" of :func:`dopplertof.io.output_folder`, all or
+nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
+frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
+pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; points.npy, the point
+cloud with velocity (K, 5: x, y, z, radial velocity, peak height); with more than one
+return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); with speckle,
+speckle.npy (H, W, 2, M); previews of the four maps (.png); summary.json.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import io
+from ..tof.capture import STATIC_SURFACES, error_stats
+from ..tof.ground_truth import ground_truth, light_colocation
+from ..tof.output import prepare_folder
+from .chirp import Chirp, FMCWError
+
+
+@dataclass
+class FMCWResult:
+    """An FMCW frame (arrays as written, see the module docstring)."""
+
+    spectrum: np.ndarray  #: (H, W, 2, M) float32, mean contribution per bin, up then down
+    frequencies: np.ndarray  #: (M,) float64, bin centres, Hz
+    range: np.ndarray  #: (H, W) float64, m
+    velocity: np.ndarray  #: (H, W) float64, m/s, > 0 receding
+    range_gt: np.ndarray  #: (H, W) the truth's depth along the pixel-centre ray, m
+    #: (H, W) the truth's hit point velocity along the ray, relative to the camera, m/s
+    velocity_gt: np.ndarray
+    peaks: np.ndarray  #: (H, W, 2) the strongest up and down peaks, Hz (NaN: none)
+    summary: dict = field(default_factory=dict)
+    #: (H, W, N) range and velocity of the N strongest returns (the first: range, velocity)
+    returns_range: np.ndarray | None = None
+    returns_velocity: np.ndarray | None = None
+    #: (K, 5) x, y, z (m, world), radial velocity (m/s), peak height of every return
+    points: np.ndarray | None = None
+    #: (H, W, 2, M) float32 with speckle: each bin's |coherent sum of the paths'
+    #: amplitudes at random phases|^2 / spp, whose expectation is ``spectrum``
+    speckle: np.ndarray | None = None
+
+    def write(self, folder) -> list:
+        """Every file into ``folder`` (created if missing), all or nothing; returns the
+        paths written."""
+        with io.output_folder(prepare_folder(folder), "fmcw") as staged:
+            path = staged.path
+            for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
+                         "velocity_gt", "points"):
+                io.write_npy(path(f"{name}.npy"), getattr(self, name))
+            if self.returns_range.shape[-1] > 1:
+                io.write_npy(path("returns_range.npy"), self.returns_range)
+                io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
+            if self.speckle is not None:
+                io.write_npy(path("speckle.npy"), self.speckle)
+            self._write_previews(path)
+            io.write_json(path("summary.json"), self.summary)
+        return staged.written
+
+
+    def _write_previews(self, path) -> None:
+        """range.png, velocity.png and their truth's, each pair on one colour scale."""
+        from ..tof import figures
+
+        c = self.summary["chirp"]
+        chirp = (f"{c['wavelength_nm']:g} nm, B {c['bandwidth_GHz']:g} GHz over "
+                 f"{c['chirp_time_us']:g} us")
+        finite = np.concatenate([a[np.isfinite(a)] for a in (self.range, self.range_gt)])
+        lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
+                  if finite.size else (None, None))
+        limit = figures.truth_limit(self.velocity_gt, self.velocity)
+        for name, title in (("range", f"FMCW range, strongest return ({chirp})"),
+                            ("range_gt", "true distance along the pixel-centre ray")):
+            figures.write_map(path(f"{name}.png"), getattr(self, name), title, "m",
+                              vmin=lo, vmax=hi)
+        for name, title in (("velocity", f"FMCW radial velocity ({chirp})"),
+                            ("velocity_gt", "true velocity along the ray u.d")):
+            figures.write_map(path(f"{name}.png"), getattr(self, name), title,
+                              "m/s (+ receding, - approaching)", cmap="RdBu_r", vmax=limit,
+                              symmetric=True)
+
+
+def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp, count: int = 1):
+    """The ``count`` strongest peaks of each spectrum of ``spectrum`` (..., M): their
+    beats (..., count) in Hz and their heights (the peak bins' values), strongest
+    first. A peak is a bin above its left neighbour and not below its right one; its beat
+    is the centroid of the bin and its two neighbours (exact for one beat split linearly
+    between two bins). NaN beats and zero heights where a spectrum has fewer peaks."""
+    s = spectrum.astype(np.float64)
+    padded = np.concatenate([np.zeros(s.shape[:-1] + (1,)), s, np.zeros(s.shape[:-1] + (1,))],
+                            axis=-1)
+    peak = (s > padded[..., :-2]) & (s >= padded[..., 2:])
+    order = np.argsort(np.where(peak, -s, np.inf), axis=-1, kind="stable")[..., :count]
+    height = np.where(np.take_along_axis(peak, order, axis=-1),
+                      np.take_along_axis(s, order, axis=-1), 0.0)
+    index = order[..., None] + np.array([-1, 0, 1])  # (..., count, 3)
+    weights = np.take_along_axis(padded[..., None, :], index + 1, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = (weights * index).sum(axis=-1) / weights.sum(axis=-1)
+    return np.where(height > 0, centre * chirp.bin_width, np.nan), height
+
+
+def regions(scene, truth, range_: np.ndarray, velocity: np.ndarray) -> list:
+    """Range and velocity errors per moving body and over the static surfaces (the
+    pixels whose centre ray hits them; a body's silhouette mixes it with what is behind)."""
+    parts = [(", ".join(body.names), truth.body == k) for k, body in enumerate(scene.bodies)]
+    parts.append((STATIC_SURFACES, truth.body == -1))
+    return [{"name": name, "pixels": int(on.sum()),
+             "range_m": error_stats(range_[on], truth.depth[on]),
+             "velocity_m_s": error_stats(velocity[on], truth.velocity_point[on]),
+             "velocity_gt_median_m_s": float(np.median(truth.velocity_point[on]))}
+            for name, on in parts if on.any()]
+
+
+def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.ndarray):
+    """(K, 5): x, y, z (m, world, at t0), radial velocity (m/s) and peak height of every
+    return with a range, placed along its pixel-centre ray from the camera centre."""
+    found = np.isfinite(ranges)  # (H, W, N)
+    directions = np.broadcast_to(truth.direction[:, :, None, :], ranges.shape + (3,))
+    points = truth.camera_origin + ranges[found][:, None] * directions[found]
+    return np.column_stack([points, velocities[found], heights[found]])
+
+
+def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
+         params=None, returns: int = 1, beam: str = "flood", beam_intensity: float = 1.0,
+         speckle: bool = False) -> FMCWResult:
+    """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (default: 1550 nm,
+    1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's), with
+    the ``returns`` strongest returns of every pixel, lit by ``beam``: "flood" (the
+    scene's emitters) or "collimated" (each pixel's own beam of ``beam_intensity`` W/sr;
+    :mod:`.beam`); ``speckle`` adds the spectra of random path phases summed coherently
+    (:attr:`FMCWResult.speckle`)."""
+    from .trace import fmcw_params, render_spectra
+
+    chirp = Chirp() if chirp is None else chirp
+    if not isinstance(chirp, Chirp):
+        raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
+    if isinstance(returns, bool) or not isinstance(returns, int) or returns < 1:
+        raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
+    params = fmcw_params(scene, params)
+    started = _time.perf_counter()
+    spectrum, t0, speckled = render_spectra(scene, chirp, spp, seed, params, beam,
+                                            beam_intensity, speckle)
+    seconds = _time.perf_counter() - started
+    # the k-th strongest up peak pairs with the k-th strongest down one (a path has the
+    # same power in both chirps)
+    beats, heights = spectrum_peaks(spectrum, chirp, returns)  # (H, W, 2, N)
+    ranges, velocities = chirp.range_and_velocity(beats[:, :, 0], beats[:, :, 1])
+    range_, velocity = ranges[..., 0], velocities[..., 0]
+    truth = ground_truth(scene, params)
+    spp = scene.spp if spp is None else spp
+    summary = {
+        "issue": 43, "scene": getattr(scene, "source", None), "spp": int(spp),
+        "seed": int(seed), "resolution": [spectrum.shape[1], spectrum.shape[0]],
+        "time_s": t0, "chirp": chirp.record(), "render_seconds": seconds,
+        "light_at_camera": light_colocation(scene).get("colocated"),
+        "velocity_sign": "positive receding (dL/dt > 0)",
+        "errors": {"range_m": error_stats(range_, truth.depth),
+                   "velocity_m_s": error_stats(velocity, truth.velocity_point)},
+        "regions": regions(scene, truth, range_, velocity),
+        "no_peak_pixels": int(np.isnan(range_).sum()),
+        "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
+        "returns": returns, "points": int(np.isfinite(ranges).sum()),
+        "speckle": bool(speckle),
+        "beam": {"kind": beam, "intensity_W_sr": beam_intensity if beam == "collimated"
+                 else None},
+    }
+    return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
+                      truth.depth, truth.velocity_point, beats[..., 0], summary,
+                      ranges, velocities,
+                      point_cloud(truth, ranges, velocities, heights[:, :, 0]),
+                      None if speckled is None else speckled.astype(np.float32))

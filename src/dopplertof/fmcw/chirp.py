@@ -1,0 +1,112 @@
+"""An FMCW lidar's chirp pair and its beat frequencies (docs/fmcw.md; issue 43).
+
+A laser at wavelength ``wavelength`` sweeps its optical frequency linearly by
+``bandwidth`` over ``chirp_time`` (the up chirp), then back (the down chirp). A path of
+length L (m, source to sensor through every bounce) changing at dL/dt (m/s) beats with
+the local oscillator at
+
+    f_up   = (B / T) L / c + (dL/dt) / lambda
+    f_down = (B / T) L / c - (dL/dt) / lambda
+
+(the convention of Kim et al. 2025, ACM TOG 44(4): a receding path, dL/dt > 0, is
+red-shifted, which raises the up chirp's beat). The detector sees |f| (a real beat
+has no sign). The spectrum has ``bins`` bins of width 1 / T (the Fourier resolution of
+one chirp), bin m centred on m / T: the one-sided spectrum of the beat sampled at
+2 bins / T over the chirp. Range from the pair: L = c T (f_up + f_down) / (2 B), the
+range L / 2 (light at the camera); radial velocity (dL/dt) / 2 = lambda (f_up - f_down) / 4,
+positive receding as in the rest of the project.
+
+No Mitsuba here: the command line checks its options with this module before the
+scene loads.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..modulation import SPEED_OF_LIGHT
+
+#: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared
+WAVELENGTH_RANGE = (200e-9, 20e-6)
+
+
+class FMCWError(ValueError):
+    """A chirp parameter out of its range (one line, for the command line's exit 2)."""
+
+
+@dataclass(frozen=True)
+class Chirp:
+    """The chirp pair of an FMCW lidar (SI units)."""
+
+    wavelength: float = 1550e-9  #: lambda, m
+    bandwidth: float = 1e9  #: B, the optical frequency sweep of one chirp, Hz
+    chirp_time: float = 10e-6  #: T, the duration of one chirp, s
+    bins: int = 256  #: M, spectrum bins of width 1 / T
+
+    def __post_init__(self):
+        problem = self.problem()
+        if problem:
+            raise FMCWError(problem)
+
+    def problem(self) -> str | None:
+        """What is wrong with these parameters, else None."""
+        lo, hi = WAVELENGTH_RANGE
+        for name, value in (("wavelength", self.wavelength), ("bandwidth", self.bandwidth),
+                            ("chirp_time", self.chirp_time)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value):
+                return f"{name} must be a finite number, got {value!r}"
+        if not lo <= self.wavelength <= hi:
+            return (f"wavelength must be within {lo * 1e9:g} nm - {hi * 1e6:g} um, got "
+                    f"{self.wavelength * 1e9:g} nm")
+        if self.bandwidth <= 0:
+            return f"bandwidth B must be > 0 Hz, got {self.bandwidth:g}"
+        if self.chirp_time <= 0:
+            return f"chirp_time T must be > 0 s, got {self.chirp_time:g}"
+        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or self.bins < 2:
+            return f"bins M must be an integer >= 2, got {self.bins!r}"
+        return None
+
+    @property
+    def slope(self) -> float:
+        """B / T, Hz per second of delay."""
+        return self.bandwidth / self.chirp_time
+
+    @property
+    def bin_width(self) -> float:
+        """Hz per bin: 1 / T."""
+        return 1.0 / self.chirp_time
+
+    @property
+    def max_path_length(self) -> float:
+        """The longest path length (m) whose static beat falls inside the last bin."""
+        return (self.bins - 1) * self.bin_width * SPEED_OF_LIGHT / self.slope
+
+    def frequencies(self):
+        """The bins' centre frequencies (Hz), a NumPy array of M."""
+        return np.arange(self.bins, dtype=np.float64) * self.bin_width
+
+    def beats(self, path_length, length_rate):
+        """(f_up, f_down), Hz, signed, of paths of length ``path_length`` (m) changing
+        at ``length_rate`` (m/s); scalars or arrays."""
+        range_beat = self.slope * path_length / SPEED_OF_LIGHT
+        doppler = length_rate / self.wavelength
+        return range_beat + doppler, range_beat - doppler
+
+    def range_and_velocity(self, f_up, f_down):
+        """(range, radial velocity): L / 2 (m) and (dL/dt) / 2 (m/s, > 0 receding) from
+        the up and down beats (Hz)."""
+        path_length = SPEED_OF_LIGHT * self.chirp_time * 0.5 * (f_up + f_down) / self.bandwidth
+        return 0.5 * path_length, 0.25 * self.wavelength * (f_up - f_down)
+
+    def record(self) -> dict:
+        """The parameters and what follows from them, for summary.json."""
+        return {"wavelength_nm": self.wavelength * 1e9, "bandwidth_GHz": self.bandwidth * 1e-9,
+                "chirp_time_us": self.chirp_time * 1e6, "bins": self.bins,
+                "bin_width_Hz": self.bin_width,
+                "range_per_bin_m": 0.5 * self.bin_width * SPEED_OF_LIGHT / self.slope,
+                "velocity_per_bin_m_s": 0.25 * self.wavelength * self.bin_width,
+                "max_range_m": 0.5 * self.max_path_length}

@@ -1,0 +1,118 @@
+"""``dopplertof fmcw SCENE.xml -o DIR``: one FMCW lidar frame (issue 43; docs/fmcw.md).
+
+Imports nothing heavy at module level: the command line's parser builds this command
+without NumPy or Mitsuba.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
+                           int_at_least, parse_pairs)
+
+
+def add_subcommand(sub) -> None:
+    """``fmcw``: the up and down beat spectra of every pixel, range and velocity."""
+    f = sub.add_parser("fmcw", help="an FMCW lidar frame: beat spectra of the up and down "
+                       "chirps per pixel, range and radial velocity, truth and errors")
+    f.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
+    f.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help=f"output folder ({FOLDER_HELP})")
+    f.add_argument("--spp", type=int_at_least(1, "a positive integer"),
+                   help="samples per pixel (default: the scene's sampler)")
+    f.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    g = f.add_argument_group("the chirp pair")
+    g.add_argument("--wavelength", type=float, default=1550.0, metavar="NM",
+                   help="laser wavelength lambda, nm (default 1550; 200 nm - 20 um)")
+    g.add_argument("--bandwidth", type=float, default=1.0, metavar="GHZ",
+                   help="optical frequency sweep B of one chirp, GHz (default 1)")
+    g.add_argument("--chirp-time", type=float, default=10.0, metavar="US",
+                   help="duration T of one chirp, microseconds (default 10)")
+    g.add_argument("--bins", type=int, default=256, metavar="M",
+                   help="spectrum bins of width 1/T, M >= 2 (default 256)")
+    g.add_argument("--beam", choices=("flood", "collimated"), default="flood",
+                   help="flood: the scene's lights light everything (default); collimated: "
+                   "each pixel its own beam from the camera centre, no other light")
+    g.add_argument("--beam-intensity", type=_positive_float, default=1.0, metavar="W_SR",
+                   help="with --beam collimated: the beam's radiant intensity within each "
+                   "pixel's cone, W/sr (default 1)")
+    f.add_argument("--speckle", action="store_true",
+                   help="also speckle.npy: each path at a random phase, summed coherently "
+                   "per bin (its expectation is spectrum.npy)")
+    f.add_argument("--returns", type=int_at_least(1, "a positive integer"), default=1,
+                   metavar="N", help="the N strongest returns of every pixel "
+                   "(returns_range.npy, returns_velocity.npy and points.npy; default 1)")
+    add_defines_option(f)
+    add_params_option(f, "override an integrator parameter, e.g. -P max_depth=3")
+    f.add_argument("--variant", default=None, help="Mitsuba variant (default llvm_ad_rgb)")
+    f.set_defaults(func=run_fmcw)
+
+
+def _positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def chirp_of(args):
+    """The chirp of the options (an FMCWError, one line, when one is out of range)."""
+    from .chirp import Chirp
+
+    return Chirp(wavelength=args.wavelength * 1e-9, bandwidth=args.bandwidth * 1e9,
+                 chirp_time=args.chirp_time * 1e-6, bins=args.bins)
+
+
+def run_fmcw(args) -> int:
+    from ..params import RenderParams
+
+    chirp = chirp_of(args)  # (before anything loads)
+    RenderParams.coerced(parse_pairs(args.params, "-P"), "fmcw parameters")
+    if not os.path.isfile(args.scene):
+        raise ValueError(f"scene file not found: {args.scene}")
+    import dopplertof
+
+    from ..tof.output import prepare_folder
+    from .capture import fmcw
+
+    prepare_folder(args.output)
+    dopplertof.set_variant(args.variant)
+    scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
+    result = fmcw(scene, chirp, spp=args.spp, seed=args.seed,
+                  params=parse_pairs(args.params, "-P") or None, returns=args.returns,
+                  beam=args.beam, beam_intensity=args.beam_intensity,
+                  speckle=args.speckle)
+    result.write(args.output)
+    print(format_summary(result.summary, args.output))
+    return 0
+
+
+def format_summary(summary: dict, folder: str) -> str:
+    """A few readable lines of an FMCW frame's summary."""
+    c, e = summary["chirp"], summary["errors"]
+
+    def stat(entry, unit):
+        if entry["median_abs"] is None:
+            return "no pixel with a peak and a truth"
+        return (f"median |error| {entry['median_abs']:.4g} {unit}, 95th percentile "
+                f"{entry['p95_abs']:.4g} {unit} over {entry['pixels']} pixels")
+
+    return "\n".join([
+        f"FMCW {c['wavelength_nm']:g} nm, B {c['bandwidth_GHz']:g} GHz over "
+        f"{c['chirp_time_us']:g} us, {c['bins']} bins of {c['bin_width_Hz']:g} Hz "
+        f"(range {c['range_per_bin_m']:.4g} m and velocity {c['velocity_per_bin_m_s']:.4g} "
+        f"m/s per bin, up to {c['max_range_m']:.4g} m); {summary['render_seconds']:.1f} s",
+        f"  range:    {stat(e['range_m'], 'm')}",
+        f"  velocity: {stat(e['velocity_m_s'], 'm/s')}",
+        *(f"  {r['name']}: velocity {stat(r['velocity_m_s'], 'm/s')} (truth median "
+          f"{r['velocity_gt_median_m_s']:.3g} m/s)" for r in summary["regions"]),
+        f"wrote {folder}",
+    ])
