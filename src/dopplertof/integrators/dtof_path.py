@@ -126,7 +126,11 @@ def _define_class(mi):
             self.joint_sets = (None if params.pixel_sets != "joint" else sampling.JointSets(
                 crop_width, spp, self.group_size, self.path_group_size,
                 pipeline.pilot_samples(spp, self.group_size, params), crop_height))
-            self.shutter_open: float = scene.shutter_open
+            self.shutter_open: float = scene.shutter_open  #: the exposure's start (s)
+            #: the exposure's start and length T (s) as the kernel reads them: opaque, so
+            #: that every window shares one kernel (issue 40)
+            self.opens = dr.opaque(mi.Float, scene.shutter_open)
+            self.exposure = dr.opaque(self.modulation_weight.F, mod.exposure)
             #: film positions within a pixel: uniform (splat film) or from the filter
             self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
             #: the splat film's filter, or None for the importance film
@@ -166,8 +170,8 @@ def _define_class(mi):
 
             t_frac = exposure_fraction(layout.index)
             # since exposure start (float64 in full-waveform mode), and absolute for the motion
-            t_rel = t_frac * self.modulation_weight.F(mod.exposure)
-            time = mi.Float(t_rel) + self.shutter_open
+            t_rel = t_frac * self.exposure
+            time = mi.Float(t_rel) + self.opens
 
             # ---- Camera ray ----
             pos, film_offset, center, window_lo, window_hi, lens = film_position(

@@ -134,7 +134,7 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
         return ray, weight, offset, None, mi.Bool(True), None
     # ---- Motion-compensated antithetic pairs ----
     mod = setup.modulation
-    partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
+    partner = mi.Float(partner_fraction * setup.exposure) + setup.opens
     primal = layout.index == 0
     crop_size = setup.scene.sensor.film().crop_size()
     pair = PairedCameraRays(
