@@ -23,6 +23,7 @@ from .. import sampling
 from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
+from ..scene.motion import opaque_tree
 from ..scene.scene import DTOF_INTEGRATORS, loaded
 from . import pipeline
 from .analytic import trace_analytic_pass
@@ -127,8 +128,7 @@ def _define_class(mi):
                 crop_width, spp, self.group_size, self.path_group_size,
                 pipeline.pilot_samples(spp, self.group_size, params), crop_height))
             self.shutter_open: float = scene.shutter_open  #: the exposure's start (s)
-            #: the exposure's start and length T (s) as the kernel reads them: opaque, so
-            #: that every window shares one kernel (issue 40)
+            #: the exposure's start and length T (s), opaque: one kernel for every window
             self.opens = dr.opaque(mi.Float, scene.shutter_open)
             self.exposure = dr.opaque(self.modulation_weight.F, mod.exposure)
             #: film positions within a pixel: uniform (splat film) or from the filter
@@ -136,8 +136,9 @@ def _define_class(mi):
             #: the splat film's filter, or None for the importance film
             self.splat = SplatFilter(sensor.film()) if splat else None
             lens = LensDistortion.of(sensor, getattr(scene, "lens_distortion", None))
-            self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
-                                 mi.Vector3f(*map(float, rest_forward(sensor))), lens)
+            forward = opaque_tree(mi.Float, [float(x) for x in rest_forward(sensor)])
+            self.camera = Camera(mi, sensor, scene.sensor_motion,
+                                 dr.opaque(mi.Float, near_clip), mi.Vector3f(*forward), lens)
             #: the pinhole film map, when pairs use the motion mapping (else None)
             self.projection = None
             if params.antithetic_mapping == "motion":
