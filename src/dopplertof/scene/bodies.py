@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .motion import (Motion, select_transform, transform_normal, transform_point,
+from .motion import (Motion, opaque_tree, select_transform, transform_normal, transform_point,
                      transform_vector, transformed_ray, vec3)
 
 
@@ -81,10 +81,8 @@ def opaque_box(mi, box):
     """A ScalarBoundingBox3f as a Dr.Jit BoundingBox3f of opaque corners: the kernels
     that test rays against it read its corners as parameters, so that a new window or
     motion (a new swept box) compiles no new kernel (issue 40)."""
-    import drjit as dr
-
     def corner(p):
-        return mi.Point3f(*(dr.opaque(mi.Float, float(p[i])) for i in range(3)))
+        return mi.Point3f(*opaque_tree(mi.Float, [float(p[i]) for i in range(3)]))
 
     return mi.BoundingBox3f(corner(box.min), corner(box.max))
 
