@@ -181,14 +181,15 @@ def _scenes_of_one_shape():
 
 
 def test_a_second_capture_with_other_windows_and_motions_reuses_the_kernels():
-    """Exposure windows, keyframes and the bodies' boxes are opaque Dr.Jit values, not
-    literals (issue 40): a capture of another window and other motions, in a scene of
-    the same shape, compiles nothing new."""
+    """Exposure windows, keyframes, the bodies' boxes and the groups per pixel are opaque
+    Dr.Jit values, not literals (issue 40): a capture of another window, other motions
+    and another spp (both at least one chunk of 8 groups), in a scene of the same shape,
+    compiles nothing new."""
     import dopplertof
 
     for first_scene, second_scene in _scenes_of_one_shape():
-        first = _kernels_of(lambda: dopplertof.capture(first_scene, spp=4, progress=False))
-        second = _kernels_of(lambda: dopplertof.capture(second_scene, spp=4, seed=2,
+        first = _kernels_of(lambda: dopplertof.capture(first_scene, spp=16, progress=False))
+        second = _kernels_of(lambda: dopplertof.capture(second_scene, spp=32, seed=2,
                                                         progress=False))
         assert first and second <= first, (len(second - first), "new kernels")
 

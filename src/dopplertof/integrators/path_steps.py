@@ -27,7 +27,8 @@ class PassLayout:
 
     def __init__(self, mi, n_pixels: int, samples: int, first_sample, group_size: int):
         lane = dr.arange(mi.UInt32, n_pixels * samples)
-        self._set(lane // samples, first_sample + lane % samples, group_size)
+        per_pixel = dr.opaque(mi.UInt32, samples)  # (opaque: one kernel for every spp)
+        self._set(lane // per_pixel, first_sample + lane % per_pixel, group_size)
 
     @classmethod
     def of_lanes(cls, mi, pixel, sample, group_size: int):
