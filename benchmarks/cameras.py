@@ -8,9 +8,9 @@ The moving example scene (examples/cameras_moving.xml) at one resolution, throug
   window, and one radiance render over the sequence), the same spp per frame.
 
 Runs are interleaved after a warm-up that compiles every kernel (Dr.Jit caches them;
-each distinct window and frequency compiles its own on first use); the median time of
-each is compared with the issue's target, N/4 times today's frame. The cold time (the
-first run, compiles included) is printed too.
+since issue 40 the windows are opaque values, so the presets share most); the median
+time of each is compared with the issue's target, N/4 times today's frame. The cold time
+(the first run, compiles included) is printed too.
 
     .venv/bin/python benchmarks/cameras.py [--res 96] [--spp 32] [--repeats 3]
 
