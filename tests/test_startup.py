@@ -168,6 +168,38 @@ def test_a_second_capture_with_other_offsets_and_frequencies_reuses_the_kernels(
     assert first and second <= first, (len(second - first), "new kernels")
 
 
+def _scenes_of_one_shape():
+    """Two scenes of each shape (a rotating body; a moving plane seen by a moving camera
+    with a moving light) that differ in their keyframes and exposure windows."""
+    import dopplertof
+    from analytic import plane_scene
+
+    cube = open(os.path.join(ROOT, "examples", "rotating_cube.xml")).read()
+    turned = cube.replace('angle="30"', 'angle="12"').replace('angle="35.7296"', 'angle="21"')
+    assert turned != cube
+    yield (dopplertof.load_string(cube, res=8),
+           dopplertof.load_string(turned, res=8).with_shutter(0.0004, 0.001))
+    yield (dopplertof.load_dict(plane_scene(2.0, 30.0, res=4, camera_velocity=3.0,
+                                            light_velocity=-2.0)),
+           dopplertof.load_dict(plane_scene(2.7, -12.0, exposure=0.001, res=4,
+                                            camera_velocity=5.0, light_velocity=-4.0))
+           .with_shutter(0.0007, 0.001))
+
+
+def test_a_second_capture_with_other_windows_and_motions_reuses_the_kernels():
+    """Exposure windows, keyframes, the bodies' boxes and the groups per pixel are opaque
+    Dr.Jit values, not literals (issue 40): a capture of another window, other motions
+    and another spp (both at least one chunk of 8 groups), in a scene of the same shape,
+    compiles nothing new."""
+    import dopplertof
+
+    for first_scene, second_scene in _scenes_of_one_shape():
+        first = _kernels_of(lambda: dopplertof.capture(first_scene, spp=16, progress=False))
+        second = _kernels_of(lambda: dopplertof.capture(second_scene, spp=32, seed=2,
+                                                        progress=False))
+        assert first and second <= first, (len(second - first), "new kernels")
+
+
 @pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
 def test_second_make_demo_renders_nothing_when_its_outputs_are_up_to_date(tmp_path):
     """``make -n demo`` (what make would run) in a copy of the Makefile's world: the

@@ -516,7 +516,8 @@ class CorrelatedStreams:
         import drjit as dr
 
         shared = self.correlation_depth > 0
-        return dr.select(shared, self.path_group, index_in_group * groups_per_pixel + group)
+        return dr.select(shared, self.path_group,
+                         index_major(self.mi, index_in_group, groups_per_pixel, group))
 
     def film_2d(self, group, index_in_group, groups_per_pixel: int):
         """Film position: Sobol's first two dimensions (a scrambled (0,2)-sequence) at
@@ -625,7 +626,7 @@ class CorrelatedStreams:
         if self.joint is not None:
             return self._joint_first_light() if dim == 0 else self.joint_decision(0, 1)
         index = dr.select(1 < self.correlation_depth, self.path_group,
-                          index_in_group * groups_per_pixel + group)
+                          index_major(mi, index_in_group, groups_per_pixel, group))
         seed_index, seed_x, seed_y = (self._pixel_seed(4 + 3 * dim + k) for k in range(3))
         return decision_2d(mi, _reverse_permute(mi, index, seed_index), dim, seed_x, seed_y)
 
@@ -634,6 +635,15 @@ class CorrelatedStreams:
         dim = self.mi.UInt32(dim)
         return self.mi.Point2f(hashed_uniform(self.mi, key, dim),
                                hashed_uniform(self.mi, key, dim + 1))
+
+
+def index_major(mi, index_in_group, groups_per_pixel: int, group):
+    """A sample's index-major index in its pixel's sequence, i * G + g, with the
+    render's G (groups per pixel, from its spp) an opaque value: one kernel serves every
+    spp (issue 40)."""
+    import drjit as dr
+
+    return index_in_group * dr.opaque(mi.UInt32, groups_per_pixel) + group
 
 
 def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: int,
@@ -662,7 +672,8 @@ def time_fraction(mi, streams: CorrelatedStreams, group, index, *, group_size: i
         if streams.joint is not None:  # the tile's sequence: per group or index-major
             located = streams.joint_point(is_antithetic, "group", group, index)
         else:
-            located = dr.select(is_antithetic, group, index * groups_per_pixel + group)
+            located = dr.select(is_antithetic, group,
+                                index_major(mi, index, groups_per_pixel, group))
         u = streams.time_sequence(located, double)
     else:
         u = dr.select(is_antithetic,

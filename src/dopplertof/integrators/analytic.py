@@ -32,6 +32,7 @@ import drjit as dr
 from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
 from ..scene.bodies import BodyFrames
+from ..scene.motion import lane_times
 from .path_steps import (_as_colour, _intersect, advance, film_position, lane_streams,
                          loop_settings, roulette, shade, vertex_numbers)
 
@@ -93,10 +94,10 @@ def _exposure_ends(mi, setup, layout, streams):
     origin, and the body and light transforms."""
     scene, mod = setup.scene, setup.modulation
     pos, film_offset, _, _, _, lens = film_position(mi, setup, layout, streams)
-    t_start = dr.full(mi.Float, setup.shutter_open, dr.width(pos))
+    t_start = lane_times(mi, setup.opens, dr.width(pos))
     span = (setup.shutter_open, setup.shutter_open + mod.exposure)
     ends = []
-    for t in (t_start, t_start + mod.exposure):
+    for t in (t_start, t_start + mi.Float(setup.exposure)):
         ray, ray_weight, offset = setup.camera.ray(pos, t, *lens)
         frames = BodyFrames(mi, scene.bodies, t, *span) if scene.bodies else None
         light_frames = (lights.LightFrames(mi, scene.light_motions, t)

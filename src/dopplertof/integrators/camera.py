@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.motion import transform_point, transform_vector, transformed_ray
+from ..scene.motion import opaque_tree, transform_point, transform_vector, transformed_ray
 
 #: the sensor plugin whose rays all leave one point (the pinhole)
 PINHOLE_CLASS = "PerspectiveCamera"
@@ -132,7 +132,6 @@ class PinholeProjection:
             raise ValueError(f"sensor {sensor.class_name()} is not a pinhole perspective camera")
         self.mi = mi
         self.motion = motion
-        self.near_clip = near_clip
         to_world = rest_frame(sensor)
         to_camera = np.linalg.inv(to_world)
         pos = mi.Point2f([p[0] for p in self.PROBES], [p[1] for p in self.PROBES])
@@ -144,11 +143,12 @@ class PinholeProjection:
         b = film[:, 0] - a * slope[:, 0]
         if not np.allclose(a * slope[:, 3] + b, film[:, 3], atol=1e-4):
             raise ValueError("the sensor's rays do not follow a pinhole film map")
-        self.a, self.b = a.tolist(), b.tolist()
-        self.to_camera = [to_camera[i].tolist() for i in range(3)]
-        self.center = to_world[:3, 3].tolist()
         f = to_world[:3, 2] / np.linalg.norm(to_world[:3, 2])
-        self.forward = f.tolist()
+        # opaque values: one kernel for every camera pose and film map (issue 40)
+        self.a, self.b, self.to_camera, self.center, self.forward = opaque_tree(
+            mi.Float, [a.tolist(), b.tolist(), [to_camera[i].tolist() for i in range(3)],
+                       to_world[:3, 3].tolist(), f.tolist()])
+        self.near_clip = opaque_tree(mi.Float, float(near_clip))
 
     def _rest(self, v, time, point: bool):
         """World coordinates at ``time`` -> world coordinates of the camera's rest pose."""

@@ -23,6 +23,7 @@ from .. import sampling
 from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
+from ..scene.motion import opaque_tree
 from ..scene.scene import DTOF_INTEGRATORS, loaded
 from . import pipeline
 from .analytic import trace_analytic_pass
@@ -126,14 +127,18 @@ def _define_class(mi):
             self.joint_sets = (None if params.pixel_sets != "joint" else sampling.JointSets(
                 crop_width, spp, self.group_size, self.path_group_size,
                 pipeline.pilot_samples(spp, self.group_size, params), crop_height))
-            self.shutter_open: float = scene.shutter_open
+            self.shutter_open: float = scene.shutter_open  #: the exposure's start (s)
+            #: the exposure's start and length T (s), opaque: one kernel for every window
+            self.opens = dr.opaque(mi.Float, scene.shutter_open)
+            self.exposure = dr.opaque(self.modulation_weight.F, mod.exposure)
             #: film positions within a pixel: uniform (splat film) or from the filter
             self.film_sampler = FilmSampler.uniform() if splat else FilmSampler(sensor.film())
             #: the splat film's filter, or None for the importance film
             self.splat = SplatFilter(sensor.film()) if splat else None
             lens = LensDistortion.of(sensor, getattr(scene, "lens_distortion", None))
-            self.camera = Camera(mi, sensor, scene.sensor_motion, near_clip,
-                                 mi.Vector3f(*map(float, rest_forward(sensor))), lens)
+            forward = opaque_tree(mi.Float, [float(x) for x in rest_forward(sensor)])
+            self.camera = Camera(mi, sensor, scene.sensor_motion,
+                                 dr.opaque(mi.Float, near_clip), mi.Vector3f(*forward), lens)
             #: the pinhole film map, when pairs use the motion mapping (else None)
             self.projection = None
             if params.antithetic_mapping == "motion":
@@ -166,8 +171,8 @@ def _define_class(mi):
 
             t_frac = exposure_fraction(layout.index)
             # since exposure start (float64 in full-waveform mode), and absolute for the motion
-            t_rel = t_frac * self.modulation_weight.F(mod.exposure)
-            time = mi.Float(t_rel) + self.shutter_open
+            t_rel = t_frac * self.exposure
+            time = mi.Float(t_rel) + self.opens
 
             # ---- Camera ray ----
             pos, film_offset, center, window_lo, window_hi, lens = film_position(

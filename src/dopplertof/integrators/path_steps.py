@@ -27,7 +27,8 @@ class PassLayout:
 
     def __init__(self, mi, n_pixels: int, samples: int, first_sample, group_size: int):
         lane = dr.arange(mi.UInt32, n_pixels * samples)
-        self._set(lane // samples, first_sample + lane % samples, group_size)
+        per_pixel = dr.opaque(mi.UInt32, samples)  # (opaque: one kernel for every spp)
+        self._set(lane // per_pixel, first_sample + lane % per_pixel, group_size)
 
     @classmethod
     def of_lanes(cls, mi, pixel, sample, group_size: int):
@@ -134,7 +135,7 @@ def _camera_rays(mi, setup, layout, pos, center, window, time, partner_fraction,
         return ray, weight, offset, None, mi.Bool(True), None
     # ---- Motion-compensated antithetic pairs ----
     mod = setup.modulation
-    partner = mi.Float(partner_fraction * mod.exposure) + setup.shutter_open
+    partner = mi.Float(partner_fraction * setup.exposure) + setup.opens
     primal = layout.index == 0
     crop_size = setup.scene.sensor.film().crop_size()
     pair = PairedCameraRays(

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .motion import (Motion, select_transform, transform_normal, transform_point,
+from .motion import (Motion, opaque_tree, select_transform, transform_normal, transform_point,
                      transform_vector, transformed_ray, vec3)
 
 
@@ -68,13 +68,23 @@ class BodyFrames:
     def __init__(self, mi, bodies, time, t_start: float, t_end: float):
         self.mi = mi
         self.bodies = list(bodies)
-        self.boxes = [b.swept_bbox(t_start, t_end) for b in self.bodies]
-        self.local_boxes = [b.local_bbox() for b in self.bodies]
+        self.boxes = [opaque_box(mi, b.swept_bbox(t_start, t_end)) for b in self.bodies]
+        self.local_boxes = [opaque_box(mi, b.local_bbox()) for b in self.bodies]
         self.to_world, self.to_local = [], []
         for body in self.bodies:
             rel, inv = body.motion.relative(time)
             self.to_world.append(rel)
             self.to_local.append(inv)
+
+
+def opaque_box(mi, box):
+    """A ScalarBoundingBox3f as a Dr.Jit BoundingBox3f of opaque corners: the kernels
+    that test rays against it read its corners as parameters, so that a new window or
+    motion (a new swept box) compiles no new kernel (issue 40)."""
+    def corner(p):
+        return mi.Point3f(*opaque_tree(mi.Float, [float(p[i]) for i in range(3)]))
+
+    return mi.BoundingBox3f(corner(box.min), corner(box.max))
 
 
 class SceneQueries:
@@ -171,11 +181,11 @@ _SLAB_VARIANTS = set()
 
 
 def box_intersect(mi, box, ray):
-    """(hit, near, far): a ScalarBoundingBox3f against JIT rays. Mitsuba binds that
-    class once per float type, with the first-loaded variant's Ray3f: a spectral
-    render after an RGB one in the same process gets a TypeError from it and the
-    same slab test written out here instead (the binding stays first: its kernel
-    is measurably faster with many bodies)."""
+    """(hit, near, far): a bounding box (BoundingBox3f, or ScalarBoundingBox3f)
+    against JIT rays. Mitsuba binds that class once per float type, with the
+    first-loaded variant's Ray3f: a spectral render after an RGB one in the same
+    process gets a TypeError from it and the same slab test written out here instead
+    (the binding stays first: its kernel is measurably faster with many bodies)."""
     import drjit as dr
 
     if mi.variant() not in _SLAB_VARIANTS:
@@ -183,8 +193,8 @@ def box_intersect(mi, box, ray):
             return box.ray_intersect(ray)
         except TypeError:
             _SLAB_VARIANTS.add(mi.variant())
-    lo = [float(box.min[i]) for i in range(3)]
-    hi = [float(box.max[i]) for i in range(3)]
+    lo = [box.min[i] for i in range(3)]
+    hi = [box.max[i] for i in range(3)]
     hit = mi.Bool(True)
     near = mi.Float(-dr.inf)
     far = mi.Float(dr.inf)

@@ -189,47 +189,83 @@ class Motion:
                     quats[i] = -quats[i]
             self.quats = np.array(quats)
             self.stretch = np.array([s for _, s in polar])
+        self._numbers = self._plain_numbers()
+        self._opaque = {}  # Dr.Jit array type -> self._numbers as opaque scalars of that type
+
+    # ---- The numbers the interpolation reads ----
+
+    def _plain_numbers(self) -> dict:
+        """The keyframes' numbers the interpolation reads, as Python floats: per segment
+        its start time and 1 / its duration, per keyframe its translation, linear part,
+        quaternion and stretch, per segment its slerp angle and 1 / its sine (None for
+        a segment that slerps linearly), and the reference pose's inverse."""
+        times = [float(t) for t in self.times]
+        numbers = {"times": times,
+                   "rate": [1.0 / (t1 - t0) for t0, t1 in zip(times, times[1:])],
+                   "translation": self.translation.tolist(), "linear": self.linear.tolist(),
+                   "ref_translation": self.translation[0].tolist(),
+                   "ref_inverse": [row[:4] for row in self.ref_inverse.tolist()[:3]]}
+        if self.keyframes.interpolation == "rigid":
+            numbers["quats"], numbers["stretch"] = self.quats.tolist(), self.stretch.tolist()
+            numbers["angle"], numbers["inv_sin"] = [], []
+            for q0, q1 in zip(self.quats.tolist(), self.quats.tolist()[1:]):
+                omega = float(np.arccos(float(np.clip(np.dot(q0, q1), -1.0, 1.0))))
+                slerp = omega >= 1e-6  # (below it, the weights are the lerp's)
+                numbers["angle"].append(omega if slerp else None)
+                numbers["inv_sin"].append(1.0 / float(np.sin(omega)) if slerp else None)
+        return numbers
+
+    def numbers(self, t) -> dict:
+        """:meth:`_plain_numbers` as the evaluation at times ``t`` reads them: Python
+        floats for NumPy times, and for Dr.Jit times opaque scalars of their type (made
+        once per motion), so that a kernel does not depend on the keyframes' values
+        (issue 40: one compiled kernel for every window and motion of a scene's shape)."""
+        if _is_numpy(t):
+            return self._numbers
+        kind = type(t)
+        if kind not in self._opaque:
+            self._opaque[kind] = opaque_tree(kind, self._numbers)
+        return self._opaque[kind]
 
     # ---- Interpolation ----
 
     def _segment(self, j: int, t):
         """World matrix (A, b) on segment j at times t (alpha clamped to [0, 1])."""
-        t0, t1 = float(self.times[j]), float(self.times[j + 1])
-        alpha = (t - t0) * (1.0 / (t1 - t0))
+        n = self.numbers(t)
+        alpha = (t - n["times"][j]) * n["rate"][j]
         alpha = np.clip(alpha, 0.0, 1.0) if _is_numpy(alpha) else _clip_jit(alpha)
         beta = 1.0 - alpha
-        T0, T1 = self.translation[j].tolist(), self.translation[j + 1].tolist()
+        T0, T1 = n["translation"][j], n["translation"][j + 1]
         b = [beta * T0[i] + alpha * T1[i] for i in range(3)]
         if self.translation_only:
             return None, b
         if self.keyframes.interpolation == "matrix":
-            A0, A1 = self.linear[j].tolist(), self.linear[j + 1].tolist()
+            A0, A1 = n["linear"][j], n["linear"][j + 1]
             A = [[beta * A0[r][c] + alpha * A1[r][c] for c in range(3)] for r in range(3)]
             return A, b
-        q0, q1 = self.quats[j].tolist(), self.quats[j + 1].tolist()
-        cos_omega = float(np.clip(np.dot(q0, q1), -1.0, 1.0))
-        omega = float(np.arccos(cos_omega))
-        if omega < 1e-6:
+        q0, q1 = n["quats"][j], n["quats"][j + 1]
+        omega = n["angle"][j]
+        if omega is None:
             w0, w1 = beta, alpha
         else:
-            sin_omega = float(np.sin(omega))
             sin = np.sin if _is_numpy(alpha) else _jit_sin
-            w0 = sin(beta * omega) * (1.0 / sin_omega)
-            w1 = sin(alpha * omega) * (1.0 / sin_omega)
+            w0 = sin(beta * omega) * n["inv_sin"][j]
+            w1 = sin(alpha * omega) * n["inv_sin"][j]
         q = [w0 * q0[i] + w1 * q1[i] for i in range(4)]
         norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
         q = [c / norm for c in q]
         R = _quat_to_matrix(*q)
-        S0, S1 = self.stretch[j].tolist(), self.stretch[j + 1].tolist()
+        S0, S1 = n["stretch"][j], n["stretch"][j + 1]
         S = [[beta * S0[r][c] + alpha * S1[r][c] for c in range(3)] for r in range(3)]
         return _matmul3(R, S), b
 
     def world(self, t):
         """Interpolated world matrix at times t: (A or None for unchanged linear part, b)."""
+        times = self.numbers(t)["times"]
         A, b = self._segment(0, t)
         for j in range(1, len(self.times) - 1):
             Aj, bj = self._segment(j, t)
-            mask = t >= float(self.times[j])
+            mask = t >= times[j]
             b = [_where(mask, bj[i], b[i]) for i in range(3)]
             if A is not None:
                 A = [[_where(mask, Aj[r][c], A[r][c]) for c in range(3)] for r in range(3)]
@@ -237,13 +273,14 @@ class Motion:
 
     def relative(self, t):
         """Rel(t) = M(t) M_ref^-1 as (A or None for identity, b), and its inverse."""
+        n = self.numbers(t)
         A, b = self.world(t)
         if A is None:  # pure translation
-            ref_b = self.translation[0].tolist()
+            ref_b = n["ref_translation"]
             rb = [b[i] - ref_b[i] for i in range(3)]
             return (None, rb), (None, [-x for x in rb])
-        ref_inv = self.ref_inverse.tolist()
-        RA = _matmul3(A, [row[:3] for row in ref_inv[:3]])
+        ref_inv = n["ref_inverse"]
+        RA = _matmul3(A, [row[:3] for row in ref_inv])
         Rb = [b[i] + sum(A[i][k] * ref_inv[k][3] for k in range(3)) for i in range(3)]
         IA = _inverse3(RA)
         Ib = [-x for x in _matvec3(IA, Rb)]
@@ -280,6 +317,29 @@ class Motion:
         pmin, pmax = pts.min(axis=0), pts.max(axis=0)
         pad = 0.01 * np.linalg.norm(pmax - pmin) + 1e-6
         return pmin - pad, pmax + pad
+
+
+def opaque_tree(kind, tree):
+    """``tree`` (nested lists and dicts of floats, and None) with each float an opaque
+    Dr.Jit scalar of type ``kind``: a kernel reads it as a parameter, not a literal of
+    its code (issue 40: values that vary per capture compile no new kernel)."""
+    import drjit as dr
+
+    if isinstance(tree, dict):
+        return {key: opaque_tree(kind, value) for key, value in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return [opaque_tree(kind, value) for value in tree]
+    return None if tree is None else dr.opaque(kind, tree)
+
+
+def lane_times(mi, time, width: int):
+    """``width`` lanes of Dr.Jit Float at the one time ``time`` (s; a float, or an opaque
+    scalar), which the kernel reads as a parameter, not a literal (issue 40)."""
+    import drjit as dr
+
+    if not isinstance(time, mi.Float):
+        time = dr.opaque(mi.Float, time)
+    return dr.zeros(mi.Float, width) + time
 
 
 def _clip_jit(x):

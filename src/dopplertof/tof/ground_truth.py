@@ -164,10 +164,12 @@ def _pixel_centres(mi, width: int, height: int, time: float, nudge=(0.0, 0.0)):
     pixels) at ``time``, normalized over the crop window as Mitsuba's sensors take them."""
     import drjit as dr
 
+    from ..scene.motion import lane_times
+
     index = dr.arange(mi.UInt32, width * height)
     position = mi.Point2f((mi.Float(index % width) + (0.5 + nudge[0])) / width,
                           (mi.Float(index // width) + (0.5 + nudge[1])) / height)
-    return position, dr.full(mi.Float, time, width * height)
+    return position, lane_times(mi, time, width * height)
 
 
 def surface_albedo(scene, params=None) -> np.ndarray:
@@ -209,7 +211,9 @@ def _trace(mi, scene, position, time, start: float, end: float):
     body = dr.select(si.is_valid(), mi.Int32(-1), mi.Int32(-2))
     for k, moving in enumerate(scene.bodies):
         for shape in moving.scene.shapes():
-            body = dr.select(si.is_valid() & (si.shape == mi.ShapePtr(shape)), k, body)
+            # (an opaque pointer: a shape's registry id is no literal of the kernel)
+            body = dr.select(si.is_valid() & (si.shape == dr.opaque(mi.ShapePtr, shape)),
+                             k, body)
     return ray, si, body
 
 
@@ -258,6 +262,7 @@ def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, o
     import drjit as dr
 
     from ..backend import aligned_host_array, require_variant
+    from ..scene.motion import lane_times
 
     mi = require_variant()
     samples = len(offsets)
@@ -272,7 +277,7 @@ def _mixed_rows(scene, params, width: int, height: int, first: int, last: int, o
     mixed = np.zeros(px.size, bool)
     start, _, end = mid_exposure(scene, params)
     for instant in (start, 0.5 * (start + end), end):
-        _, si, body = _trace(mi, scene, position, dr.full(mi.Float, instant, x.size),
+        _, si, body = _trace(mi, scene, position, lane_times(mi, instant, x.size),
                              start, end)
         dr.eval(si.t, body)
         body = np.asarray(body, np.int64).reshape(-1, sx.size)
