@@ -364,3 +364,21 @@ def test_a_preset_lens_renders_what_its_truth_and_k_say(tmp_path):
     assert K[0, 2] == 6.0 and K[1, 2] == 6.0
     error = result.depth - result.depth_gt  # rendered rays and truth rays are the same
     assert np.isfinite(error).mean() > 0.9 and np.nanmax(np.abs(error)) < 0.01
+
+
+def test_the_edge_filter_removes_the_pixels_beside_a_depth_step_only():
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.reconstruct import edge_filter
+
+    depth = np.full((6, 8), 2.0)
+    depth[:, 4:] = 3.0  # a 1 m step between columns 3 and 4
+    depth[0, 0] = np.nan  # a masked pixel is ignored, not a step
+    depth[:, 4] = 2.5  # a flying pixel between the two surfaces
+    edge = edge_filter(depth, 0.8)
+    # the flying pixel's window spans 2 to 3 m; its neighbours' spans 0.5 m each
+    assert edge[:, 4].all() and edge.sum() == 6
+    depth[:, 4] = 3.0  # a clean step: both sides of it go
+    assert edge_filter(depth, 0.8)[:, 3:5].all() and edge_filter(depth, 0.8).sum() == 12
+    assert not edge_filter(depth, 0.0).any()  # off
+    assert load_preset("azure-kinect").reconstruction["edge_range_m"] == 0.8
+    assert load_preset("kinect-v2").reconstruction["edge_range_m"] == 0.0

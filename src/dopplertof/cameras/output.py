@@ -20,6 +20,8 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
                                 "or the frequencies disagree beyond their noise"),
          "mask_out_of_range": ("out_of_range", "nearer than min_range_m (by 3 sigma) or "
                                "beyond max_range_m"),
+         "mask_edge": ("edge", "the edge filter: the 3 x 3 neighbourhood's depths span more "
+                       "than edge_range_m"),
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
                                   "sequence (from the scene's geometry; NaN in the maps "
                                   "unless kept: --keep-mixed-pixels)")}

@@ -112,6 +112,9 @@ SCHEMA = {
                                        "the nearest depth the camera reports (m)"),
                        "min_snr": (float, lambda x: 0 <= x <= 1e3,
                                    "invalid below this amplitude-to-noise ratio"),
+                       "edge_range_m": (float, lambda x: 0 <= x <= 1e3,
+                                        "edge filter: invalid where the 3 x 3 "
+                                        "neighbourhood's depths span more (0: off)"),
                        "wiggling_calibration": (bool, None, "whether the camera removes the "
                                                 "wiggling error with a calibration table"),
                        "min_amplitude_dn": (float, _non_negative, "confidence threshold")},
@@ -131,6 +134,7 @@ OPTIONAL = {("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): Tr
             ("optics", "filter_width_nm"): None, ("optics", "fill_factor"): None,
             ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
             ("reconstruction", "min_range_m"): 0.0, ("reconstruction", "min_snr"): 0.0,
+            ("reconstruction", "edge_range_m"): 0.0,
             ("conditions", "ambient_irradiance_uw_cm2_nm"): 0.0}
 #: the optics keys absolute radiometry needs
 RADIOMETRIC_OPTICS = ("f_number", "transmission", "filter_width_nm", "fill_factor")

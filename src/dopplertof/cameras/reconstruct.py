@@ -60,11 +60,16 @@ class CameraReconstruction:
     #: (H, W) bool: outside the camera's range: nearer than reconstruction.min_range_m by
     #: more than three predicted standard deviations, or unwrapped beyond max_range_m
     out_of_range: np.ndarray | None = None
+    #: (H, W) bool: the camera's edge filter (reconstruction.edge_range_m): the depths
+    #: around the pixel span more than that (flying pixels between two surfaces)
+    edge: np.ndarray | None = None
 
     @property
     def masked(self) -> np.ndarray:
         """(H, W) bool: the pixels under any mask (NaN in depth and velocity)."""
         masked = self.saturated | self.low_confidence | self.unwrap_failed
+        if self.edge is not None:
+            masked = masked | self.edge
         if self.out_of_range is not None:
             masked = masked | self.out_of_range
         return masked if self.mixed is None else masked | self.mixed
@@ -77,6 +82,8 @@ class CameraReconstruction:
                 "masked_pixels": {"saturated": int(self.saturated.sum()),
                                   "low confidence": int(self.low_confidence.sum()),
                                   "unwrapping failed": int(self.unwrap_failed.sum()),
+                                  "edge filter": 0 if self.edge is None
+                                  else int(self.edge.sum()),
                                   "outside the range": 0 if self.out_of_range
                                   is None else int(self.out_of_range.sum()),
                                   tof_rec.reason_name(tof_rec.MIXED_FOOTPRINT): mixed},
@@ -146,11 +153,33 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
     # nearer than the operating range by more than three predicted standard deviations
     nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
     result.out_of_range = ~(np.isnan(depth) | ~(depth < nearest)) | beyond
+    result.edge = edge_filter(np.where(result.masked, np.nan, depth),
+                              preset.reconstruction["edge_range_m"])
     masked = result.masked
     result.depth = np.where(masked, np.nan, depth)
     if preset.heterodyne:
         result.velocity = np.where(masked, np.nan, heterodyne_velocity(readout, preset, result))
     return result
+
+
+def edge_filter(depth, limit: float) -> np.ndarray:
+    """(H, W) bool: the pixels whose 3 x 3 neighbourhood's reported depths (NaN ignored)
+    span more than ``limit`` metres, the edge filter of a depth engine that removes
+    flying pixels (0: off). A pixel that mixes two surfaces lies between them, so it and
+    its neighbours across the edge go."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    depth = np.asarray(depth, np.float64)
+    if not limit > 0 or depth.ndim != 2:
+        return np.zeros(depth.shape, bool)
+    windows = sliding_window_view(np.pad(depth, 1, constant_values=np.nan), (3, 3))
+    with np.errstate(invalid="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # (all-NaN windows)
+            span = np.nanmax(windows, axis=(-2, -1)) - np.nanmin(windows, axis=(-2, -1))
+    return np.isfinite(depth) & (span > limit)
 
 
 def heterodyne_velocity(readout, preset, recon: CameraReconstruction) -> np.ndarray:

@@ -29,7 +29,7 @@ CAMERA_SPLITS = {"full": "", "ideal": "_ideal", "direct": "_direct"}
 CAMERA_OUTPUTS = {"depth": "m", "depth_z": "m", "amplitude": "DN", "confidence": "m",
                   "phase": "rad", "radial_velocity": "m/s", "valid": "1",
                   "mask_saturated": "1", "mask_low_confidence": "1",
-                  "mask_unwrap_failed": "1", "mask_out_of_range": "1",
+                  "mask_unwrap_failed": "1", "mask_out_of_range": "1", "mask_edge": "1",
                   "mask_mixed_footprint": "1"}
 #: camera outputs a preset may not give (velocity: heterodyne frames only); the camera's
 #: velocity is camera_radial_velocity (camera_velocity is the ego-motion, layout 1)
