@@ -71,10 +71,11 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise ClusterError(f"cannot reach the Dask scheduler at {scheduler}: "
                                f"{' '.join(str(e).split())}") from None
         try:
+            _check_workers(c, scheduler)
             with _dask_logs_to(c, log_file):
                 yield c, None
         finally:
-            c.close()
+            _close_quietly(c)
         return
     n = workers or default_workers()
     if n < 1:
@@ -92,6 +93,33 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             yield c, threads
     finally:
         cluster.close()
+
+
+def _check_workers(client, scheduler: str) -> None:
+    """:func:`cluster_checks.check_workers` with its error a ClusterError (a worker
+    without dopplertof read as a broken local install, or hung the run: issue 39,
+    2026-12-03 campaign P1-14 to P1-16)."""
+    from .cluster_checks import WorkerCheckError, check_workers
+
+    try:
+        check_workers(client, scheduler)
+    except WorkerCheckError as e:
+        raise ClusterError(str(e)) from None
+
+
+def _close_quietly(client) -> None:
+    """Close ``client`` without Dask's log records: a client that lost its scheduler
+    logs its reconnection's CancelledError traceback as it closes (issue 39, P1-09)."""
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict
+                               if n.startswith("distributed.")]
+    loggers = [(logging.getLogger(n), logging.getLogger(n).disabled) for n in names]
+    for logger, _ in loggers:
+        logger.disabled = True
+    try:
+        client.close()
+    finally:
+        for logger, disabled in loggers:
+            logger.disabled = disabled
 
 
 @contextlib.contextmanager
@@ -255,6 +283,7 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
                     outcome.failed += [(task.name, watch.error()) for task in futures.values()]
                     break
                 time.sleep(POLL_SECONDS)
+            _check_scheduler(client, batch)
             for future in batch:
                 _collect(future, futures.pop(future), outcome)
                 bar.update(1)
@@ -262,10 +291,27 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
                 bar.set_postfix(failed=len(outcome.failed))
     finally:
         bar.close()
-        for future in futures:
-            future.cancel()
+        if not _lost(client):  # (a cancel would wait for the lost scheduler)
+            for future in futures:
+                future.cancel()
     outcome.seconds = time.perf_counter() - started
     return outcome
+
+
+def _lost(client) -> bool:
+    from .cluster_checks import scheduler_lost
+
+    return scheduler_lost(client)
+
+
+def _check_scheduler(client, batch) -> None:
+    """Raise ClusterError when ``client`` lost its scheduler: its futures end as
+    cancelled, each without a word of the cause (issue 39, 2026-12-03 campaign P1-07,
+    P1-09: "task ended as cancelled" lines and a Dask traceback)."""
+    from .cluster_checks import lost_scheduler_message, scheduler_lost
+
+    if scheduler_lost(client) and (not batch or any(f.status == "cancelled" for f in batch)):
+        raise ClusterError(lost_scheduler_message(client))
 
 
 def _collect(future, task, outcome: RunOutcome) -> None:
@@ -284,6 +330,7 @@ class _WorkerWatch:
     def __init__(self, client, timeout: float):
         self.client, self.timeout = client, timeout
         self.checked = self.alone_since = None
+        self.seen = False  # (whether it ever had a worker)
 
     def gone_for_good(self) -> bool:
         now = time.monotonic()
@@ -295,12 +342,15 @@ class _WorkerWatch:
         except Exception:  # the scheduler itself is gone: no worker will come back
             workers = 0
         if workers:
-            self.alone_since = None
+            self.alone_since, self.seen = None, True
         elif self.alone_since is None:
             self.alone_since = now
         return self.alone_since is not None and now - self.alone_since >= self.timeout
 
     def error(self) -> str:
+        if not self.seen:  # (not "killed": there never was one, issue 39, P1-15)
+            return (f"the Dask scheduler has had no worker for {self.timeout:g} s; not "
+                    "run")
         return (f"no Dask worker left for {self.timeout:g} s (workers killed or out of "
                 "memory, faster than they restart); not run")
 
