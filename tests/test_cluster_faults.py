@@ -186,3 +186,51 @@ def test_a_scheduler_killed_in_the_middle_of_a_run_is_one_line(tmp_path, procs, 
     time.sleep(0.5)
     captured = capfd.readouterr()
     assert "Traceback" not in captured.err and "cancelled" not in captured.err, captured.err
+
+
+def test_each_run_on_a_scheduler_has_its_workers_log_and_then_leaves_the_workers_alone(
+        tmp_path, procs):
+    """P1-17: the worker-log plugin was idempotent: the first run's path stuck on the
+    scheduler, every later run's logs/workers.log stayed empty, and the worker's own
+    stderr never came back."""
+    from distributed import Client
+
+    from dopplertof.experiments.cluster import WORKER_LOG, run_in_folder
+
+    def say(task):  # (pickled by value)
+        import os
+
+        os.write(2, f"marker of run {task.run}\n".encode())
+        return task.name
+
+    _, address = procs.scheduler()
+    procs.worker(address, name="worker")
+    wait_for_workers(address, 1)
+    for run in "AB":
+        task = types.SimpleNamespace(name="say", hash="9" * 16, run=run)
+        outcome = run_in_folder(say, [task], str(tmp_path / run), scheduler=address,
+                                progress=False)
+        assert outcome.done == ["say"] and not outcome.failed
+    for run, other in ("AB", "BA"):
+        log = (tmp_path / run / WORKER_LOG).read_text()
+        assert f"marker of run {run}" in log and f"marker of run {other}" not in log
+    with Client(address, timeout="20s") as c:
+        c.run(os.write, 2, b"marker after the runs\n")
+    time.sleep(0.5)
+    assert "marker after the runs" in (tmp_path / "worker.log").read_text()
+
+
+def test_a_worker_restarted_after_the_run_folder_was_removed_starts_quietly(tmp_path):
+    """P1-18: the plugin's setup raised FileNotFoundError for the removed folder's log
+    (a traceback in the restarted worker's log); now the worker's stderr stays where
+    it is."""
+    code = ("import os\n"
+            "from dopplertof.experiments.worker_log import WorkerStderrToFile\n"
+            f"plugin = WorkerStderrToFile({str(tmp_path / 'gone' / 'logs' / 'w.log')!r})\n"
+            "plugin.setup(object())\n"
+            "os.write(2, b'still the terminal\\n')\n"
+            "plugin.teardown(object())\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stderr == "still the terminal\n", done.stderr
+    assert not (tmp_path / "gone").exists()

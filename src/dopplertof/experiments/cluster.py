@@ -72,7 +72,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
                                f"{' '.join(str(e).split())}") from None
         try:
             _check_workers(c, scheduler)
-            with _dask_logs_to(c, log_file):
+            with _dask_logs_to(c, log_file, release=True):
                 yield c, None
         finally:
             _close_quietly(c)
@@ -123,16 +123,41 @@ def _close_quietly(client) -> None:
 
 
 @contextlib.contextmanager
-def _dask_logs_to(client, log_file: str | None):
+def _dask_logs_to(client, log_file: str | None, release: bool = False):
     """Send the workers' stderr (present and restarted ones) and this process's Dask
-    log records to ``log_file`` (appended) while the block runs."""
+    log records to ``log_file`` (appended) while the block runs. ``release``: the
+    workers outlive the run (an external scheduler's): their stderr is their own again
+    once it ends (issue 39, 2026-12-03 campaign P1-17)."""
     if log_file is None:
         yield
         return
-    from .worker_log import WorkerStderrToFile
+    from .worker_log import PLUGIN_NAME, WorkerStderrToFile
 
     os.makedirs(os.path.dirname(log_file), exist_ok=True)
-    client.register_plugin(WorkerStderrToFile(log_file), name="dopplertof-worker-log")
+    client.register_plugin(WorkerStderrToFile(log_file), name=PLUGIN_NAME)
+    if release:
+        with _released(client, PLUGIN_NAME), _dask_records_to(log_file):
+            yield
+        return
+    with _dask_records_to(log_file):
+        yield
+
+
+@contextlib.contextmanager
+def _released(client, plugin: str):
+    """Unregister the worker plugin ``plugin`` once the block ends (not from a client
+    that lost its scheduler: it would wait for it)."""
+    try:
+        yield
+    finally:
+        if not _lost(client):
+            with contextlib.suppress(Exception):
+                client.unregister_worker_plugin(plugin)
+
+
+@contextlib.contextmanager
+def _dask_records_to(log_file: str):
+    """This process's Dask log records to ``log_file`` instead of the terminal."""
     handler = logging.FileHandler(log_file, encoding="utf-8")
     handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
     dask_logger = logging.getLogger("distributed")
