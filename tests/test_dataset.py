@@ -658,3 +658,27 @@ def test_a_shards_bytes_do_not_depend_on_when_its_datasets_are_closed(tmp_path, 
     write_shard(str(tmp_path / "held.h5"), samples, [], {"config_hash": "x"}, units)
     assert held
     assert (tmp_path / "closed.h5").read_bytes() == (tmp_path / "held.h5").read_bytes()
+
+
+def test_a_dataset_of_days_per_sample_is_refused_and_a_long_one_announced(
+        tmp_path, capsys, monkeypatch):
+    """issue 39, 2026-12-03 campaign D49: spp = 10**9 at 16x16 ran without a word (no
+    estimate, nothing for 300 s), where `render` says what a long render takes."""
+    from dopplertof.dataset.config import DatasetError, load_config
+    from dopplertof.dataset.driver import announce_time
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)  # (the estimate counts the cores)
+    data = copy.deepcopy(TINY)
+    data["render"].update(resolution=[16, 16], spp=10**9)
+    with pytest.raises(DatasetError) as error:
+        load_config(_write_toml(tmp_path / "huge.toml", data))
+    message = str(error.value)
+    assert "huge.toml: render.spp = 1000000000: each sample takes" in message
+    assert "on 2 core(s)" in message and "lower render.spp or render.resolution" in message
+
+    long = _config({"render": {"resolution": [16, 16], "spp": 2**20}})
+    announce_time(long, 3)
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dopplertof: dataset: 3 sample(s), each ") and "in all" in err, err
+    announce_time(_config(), 3)
+    assert capsys.readouterr().err == ""

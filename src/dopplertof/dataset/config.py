@@ -243,6 +243,42 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+    _check_time(values["render"], len(preset.frames), source)
+
+
+#: renders of every frame of the preset per sample: the full split (the ideal one is its
+#: noiseless readout) and the direct split (dataset.sample)
+RENDERS_PER_FRAME = 2
+#: the longest a sample may take by the estimate `render` gives (budget.py), beyond
+#: which the configuration is refused (spp = 10**9 ran silently for days: issue 39, D49)
+MAX_SAMPLE_SECONDS = 24 * 3600.0
+
+
+def sample_seconds(render: dict, frames: int) -> float:
+    """Roughly how long one sample renders, as `render` estimates (budget.estimate)."""
+    from .. import budget
+
+    width, height = render["resolution"]
+    spp = render["spp"]
+    one = budget.estimate(width, height, 1, spp, min(spp, 8192), 1).seconds
+    return one * frames * RENDERS_PER_FRAME
+
+
+def describe_sample(render: dict, frames: int) -> str:
+    from .. import budget
+
+    width, height = render["resolution"]
+    return (f"{RENDERS_PER_FRAME * frames} renders of {width}x{height} pixels at "
+            f"{render['spp']} spp, roughly {budget.duration(sample_seconds(render, frames))} "
+            f"on {os.cpu_count() or 1} core(s)")
+
+
+def _check_time(render: dict, frames: int, source: str) -> None:
+    if sample_seconds(render, frames) > MAX_SAMPLE_SECONDS:
+        raise DatasetError(
+            f"{source}: render.spp = {render['spp']}: each sample takes "
+            f"{describe_sample(render, frames)}; at most {MAX_SAMPLE_SECONDS / 3600:g} h "
+            "per sample: lower render.spp or render.resolution")
 
 
 def bounding_radius(shape: str, size: float) -> float:
