@@ -332,10 +332,12 @@ def _lost(client) -> bool:
 def _check_scheduler(client, batch) -> None:
     """Raise ClusterError when ``client`` lost its scheduler: its futures end as
     cancelled, each without a word of the cause (issue 39, 2026-12-03 campaign P1-07,
-    P1-09: "task ended as cancelled" lines and a Dask traceback)."""
+    P1-09: "task ended as cancelled" lines and a Dask traceback). A future of this run
+    ends as cancelled only so (no one else knows its key), the client reconnected to a
+    scheduler restarted at once or not."""
     from .cluster_checks import lost_scheduler_message, scheduler_lost
 
-    if scheduler_lost(client) and (not batch or any(f.status == "cancelled" for f in batch)):
+    if any(f.status == "cancelled" for f in batch) or (not batch and scheduler_lost(client)):
         raise ClusterError(lost_scheduler_message(client))
 
 
