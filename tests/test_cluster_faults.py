@@ -160,9 +160,12 @@ def test_a_worker_that_failed_to_start_ends_the_run_within_seconds(tmp_path, pro
     assert seconds < 60
 
 
-def test_a_scheduler_killed_in_the_middle_of_a_run_is_one_line(tmp_path, procs, capfd):
+@pytest.mark.parametrize("restart", [False, True])
+def test_a_scheduler_killed_in_the_middle_of_a_run_is_one_line(tmp_path, procs, capfd,
+                                                               restart):
     """P1-07, P1-09: a Dask traceback and "task ended as cancelled" lines that never
-    said the scheduler died."""
+    said the scheduler died (``restart``: a new scheduler at the same address at once,
+    which the client reconnects to)."""
     from dopplertof.experiments.cluster import ClusterError, run_in_folder
 
     def slow(task):  # (pickled by value)
@@ -175,7 +178,15 @@ def test_a_scheduler_killed_in_the_middle_of_a_run_is_one_line(tmp_path, procs, 
     procs.worker(address)
     wait_for_workers(address, 1)
     tasks = [types.SimpleNamespace(name=f"t{i}", hash="7" * 16) for i in range(6)]
-    threading.Timer(3.0, lambda: os.killpg(scheduler.pid, 9)).start()
+    def kill():
+        os.killpg(scheduler.pid, 9)
+        scheduler.wait()
+        if restart:
+            procs.start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
+                         "127.0.0.1", "--port", address.rsplit(":", 1)[1],
+                         "--dashboard-address", ":0"], "scheduler2")
+
+    threading.Timer(3.0, kill).start()
     started = time.monotonic()
     with pytest.raises(ClusterError) as error:
         run_in_folder(slow, tasks, str(tmp_path / "out"), scheduler=address,
