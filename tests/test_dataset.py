@@ -658,3 +658,50 @@ def test_a_shards_bytes_do_not_depend_on_when_its_datasets_are_closed(tmp_path, 
     write_shard(str(tmp_path / "held.h5"), samples, [], {"config_hash": "x"}, units)
     assert held
     assert (tmp_path / "closed.h5").read_bytes() == (tmp_path / "held.h5").read_bytes()
+
+
+def test_a_dataset_of_days_per_sample_is_refused_and_a_long_one_announced(
+        tmp_path, capsys, monkeypatch):
+    """issue 39, 2026-12-03 campaign D49: spp = 10**9 at 16x16 ran without a word (no
+    estimate, nothing for 300 s), where `render` says what a long render takes."""
+    from dopplertof.dataset.config import DatasetError, load_config
+    from dopplertof.dataset.driver import announce_time
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)  # (the estimate counts the cores)
+    data = copy.deepcopy(TINY)
+    data["render"].update(resolution=[16, 16], spp=10**9)
+    with pytest.raises(DatasetError) as error:
+        load_config(_write_toml(tmp_path / "huge.toml", data))
+    message = str(error.value)
+    assert "huge.toml: render.spp = 1000000000: each sample takes" in message
+    assert "on 2 core(s)" in message and "lower render.spp or render.resolution" in message
+
+    long = _config({"render": {"resolution": [16, 16], "spp": 2**20}})
+    announce_time(long, 3)
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dopplertof: dataset: 3 sample(s), each ") and "in all" in err, err
+    announce_time(_config(), 3)
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("changes, words", [
+    # D46: each sample failed "nothing in the image is lit ...; give photons_per_unit"
+    ({"backdrop": {"kind": "none"}, "objects": {"count": [0, 0]}},
+     "backdrop.kind = 'none' with objects.count [0, 0]: a sample without objects has "
+     "nothing to see"),
+    # D47: the same, for a light of intensity 0
+    ({"render": {"light_intensity": [0.0, 0.0]}},
+     "render.light_intensity out of range (point light, W/sr, > 0), got [0.0, 0.0]"),
+    # D55: the same, for a light 1e9 m away
+    ({"light": {"placement": "offset", "offset": [1e9, 0.0, 0.0]}},
+     "light.offset [1000000000.0, 0.0, 0.0] puts the light farther than 1000 m"),
+    ({"light": {"placement": "offset", "offset": [5.0, 0.0, 0.0]}},
+     "light.offset [5.0, 0.0, 0.0] puts the light outside the room [6.0, 4.0, 8.0]"),
+    ({"backdrop": {"kind": "wall"}, "light": {"placement": "offset", "offset": [0, 0, 9.0]}},
+     "puts the light behind the wall 8 m ahead")])
+def test_a_configuration_with_nothing_lit_to_see_is_refused_at_load(changes, words):
+    """issue 39, 2026-12-03 campaign D46, D47, D55: accepted, then every sample failed
+    naming photons_per_unit, a key no dataset configuration has."""
+    with pytest.raises(DatasetError) as error:
+        _config(changes)
+    assert words in str(error.value)

@@ -137,8 +137,13 @@ def test_objects_enclosing_the_camera_or_nothing_visible_are_drawn_again_or_refu
             assert gap > bounding_radius(obj["shape"], obj["size_m"])
         assert (truth["instance"] >= 1).any()
     assert max(draws) > 0  # (some were drawn again)
-    # nothing in view at all: refused after MAX_DRAWS, saying why
-    empty = _config({"objects": {"count": [0, 0]}, "backdrop": {"kind": "none"}})
+    # nothing in view at all: refused at load (issue 39, D46) and, past that check,
+    # after MAX_DRAWS, saying why
+    with pytest.raises(DatasetError, match="backdrop.kind = 'none' with objects.count "
+                       r"\[0, 0\]: a sample without objects has nothing to see"):
+        _config({"objects": {"count": [0, 0]}, "backdrop": {"kind": "none"}})
+    empty = _config({"backdrop": {"kind": "none"}})
+    empty.values["objects"]["count"] = [0, 0]
     with pytest.raises(DatasetError, match="sample 0: drawn 16 times.*no pixel sees anything"):
         drawn_sample(empty, 0, preset, ".")
 

@@ -187,3 +187,19 @@ def test_a_closing_worker_writes_nothing_more_to_the_workers_log(tmp_path):
                           timeout=60)
     assert done.returncode == 0, done.stderr
     assert log.read_text() == "a task failed\n" and done.stderr == ""
+
+
+def test_a_worker_restarted_after_the_run_folder_was_removed_starts_quietly(tmp_path):
+    """issue 39, 2026-12-03 campaign P1-18: the plugin's setup raised FileNotFoundError for the removed folder's log
+    (a traceback in the restarted worker's log); now the worker's stderr stays where
+    it is."""
+    code = ("import os\n"
+            "from dopplertof.experiments.worker_log import WorkerStderrToFile\n"
+            f"plugin = WorkerStderrToFile({str(tmp_path / 'gone' / 'logs' / 'w.log')!r})\n"
+            "plugin.setup(object())\n"
+            "os.write(2, b'still the terminal\\n')\n"
+            "plugin.teardown(object())\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stderr == "still the terminal\n", done.stderr
+    assert not (tmp_path / "gone").exists()

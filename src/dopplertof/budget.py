@@ -285,6 +285,11 @@ def _mib(n: float) -> str:
     return f"{n / 2**20:.0f} MiB"
 
 
+def duration(seconds: float) -> str:
+    """``seconds`` in words: s, min or h."""
+    return _duration(seconds)
+
+
 def _duration(seconds: float) -> str:
     if seconds < 90:
         return f"{seconds:.0f} s"

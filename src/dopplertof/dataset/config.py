@@ -69,7 +69,8 @@ SCHEMA = {
                              "splits (2: direct light only)", 5),
                "camera": (str, None, "a camera preset's name or a preset .toml file "
                           "(dopplertof cameras --list)", "paper-dtof"),
-               "light_intensity": ("range", _range(0), "point light, W/sr", [20.0, 20.0]),
+               "light_intensity": ("range", lambda v: _range(0)(v) and v[0] > 0,
+                                   "point light, W/sr, > 0", [20.0, 20.0]),
                "grazing_deg": (float, lambda x: 0 < x <= 90, "incidence angle beyond which "
                                "a pixel's depth and velocity truth is flagged grazing", 80.0)},
     "backdrop": {"kind": (str, lambda x: x in BACKDROPS, "one of " + ", ".join(BACKDROPS),
@@ -235,6 +236,7 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
                                f"{'/'.join(MESH_EXTENSIONS)} file")
         _check_mesh_sizes(os.path.join(base_dir, folder), objects["size"], source)
     _check_clearance(objects, source)
+    _check_something_lit(values, source)
     camera = values["render"]["camera"]
     if camera.endswith(".toml"):
         camera = values["render"]["camera"] = os.path.join(base_dir, camera)
@@ -243,6 +245,42 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+    _check_time(values["render"], len(preset.frames), source)
+
+
+#: renders of every frame of the preset per sample: the full split (the ideal one is its
+#: noiseless readout) and the direct split (dataset.sample)
+RENDERS_PER_FRAME = 2
+#: the longest a sample may take by the estimate `render` gives (budget.py), beyond
+#: which the configuration is refused (spp = 10**9 ran silently for days: issue 39, D49)
+MAX_SAMPLE_SECONDS = 24 * 3600.0
+
+
+def sample_seconds(render: dict, frames: int) -> float:
+    """Roughly how long one sample renders, as `render` estimates (budget.estimate)."""
+    from .. import budget
+
+    width, height = render["resolution"]
+    spp = render["spp"]
+    one = budget.estimate(width, height, 1, spp, min(spp, 8192), 1).seconds
+    return one * frames * RENDERS_PER_FRAME
+
+
+def describe_sample(render: dict, frames: int) -> str:
+    from .. import budget
+
+    width, height = render["resolution"]
+    return (f"{RENDERS_PER_FRAME * frames} renders of {width}x{height} pixels at "
+            f"{render['spp']} spp, roughly {budget.duration(sample_seconds(render, frames))} "
+            f"on {os.cpu_count() or 1} core(s)")
+
+
+def _check_time(render: dict, frames: int, source: str) -> None:
+    if sample_seconds(render, frames) > MAX_SAMPLE_SECONDS:
+        raise DatasetError(
+            f"{source}: render.spp = {render['spp']}: each sample takes "
+            f"{describe_sample(render, frames)}; at most {MAX_SAMPLE_SECONDS / 3600:g} h "
+            "per sample: lower render.spp or render.resolution")
 
 
 def bounding_radius(shape: str, size: float) -> float:
@@ -272,6 +310,40 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
                 f"{reach * size[0]:.4g}-{reach * size[1]:.4g} m; a mesh must fit the cube "
                 f"[-1, 1]^3 and reach past {MESH_LEAST_REACH} of it: rescale it (a mesh in "
                 "centimetres is 100 times too large)")
+
+
+#: farthest a light offset may be from the camera, m (a point light's irradiance falls
+#: as 1/r^2: at 1e9 m every sample failed "nothing in the image is lit", issue 39, D55)
+MAX_LIGHT_OFFSET = 1000.0
+
+
+def _check_something_lit(values: dict, source: str) -> None:
+    """Every sample has something to see and a light that reaches it (each sample
+    failed "nothing in the image is lit ...; give photons_per_unit", a key no dataset
+    has: issue 39, 2026-12-03 campaign D46, D55; D47 is light_intensity's range)."""
+    import numpy as np
+
+    backdrop, objects, light = values["backdrop"], values["objects"], values["light"]
+    if backdrop["kind"] == "none" and objects["count"][0] == 0:
+        raise DatasetError(
+            f"{source}: backdrop.kind = 'none' with objects.count {objects['count']}: a "
+            "sample without objects has nothing to see: make the fewest objects 1 or more, "
+            "or choose a backdrop")
+    if light["placement"] != "offset":
+        return
+    x, y, z = light["offset"]
+    width, height, depth = backdrop["size"]
+    if float(np.linalg.norm(light["offset"])) > MAX_LIGHT_OFFSET:
+        where = f"farther than {MAX_LIGHT_OFFSET:g} m from the camera"
+    elif backdrop["kind"] == "room" and not (abs(x) < width / 2 and abs(y) < height / 2
+                                             and -1.0 < z < depth - 1.0):
+        where = f"outside the room {backdrop['size']} (the camera 1 m from its back)"
+    elif backdrop["kind"] == "wall" and z >= depth:
+        where = f"behind the wall {depth:g} m ahead"
+    else:
+        return
+    raise DatasetError(f"{source}: light.offset {light['offset']} puts the light {where}: "
+                       "nothing it lights is seen; bring it nearer the camera")
 
 
 def _check_clearance(objects: dict, source: str) -> None:

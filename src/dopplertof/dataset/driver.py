@@ -245,6 +245,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
             pending.append(task)
     summary.skipped_shards = len(tasks) - len(pending)
     if pending:
+        announce_time(config, sum(len(t.indices) for t in pending))
         outcome = run_in_folder(run_shard_task, pending, output, scheduler=scheduler,
                                 workers=workers, client=client, retries=retries,
                                 progress=progress, description="shards",
@@ -258,6 +259,24 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     summary.seconds = time.perf_counter() - started
     write_dataset_json(output, config, tasks, summary)
     return summary
+
+
+def announce_time(config: DatasetConfig, samples: int) -> None:
+    """Say on stderr what the samples to render take when it is long, as `render` does
+    (a dataset with spp = 10**9 ran without a word: issue 39, 2026-12-03 campaign D49)."""
+    import sys
+
+    from .. import budget
+    from ..cameras.preset import load_preset
+    from .config import describe_sample, sample_seconds
+
+    frames = len(load_preset(config["render"]["camera"]).frames)
+    seconds = sample_seconds(config["render"], frames) * samples
+    if seconds > budget.LONG_RENDER_SECONDS:
+        print(f"dopplertof: dataset: {samples} sample(s), each "
+              f"{describe_sample(config['render'], frames)}: roughly "
+              f"{budget.duration(seconds)} in all on one worker", file=sys.stderr,
+              flush=True)
 
 
 def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> None:

@@ -71,10 +71,11 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise ClusterError(f"cannot reach the Dask scheduler at {scheduler}: "
                                f"{' '.join(str(e).split())}") from None
         try:
-            with _dask_logs_to(c, log_file):
+            _check_workers(c, scheduler)
+            with _dask_logs_to(c, log_file, release=True):
                 yield c, None
         finally:
-            c.close()
+            _close_quietly(c)
         return
     n = workers or default_workers()
     if n < 1:
@@ -94,17 +95,69 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         cluster.close()
 
 
+def _check_workers(client, scheduler: str) -> None:
+    """:func:`cluster_checks.check_workers` with its error a ClusterError (a worker
+    without dopplertof read as a broken local install, or hung the run: issue 39,
+    2026-12-03 campaign P1-14 to P1-16)."""
+    from .cluster_checks import WorkerCheckError, check_workers
+
+    try:
+        check_workers(client, scheduler)
+    except WorkerCheckError as e:
+        raise ClusterError(str(e)) from None
+
+
+def _close_quietly(client) -> None:
+    """Close ``client`` without Dask's log records: a client that lost its scheduler
+    logs its reconnection's CancelledError traceback as it closes (issue 39, P1-09)."""
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict
+                               if n.startswith("distributed.")]
+    loggers = [(logging.getLogger(n), logging.getLogger(n).disabled) for n in names]
+    for logger, _ in loggers:
+        logger.disabled = True
+    try:
+        client.close()
+    finally:
+        for logger, disabled in loggers:
+            logger.disabled = disabled
+
+
 @contextlib.contextmanager
-def _dask_logs_to(client, log_file: str | None):
+def _dask_logs_to(client, log_file: str | None, release: bool = False):
     """Send the workers' stderr (present and restarted ones) and this process's Dask
-    log records to ``log_file`` (appended) while the block runs."""
+    log records to ``log_file`` (appended) while the block runs. ``release``: the
+    workers outlive the run (an external scheduler's): their stderr is their own again
+    once it ends (issue 39, 2026-12-03 campaign P1-17)."""
     if log_file is None:
         yield
         return
-    from .worker_log import WorkerStderrToFile
+    from .worker_log import PLUGIN_NAME, WorkerStderrToFile
 
     os.makedirs(os.path.dirname(log_file), exist_ok=True)
-    client.register_plugin(WorkerStderrToFile(log_file), name="dopplertof-worker-log")
+    client.register_plugin(WorkerStderrToFile(log_file), name=PLUGIN_NAME)
+    if release:
+        with _released(client, PLUGIN_NAME), _dask_records_to(log_file):
+            yield
+        return
+    with _dask_records_to(log_file):
+        yield
+
+
+@contextlib.contextmanager
+def _released(client, plugin: str):
+    """Unregister the worker plugin ``plugin`` once the block ends (not from a client
+    that lost its scheduler: it would wait for it)."""
+    try:
+        yield
+    finally:
+        if not _lost(client):
+            with contextlib.suppress(Exception):
+                client.unregister_worker_plugin(plugin)
+
+
+@contextlib.contextmanager
+def _dask_records_to(log_file: str):
+    """This process's Dask log records to ``log_file`` instead of the terminal."""
     handler = logging.FileHandler(log_file, encoding="utf-8")
     handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
     dask_logger = logging.getLogger("distributed")
@@ -255,6 +308,7 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
                     outcome.failed += [(task.name, watch.error()) for task in futures.values()]
                     break
                 time.sleep(POLL_SECONDS)
+            _check_scheduler(client, batch)
             for future in batch:
                 _collect(future, futures.pop(future), outcome)
                 bar.update(1)
@@ -262,10 +316,29 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
                 bar.set_postfix(failed=len(outcome.failed))
     finally:
         bar.close()
-        for future in futures:
-            future.cancel()
+        if not _lost(client):  # (a cancel would wait for the lost scheduler)
+            for future in futures:
+                future.cancel()
     outcome.seconds = time.perf_counter() - started
     return outcome
+
+
+def _lost(client) -> bool:
+    from .cluster_checks import scheduler_lost
+
+    return scheduler_lost(client)
+
+
+def _check_scheduler(client, batch) -> None:
+    """Raise ClusterError when ``client`` lost its scheduler: its futures end as
+    cancelled, each without a word of the cause (issue 39, 2026-12-03 campaign P1-07,
+    P1-09: "task ended as cancelled" lines and a Dask traceback). A future of this run
+    ends as cancelled only so (no one else knows its key), the client reconnected to a
+    scheduler restarted at once or not."""
+    from .cluster_checks import lost_scheduler_message, scheduler_lost
+
+    if any(f.status == "cancelled" for f in batch) or (not batch and scheduler_lost(client)):
+        raise ClusterError(lost_scheduler_message(client))
 
 
 def _collect(future, task, outcome: RunOutcome) -> None:
@@ -284,6 +357,7 @@ class _WorkerWatch:
     def __init__(self, client, timeout: float):
         self.client, self.timeout = client, timeout
         self.checked = self.alone_since = None
+        self.seen = False  # (whether it ever had a worker)
 
     def gone_for_good(self) -> bool:
         now = time.monotonic()
@@ -295,12 +369,15 @@ class _WorkerWatch:
         except Exception:  # the scheduler itself is gone: no worker will come back
             workers = 0
         if workers:
-            self.alone_since = None
+            self.alone_since, self.seen = None, True
         elif self.alone_since is None:
             self.alone_since = now
         return self.alone_since is not None and now - self.alone_since >= self.timeout
 
     def error(self) -> str:
+        if not self.seen:  # (not "killed": there never was one, issue 39, P1-15)
+            return (f"the Dask scheduler has had no worker for {self.timeout:g} s; not "
+                    "run")
         return (f"no Dask worker left for {self.timeout:g} s (workers killed or out of "
                 "memory, faster than they restart); not run")
 
