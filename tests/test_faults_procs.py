@@ -123,6 +123,7 @@ def test_a_full_disk_during_a_sweep_lists_its_failures(tmp_path):
         subprocess.run(["umount", str(disk)], capture_output=True)
 
 
+@pytest.mark.slow  # (5.5 s: make quick stays under its budget, issue 42)
 def test_a_sweep_with_no_worker_left_ends(monkeypatch):
     """Every worker gone (here: the cluster scaled to 0; in the campaign: workers killed
     faster than they restart). On afb2c4e the run waited forever."""

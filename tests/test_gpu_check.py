@@ -23,6 +23,7 @@ def check(tmp_path, *args, env=None):
                           env={**os.environ, **(env or {})})
 
 
+@pytest.mark.slow  # (5 s: make quick stays under its budget, issue 42)
 def test_quick_check_on_llvm_passes_and_writes_its_report(tmp_path):
     report = tmp_path / "out" / "report.txt"
     done = check(tmp_path, "--variant", "llvm_ad_rgb", "--quick", "--out", "out")
