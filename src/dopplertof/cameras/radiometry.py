@@ -28,9 +28,10 @@ import math
 
 import numpy as np
 
-#: Planck's constant (J s) and the speed of light (m/s), exact in the SI
+from ..modulation import SPEED_OF_LIGHT
+
+#: Planck's constant (J s), exact in the SI
 PLANCK = 6.62607015e-34
-SPEED_OF_LIGHT = 299_792_458.0
 #: uW/cm^2/nm in W/m^2/nm
 UW_PER_CM2 = 1e-2
 
@@ -38,8 +39,6 @@ UW_PER_CM2 = 1e-2
 #: tilt (AM1.5, 37 deg tilted surface), 0.9 W/m^2/nm at 850 nm = 90 uW/cm^2/nm (read
 #: from the NREL table of the standard, rounded; direct + circumsolar: 0.8)
 SUNLIGHT_850NM_UW_CM2_NM = 90.0
-#: the Azure Kinect specification's indoor condition
-INDOOR_UW_CM2_NM = 2.2
 
 
 def photon_energy(wavelength_nm: float) -> float:
@@ -64,16 +63,6 @@ def collection(preset) -> float:
     side = optics["binning"] * preset.pixel_pitch_um * 1e-6
     return (math.pi * optics["transmission"] * optics["fill_factor"] * side**2
             / (4.0 * optics["f_number"] ** 2))
-
-
-def relative_illumination(width: int, height: int, fov_deg: float) -> np.ndarray:
-    """(H, W) cos^4 of each pixel centre's angle off the axis (a pinhole of horizontal
-    field of view ``fov_deg``)."""
-    focal = 0.5 * width / math.tan(math.radians(fov_deg) / 2)
-    x = (np.arange(width) + 0.5 - 0.5 * width) / focal
-    y = (np.arange(height) + 0.5 - 0.5 * height) / focal
-    r2 = x[None, :] ** 2 + y[:, None] ** 2
-    return 1.0 / (1.0 + r2) ** 2
 
 
 def photons_per_unit(preset, scene_intensity: float, g_0: float) -> float:

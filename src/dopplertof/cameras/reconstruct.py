@@ -52,7 +52,8 @@ class CameraReconstruction:
     frequencies: list  #: FrequencyPhase per frequency
     range_m: float  #: the range the depth covers (unambiguous range searched, or the wrap)
     method: str
-    unwrap_tolerance_m: float | None = None
+    #: chi^2 by which the best wrap must beat any other (None: one frequency, no unwrapping)
+    unwrap_likelihood_gap: float | None = None
     velocity: np.ndarray | None = None  #: (H, W) m/s with heterodyne frames
     depth_z: np.ndarray | None = field(default=None)  #: (H, W), set by the capture
     #: (H, W) bool: footprints that mix surfaces, masked (all False when kept)
@@ -77,7 +78,7 @@ class CameraReconstruction:
     def describe(self) -> dict:
         mixed = 0 if self.mixed is None else int(self.mixed.sum())
         return {"file": "depth.npy", "method": self.method, "range_m": self.range_m,
-                "unwrap_tolerance_m": self.unwrap_tolerance_m,
+                "unwrap_likelihood_gap": self.unwrap_likelihood_gap,
                 "frequencies_MHz": [g.frequency_mhz for g in self.frequencies],
                 "masked_pixels": {"saturated": int(self.saturated.sum()),
                                   "low confidence": int(self.low_confidence.sum()),
@@ -126,13 +127,13 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
         phase_std = np.max([np.sqrt(g.depth_variance) * 4 * math.pi * g.frequency_mhz * 1e6
                             / SPEED_OF_LIGHT for g in groups], axis=0)
         low_confidence |= ~(phase_std * min_snr <= 1.0)
-    tolerance = None
+    gap = None
     if len(groups) >= 2:
         unwrapped = unwrap_likelihood([g.depth for g in groups],
                                       [g.depth_variance for g in groups],
                                       [g.frequency_mhz * 1e6 for g in groups], max_range)
         depth, failed, variance = unwrapped.depth, unwrapped.failed, unwrapped.variance
-        beyond = unwrapped.beyond
+        beyond, gap = unwrapped.beyond, LIKELIHOOD_GAP
         range_m = min(unwrapped.unambiguous_range, max_range)
         method = (f"N-phase least-squares fit per frequency, unwrapped by maximum likelihood "
                   f"over wrap counts of {len(groups)} frequencies (inverse-variance mean; "
@@ -148,11 +149,11 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
         method += "; wiggling calibration table applied"
     mixed = np.zeros(saturated.shape, bool) if mixed is None else np.asarray(mixed, bool)
     result = CameraReconstruction(depth, amplitude, saturated, low_confidence, failed,
-                                  variance, groups, float(range_m), method, tolerance,
+                                  variance, groups, float(range_m), method, gap,
                                   mixed=mixed)
     # nearer than the operating range by more than three predicted standard deviations
     nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
-    result.out_of_range = ~(np.isnan(depth) | ~(depth < nearest)) | beyond
+    result.out_of_range = (depth < nearest) | beyond  # (NaN compares False)
     result.edge = edge_filter(np.where(result.masked, np.nan, depth),
                               preset.reconstruction["edge_range_m"])
     masked = result.masked

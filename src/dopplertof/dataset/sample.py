@@ -13,7 +13,6 @@ to its end (docs/dataset.md gives every convention).
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 
@@ -48,14 +47,6 @@ UNITS = {
     **{f"camera_{name}{suffix}": unit for suffix in CAMERA_SPLITS.values()
        for name, unit in CAMERA_OUTPUTS.items()},
 }
-
-
-def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
-    """K of a pinhole whose horizontal field of view is ``fov_deg``
-    (:func:`dopplertof.integrators.camera.pinhole_intrinsics`)."""
-    from ..integrators.camera import pinhole_intrinsics
-
-    return pinhole_intrinsics(width, height, fov_deg)
 
 
 def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict, dict]:
@@ -162,6 +153,7 @@ def sample_truth(scene, description: dict, grazing_deg: float = 80.0) -> dict:
     """Depth, velocities, flow, scene flow, instances, normals, albedo, K and poses; the
     incidence angle, the pixels seeing a surface beyond ``grazing_deg`` (grazing) and
     those whose depth and velocity truth holds (truth_valid: a hit, not grazing)."""
+    from ..integrators.camera import pinhole_intrinsics
     from ..tof.ground_truth import ground_truth
 
     times = description["times_s"]
@@ -178,7 +170,7 @@ def sample_truth(scene, description: dict, grazing_deg: float = 80.0) -> dict:
     incidence = np.where(hit, np.degrees(np.arccos(np.clip(np.abs(cosine), 0.0, 1.0))), np.nan)
     grazing = hit & ~(incidence <= grazing_deg)
     normals = (truth.normal * toward) @ pose[:3, :3]  # world -> camera: R^T n
-    K = intrinsics(width, height, description["fov_deg"])
+    K = pinhole_intrinsics(width, height, description["fov_deg"])
     z = truth.direction @ pose[:3, 2]
     half = 0.5 * (times["end"] - times["start"])
     out = {"depth": truth.depth, "depth_z": truth.depth * z, "velocity_gt": truth.velocity,
@@ -220,9 +212,11 @@ def _flows(scene, description: dict, body: np.ndarray, points: np.ndarray):
     """Optical flow (px) and scene flow (m, camera coordinates) of every hit point
     moving with its body: where the camera sees it at the end of the sequence minus where
     it sees it at the start (the camera's own motion included)."""
+    from ..integrators.camera import pinhole_intrinsics
+
     times = description["times_s"]
     width, height = description["resolution"]
-    K = intrinsics(width, height, description["fov_deg"])
+    K = pinhole_intrinsics(width, height, description["fov_deg"])
     camera, half = description["camera"], 0.5 * (times["end"] - times["start"])
     ends = []
     for sign in (-1.0, 1.0):
