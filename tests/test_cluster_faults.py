@@ -106,11 +106,10 @@ def run_cli(args, folder, timeout=120):
     return done, time.monotonic() - started
 
 
-def test_a_worker_without_dopplertof_is_named_with_its_address(tmp_path, procs):
-    """P1-14: `ModuleNotFoundError("No module named 'dopplertof'")`, as if the local
-    install were broken, and no worker named."""
-    python = python_without_dopplertof(str(tmp_path))
-    _, address = procs.scheduler()
+def _dataset_on_a_worker_without_dopplertof(tmp_path, procs, python, address):
+    """(the worker's address, the one stderr line, seconds) of a dataset run on the
+    scheduler at ``address`` with one worker started by ``python`` (no dopplertof): it
+    must end with exit 2, one line and no traceback."""
     procs.worker(address, python)
     (worker,) = wait_for_workers(address, 1)
     done, seconds = run_cli(["dataset", DATASET_TOML, "-o", str(tmp_path / "out"),
@@ -118,8 +117,18 @@ def test_a_worker_without_dopplertof_is_named_with_its_address(tmp_path, procs):
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
-    assert f"the Dask worker at {worker} cannot import dopplertof" in lines[0]
-    assert "No module named 'dopplertof'" in lines[0] and seconds < 60
+    return worker, lines[0], seconds
+
+
+def test_a_worker_without_dopplertof_is_named_with_its_address(tmp_path, procs):
+    """P1-14: `ModuleNotFoundError("No module named 'dopplertof'")`, as if the local
+    install were broken, and no worker named."""
+    python = python_without_dopplertof(str(tmp_path))
+    _, address = procs.scheduler()
+    worker, line, seconds = _dataset_on_a_worker_without_dopplertof(tmp_path, procs,
+                                                                    python, address)
+    assert f"the Dask worker at {worker} cannot import dopplertof" in line
+    assert "No module named 'dopplertof'" in line and seconds < 60
 
 
 def test_a_scheduler_without_workers_says_so(tmp_path, procs, monkeypatch):
@@ -149,15 +158,9 @@ def test_a_worker_that_failed_to_start_ends_the_run_within_seconds(tmp_path, pro
     with Client(address, timeout="20s") as c:
         c.register_plugin(WorkerStderrToFile(str(tmp_path / "first.log")),
                           name="dopplertof-worker-log")
-    procs.worker(address, python)
-    (worker,) = wait_for_workers(address, 1)
-    done, seconds = run_cli(["dataset", DATASET_TOML, "-o", str(tmp_path / "out"),
-                             "--scheduler", address], str(tmp_path))
-    assert done.returncode == 2, done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
-    assert f"the Dask worker at {worker} does not answer" in lines[0]
-    assert seconds < 60
+    worker, line, seconds = _dataset_on_a_worker_without_dopplertof(tmp_path, procs,
+                                                                    python, address)
+    assert f"the Dask worker at {worker} does not answer" in line and seconds < 60
 
 
 @pytest.mark.parametrize("restart", [False, True])
