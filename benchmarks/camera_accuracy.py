@@ -17,7 +17,9 @@ error (temporal mean minus truth, median) and the pixels reported, beside:
 
 ``--calibrate`` finds, by bisection, the illuminator power at which a 15% wall at a mode's
 far end gives 17 mm: the one unpublished constant of each Azure illuminator (NFOV from
-azure-kinect, WFOV from azure-kinect-wfov-binned); every other row is a prediction.
+azure-kinect, WFOV from azure-kinect-wfov-binned), and the other mode of each field of view
+at the same mean power over its capture (:func:`same_mean_power`: WFOV unbinned's 9 pulses
+spread over 20.2 ms, not 12.7 ms); every other row is a prediction.
 
 ``--starter`` instead captures every starter scene (examples/*.xml) through every preset at
 ``--res`` and 16 spp with sensor noise, and counts the reported pixels more than 0.5 m off
@@ -60,6 +62,23 @@ def blenderproc_sigma(distance: float) -> float:
 def distances(near: float, far: float) -> list:
     points = [near, 1.0, 2.0, 3.0, 4.0, 5.0]
     return sorted({d for d in points if near <= d < far} | {far})
+
+
+#: the other mode of each fitted field of view: (fitted preset, preset at its mean power)
+SAME_ILLUMINATOR = (("azure-kinect", "azure-kinect-nfov-binned"),
+                    ("azure-kinect-wfov-binned", "azure-kinect-wfov-unbinned"))
+
+
+def same_mean_power(power: float, fitted, other) -> float:
+    """The peak power (W) of ``other``'s pulses at the mean power over a capture that
+    ``power`` gives ``fitted`` (presets): power times the ratio of the captures' lengths."""
+    from dopplertof.cameras.capture import sequence_window
+
+    def capture_s(preset):
+        start, end = sequence_window(preset)
+        return end - start
+
+    return power * capture_s(other) / capture_s(fitted)
 
 
 def calibrate(name: str, far: float, seeds: int, spp: int) -> float:
@@ -129,6 +148,7 @@ def main(argv=None) -> None:
         return starter(args)
 
     import dopplertof
+    from dopplertof.cameras import load_preset
     from dopplertof.cameras.accuracy import wall_accuracy
 
     dopplertof.set_variant()
@@ -138,6 +158,9 @@ def main(argv=None) -> None:
             if name in args.presets.split(","):
                 power = calibrate(name, far, args.seeds, args.spp)
                 print(f"{name}: power_w = {power:.4g} (15% wall at {far} m: 17 mm)")
+                other = dict(SAME_ILLUMINATOR)[name]
+                derived = same_mean_power(power, load_preset(name), load_preset(other))
+                print(f"{other}: power_w = {derived:.4g} (the same mean power over its capture)")
         return
     print(f"flat diffuse wall, preset's ambient condition, {args.seeds} noise draws, "
           f"{args.spp} spp; random = temporal std, systematic = temporal mean - truth "

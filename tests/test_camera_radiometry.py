@@ -281,6 +281,23 @@ def test_azure_modes_run_the_specified_timing():
         np.testing.assert_allclose(np.diff(starts), 125e-6 + idle, rtol=1e-9)
 
 
+def test_each_azure_illuminator_keeps_its_mean_power_over_a_capture():
+    """The binned and unbinned modes of one field of view share an illuminator at one mean
+    power over the 9-pulse capture (issue 38, 2026-12-03): the peak power scales with the
+    capture's length, so refitting one mode without the other fails here."""
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.capture import sequence_window
+
+    def capture_s(preset):
+        start, end = sequence_window(preset)
+        return end - start
+
+    for binned, unbinned in (("azure-kinect-nfov-binned", "azure-kinect"),
+                             ("azure-kinect-wfov-binned", "azure-kinect-wfov-unbinned")):
+        a, b = load_preset(binned), load_preset(unbinned)
+        ratio = b.illuminator["power_w"] / a.illuminator["power_w"]
+        assert ratio == pytest.approx(capture_s(b) / capture_s(a), rel=0.005), (binned, ratio)
+
 @pytest.mark.parametrize("old, new, message", [
     ("power_w = 2.0", "power_w = -1.0", "illuminator.power_w out of range"),
     ("f_number = 1.5", "f_number = 0.0", "optics.f_number out of range"),
