@@ -399,3 +399,34 @@ def test_the_edge_filter_removes_the_pixels_beside_a_depth_step_only():
     assert not edge_filter(depth, 0.0).any()  # off
     assert load_preset("azure-kinect").reconstruction["edge_range_m"] == 0.8
     assert load_preset("kinect-v2").reconstruction["edge_range_m"] == 0.0
+
+
+# ---- Wrong depths by cause (benchmarks/camera_accuracy.py --starter) --------------------------
+
+def test_wrong_depths_of_a_light_off_the_camera_are_its_path_or_its_shadow():
+    """light_off_camera.xml's light is 1.5 m beside the camera: the depths more than 0.5 m
+    off are right for the path via the light or lie in the ball's shadow on the wall (lit
+    by longer indirect paths only), none unexplained; with the illuminator at the camera the
+    path's depth is the truth's range (issue 38, 2026-12-03)."""
+    import os
+
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.accuracy import path_depth, wall_scene_xml, wrong_depths
+    from dopplertof.cameras.capture import (capture_camera, load_scene_for_camera,
+                                            with_illuminator)
+    from dopplertof.scene import load_string
+
+    preset = load_preset("kinect-v2")
+    path = os.path.join(os.path.dirname(__file__), "..", "examples", "light_off_camera.xml")
+    scene = load_scene_for_camera(path, preset, (48, 48))
+    result = capture_camera(scene, preset, spp=16, seed=0, noise=True, progress=False)
+    counts = wrong_depths(result, scene, preset)
+    assert counts["wrong"] > 0 and counts["bistatic"] > 0 and counts["other"] == 0, counts
+
+    azure = load_preset("azure-kinect")
+    wall = load_string(with_illuminator(wall_scene_xml(2.0, 0.5, 10.0, 8, 16), azure), {},
+                       source="wall")
+    result = capture_camera(wall, azure, 16, 0, noise=False, progress=False)
+    depth, shadow = path_depth(result, wall)
+    np.testing.assert_allclose(depth, result.depth_gt, rtol=1e-5)
+    assert not shadow.any()

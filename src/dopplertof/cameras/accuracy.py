@@ -11,6 +11,9 @@ Over the centre half of the crop:
   definition, e.g. Microsoft's for the Azure Kinect), median over pixels;
 * systematic error: each pixel's temporal mean minus the truth, median over pixels;
 * valid: the fraction of (pixel, seed) depths the camera reports.
+
+:func:`wrong_depths` sorts a capture's depths more than 0.5 m off by cause (the starter
+scenes' check of ``benchmarks/camera_accuracy.py --starter``).
 """
 
 from __future__ import annotations
@@ -99,3 +102,60 @@ def wall_accuracy(camera, distance: float, albedo: float, ambient: float | None 
         float(np.median(std[usable])) if usable.any() else nan,
         float(np.median((mean - truth)[usable])) if usable.any() else nan,
         float(valid.mean()), float(np.sqrt(np.nanmedian(np.stack(predicted)))), seeds)
+
+
+def path_depth(result, scene) -> tuple:
+    """((H, W) the depth a co-located camera's phase gives for each pixel's true surface,
+    (H, W) bool where the scene's light does not see it): half the path light -> surface
+    -> camera, with the scene's brightest point light where it stands for the illuminator
+    (the truth's range, and no shadow, where the light is at the camera). The shadow is the
+    scene's with the moving bodies at their reference pose."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from ..tof.geometry import pixel_rays
+
+    pose = np.asarray(result.geometry["pose_camera_to_world"], np.float64)
+    lights = [(float(np.mean(np.asarray(v["intensity.value"]))), np.ravel(v["position"]))
+              for v in (mi.traverse(e) for e in scene.static.emitters()) if "position" in v]
+    none = np.zeros(result.depth_gt.shape, bool)
+    if not lights:
+        return result.depth_gt, none
+    light = np.asarray(max(lights, key=lambda x: x[0])[1], np.float64)
+    points = (result.depth_gt[..., None] * pixel_rays(result.geometry)) @ pose[:3, :3].T
+    points = points + pose[:3, 3]
+    to_point = points - light
+    reach = np.linalg.norm(to_point, axis=-1)
+    seen = np.isfinite(reach)
+    direction = to_point[seen] / reach[seen][:, None]
+    ray = mi.Ray3f(mi.Point3f(*[np.full(len(direction), c, np.float32) for c in light]),
+                   mi.Vector3f(*[np.ascontiguousarray(direction[:, k], np.float32)
+                                 for k in range(3)]))
+    ray.maxt = mi.Float(np.asarray(reach[seen] * (1 - 1e-3), np.float32))
+    shadow = none.copy()
+    blocked = scene.static.ray_test(ray)
+    for body in getattr(scene, "bodies", ()):  # at their reference pose
+        blocked = blocked | body.scene.ray_test(ray)
+    shadow[seen] = np.asarray(dr.detach(blocked), bool)
+    return 0.5 * (reach + result.depth_gt), shadow
+
+
+def wrong_depths(result, scene, preset) -> dict:
+    """The reported pixels more than 0.5 m off, by cause: ``aliased`` (a surface beyond the
+    preset's unambiguous range R reported a whole number of R nearer: every raw frame the
+    same as there), ``bistatic`` (the scene's light is off the camera: right for the path
+    via the light, or the surface in its shadow, lit only by longer indirect paths),
+    ``other``."""
+    from .unwrap import unambiguous_range
+
+    period = unambiguous_range([f * 1e6 for f in preset.frequencies_mhz])
+    error = result.depth - result.depth_gt
+    wrong = np.isfinite(error) & (np.abs(error) > 0.5)
+    expected, shadow = path_depth(result, scene)
+    offset = result.depth - expected
+    bistatic = wrong & ((np.abs(offset) <= 0.5) | shadow)
+    wraps = np.rint(-offset / period)
+    aliased = wrong & ~bistatic & (wraps >= 1) & (np.abs(offset + wraps * period) <= 0.5)
+    return {"valid": int(np.isfinite(error).sum()), "wrong": int(wrong.sum()),
+            "aliased": int(aliased.sum()), "bistatic": int(bistatic.sum()),
+            "other": int((wrong & ~aliased & ~bistatic).sum()), "range_m": period}
