@@ -27,9 +27,10 @@ import math
 import drjit as dr
 
 from .. import sampling
+from ..params import FMCW_BEAMS
 from ..scene.bodies import nearest_hit, occluded, surface_interaction
 
-BEAMS = ("flood", "collimated")
+BEAMS = FMCW_BEAMS
 
 
 class Beam:
