@@ -6,6 +6,7 @@ and its folder."""
 import json
 import math
 import os
+import re
 
 import numpy as np
 import pytest
@@ -188,6 +189,90 @@ def test_bad_chirp_options_exit_2_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+# ---- The chirp and the beam in the scene's XML (issue 43, 2026-12-03) ----
+
+XML_CHIRP = {"fmcw_wavelength": ("float", "1064"), "fmcw_bandwidth": ("float", "10"),
+             "fmcw_chirp_time": ("float", "5"), "fmcw_bins": ("integer", "512")}
+XML_CHIRP_SI = Chirp(wavelength=1064e-9, bandwidth=10e9, chirp_time=5e-6, bins=512)
+
+
+def _sphere_with(tmp_path, values: dict, name="chirp.xml") -> str:
+    """examples/translating_sphere.xml with ``values`` ({name: (tag, value)}) added to
+    its integrator, written to ``tmp_path``; the file's path."""
+    lines = "".join(f'<{tag} name="{key}" value="{value}"/>'
+                    for key, (tag, value) in values.items())
+    text = open(SPHERE).read().replace('<integrator type="dopplertof">',
+                                       '<integrator type="dopplertof">' + lines, 1)
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("beam", ["flood", "collimated"])
+def test_a_chirp_in_the_xml_gives_the_spectrum_of_the_same_chirp_in_python(tmp_path, beam):
+    """The scene's fmcw_* parameters (nm, GHz, us, bins, beam, W/sr) make the frame of
+    the same chirp and beam passed in Python (to float32 rounding: atomic adds), and an
+    argument given in Python overrides the scene's; the D-ToF renders ignore them."""
+    values = dict(XML_CHIRP, fmcw_beam=("string", beam),
+                  fmcw_beam_intensity=("float", "3"))
+    scene = dopplertof.load_file(_sphere_with(tmp_path, values), {"res": "8"})
+    plain = dopplertof.load_file(SPHERE, {"res": "8"})
+    from_xml = fmcw(scene, spp=4)
+    from_python = fmcw(plain, XML_CHIRP_SI, spp=4, beam=beam, beam_intensity=3.0)
+    assert from_xml.spectrum.shape == (8, 8, 2, 512) and from_xml.spectrum.any()
+    assert from_xml.spectrum == pytest.approx(from_python.spectrum, rel=1e-4, abs=1e-9)
+    assert from_xml.summary["chirp"] == from_python.summary["chirp"]
+    assert from_xml.summary["beam"] == from_python.summary["beam"]
+    override = fmcw(scene, Chirp(bins=64), spp=1, beam="flood")
+    assert override.spectrum.shape[-1] == 64 and override.summary["beam"]["kind"] == "flood"
+    # (the D-ToF renders' and checkpoints' keys: the image-defining parameters' repr)
+    assert scene.params.image_defining() == plain.params.image_defining()
+    assert "fmcw" not in repr(scene.params)
+
+
+def test_the_command_takes_its_options_over_the_xml_and_the_xml_over_the_defaults(
+        tmp_path, capsys):
+    """Each parameter on its own: --bins over -P fmcw_bins over the scene's fmcw_bins;
+    the scene's bandwidth where no option gives one; the default wavelength where
+    neither does."""
+    scene = _sphere_with(tmp_path, {"fmcw_bandwidth": ("float", "10"),
+                                    "fmcw_bins": ("integer", "512")})
+    common = ["--spp", "1", "-D", "res=4", "-P", "max_depth=2"]
+    for extra, bins in (([], 512), (["-P", "fmcw_bins=128"], 128),
+                        (["-P", "fmcw_bins=128", "--bins", "64"], 64)):
+        out = tmp_path / f"out{bins}"
+        assert main(["fmcw", scene, "-o", str(out), *common, *extra]) == 0
+        chirp = json.loads((out / "summary.json").read_text())["chirp"]
+        assert (chirp["bins"], chirp["bandwidth_GHz"], chirp["wavelength_nm"]) == (
+            bins, 10, 1550)
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("key,tag,value,message", [
+    ("fmcw_bandwidth", "float", "0", "fmcw_bandwidth must be > 0 GHz, got 0"),
+    ("fmcw_bandwidth", "float", "-2", "fmcw_bandwidth must be > 0 GHz, got -2"),
+    ("fmcw_chirp_time", "float", "0", "fmcw_chirp_time must be > 0 us, got 0"),
+    ("fmcw_bins", "integer", "1", "fmcw_bins must be >= 2, got 1"),
+    ("fmcw_bins", "float", "2.5", "parameter 'fmcw_bins' must be an integer"),
+    ("fmcw_wavelength", "float", "150", "fmcw_wavelength must be within 200 - 20000 nm"),
+    ("fmcw_wavelength", "float", "25000", "fmcw_wavelength must be within 200 - 20000 nm"),
+    ("fmcw_beam", "string", "laser", "unknown fmcw_beam 'laser': expected one of flood, "
+                                     "collimated"),
+    ("fmcw_beam_intensity", "float", "0", "fmcw_beam_intensity must be > 0 W/sr"),
+    ("fmcw_bandwith", "float", "4", "unknown parameter 'fmcw_bandwith', did you mean "
+                                    "'fmcw_bandwidth'?"),
+])
+def test_a_bad_xml_chirp_exits_2_in_one_line_naming_the_file_and_the_key(
+        tmp_path, capsys, key, tag, value, message):
+    scene = _sphere_with(tmp_path, {key: (tag, value)}, name="bad.xml")
+    code = main(["fmcw", scene, "-o", str(tmp_path / "out"), "--spp", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert message in err and key in err and f"{scene}:14:" in err, err
+    with pytest.raises(dopplertof.SceneError, match=re.escape(message)):
+        dopplertof.load_file(scene)
+
+
 @pytest.mark.parametrize("moving", ["camera", "light", "camera with its beam"])
 def test_a_moving_camera_or_light_shifts_the_beats_by_its_own_rate(moving):
     """A static plane 3 m ahead: the camera (its light on it, or a collimated beam from
@@ -211,11 +296,13 @@ def test_a_moving_camera_or_light_shifts_the_beats_by_its_own_rate(moving):
 
 
 def test_the_street_example_reads_the_car_and_the_pedestrian():
-    """examples/fmcw_street.xml with the chirp its header gives: the car's pixels read
-    its approach (about -10 m/s along the rays) and the walls stand still."""
+    """examples/fmcw_street.xml with the chirp its integrator carries (4 GHz over 10 us,
+    1024 bins): the car's pixels read its approach (about -10 m/s along the rays) and
+    the walls stand still."""
     scene = dopplertof.load_file(os.path.join(ROOT, "examples", "fmcw_street.xml"),
                                  {"res": "24", "spp": "8"})
-    result = fmcw(scene, Chirp(bandwidth=4e9, chirp_time=10e-6, bins=1024), spp=8)
+    result = fmcw(scene, spp=8)
+    assert result.summary["chirp"]["bandwidth_GHz"] == 4 and result.spectrum.shape[-1] == 1024
     truth = ground_truth(scene)
     car, walker = truth.body == 0, truth.body == 1
     assert car.sum() > 10 and walker.sum() > 3

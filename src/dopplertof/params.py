@@ -1,4 +1,5 @@
-"""Parameters of a D-ToF render: names, types, defaults and the derived quantities.
+"""Parameters of a D-ToF render (and of the FMCW lidar's, issue 43: FMCW_PARAMS): names,
+types, defaults and the derived quantities.
 
 Names and defaults follow the published implementation (design.md section 1). The same
 parser serves the XML ``<integrator>`` and ``<sampler>`` elements, Mitsuba's
@@ -110,6 +111,16 @@ class RenderParams:
     block_size: int = 0  #: no effect: the published scalar variants' tile size
     samples_per_pass: int = -1  #: samples per pixel per pass (-1: set by memory)
     timeout: float = -1.0  #: seconds; stop after the pass it expires in (< 0: none)
+    # ---- The FMCW lidar (issue 43: the ``fmcw`` command and dopplertof.fmcw only;
+    # docs/fmcw.md). Left out of the repr and at their defaults in image_defining(), so
+    # that the D-ToF renders' and checkpoints' keys (that repr's digests) ignore them ----
+    fmcw_wavelength: float = field(default=1550.0, repr=False)  #: lambda (nm)
+    fmcw_bandwidth: float = field(default=1.0, repr=False)  #: B, one chirp's sweep (GHz)
+    fmcw_chirp_time: float = field(default=10.0, repr=False)  #: T, one chirp (us)
+    fmcw_bins: int = field(default=256, repr=False)  #: M, spectrum bins of width 1/T
+    fmcw_beam: str = field(default="flood", repr=False)  #: "flood" or "collimated"
+    #: a collimated beam's radiant intensity in each pixel's cone (W/sr)
+    fmcw_beam_intensity: float = field(default=1.0, repr=False)
 
     # ---- Parsing ----
 
@@ -140,7 +151,8 @@ class RenderParams:
         topic), so that an input with several problems always reports the same one."""
         for check in (self._modulation_problem, self._time_sampling_problem,
                       self._path_problem, self._execution_problem, self._pairing_problem,
-                      self._film_problem, self._motion_mapping_problem):
+                      self._film_problem, self._motion_mapping_problem,
+                      self._fmcw_problem):
             problem = check()
             if problem:
                 raise ParameterError(f"{where}: {problem}")
@@ -260,6 +272,28 @@ class RenderParams:
                     f"path_correlate_number=2 (the pair), got {self.path_correlate_number}")
         return None
 
+    def _fmcw_problem(self) -> str | None:
+        """The FMCW lidar's chirp pair and beam, in the units of the ``fmcw`` command's
+        options (the same ranges as dopplertof.fmcw.Chirp's)."""
+        for name in FMCW_PARAMS:
+            v = getattr(self, name)
+            if name != "fmcw_beam" and not math.isfinite(v):
+                return f"{name} must be finite, got {v}"
+        lo, hi = FMCW_WAVELENGTH_RANGE_NM
+        if not lo <= self.fmcw_wavelength <= hi:
+            return (f"fmcw_wavelength must be within {lo:g} - {hi:g} nm (200 nm - 20 um), "
+                    f"got {self.fmcw_wavelength:g}")
+        for name, unit in (("fmcw_bandwidth", "GHz"), ("fmcw_chirp_time", "us"),
+                           ("fmcw_beam_intensity", "W/sr")):
+            if getattr(self, name) <= 0:
+                return f"{name} must be > 0 {unit}, got {getattr(self, name):g}"
+        if self.fmcw_bins < 2:
+            return f"fmcw_bins must be >= 2, got {self.fmcw_bins}"
+        if self.fmcw_beam not in FMCW_BEAMS:
+            return (f"unknown fmcw_beam {self.fmcw_beam!r}: expected one of "
+                    f"{', '.join(FMCW_BEAMS)}")
+        return None
+
     # ---- Derived quantities ----
 
     @property
@@ -269,9 +303,10 @@ class RenderParams:
 
     def image_defining(self) -> "RenderParams":
         """The parameters with the execution ones (which never change an image: pass
-        size, timeout, and those without effect) at their defaults."""
+        size, timeout, and those without effect) and the FMCW lidar's (which no D-ToF
+        image reads) at their defaults."""
         return replace(self, **{f.name: f.default for f in fields(self)
-                                if f.name in EXECUTION_PARAMS})
+                                if f.name in EXECUTION_PARAMS + FMCW_PARAMS})
 
     def resolved(self, shutter: float) -> "RenderParams":
         """The parameters with ``time_sampling_method="auto"`` replaced by its choice
@@ -334,6 +369,13 @@ class Modulation:
 
 #: parameters that decide how a render runs, never what it computes
 EXECUTION_PARAMS = ("is_doppler_integrator", "block_size", "samples_per_pass", "timeout")
+#: the FMCW lidar's parameters (issue 43; docs/fmcw.md): the D-ToF renders ignore them
+FMCW_PARAMS = ("fmcw_wavelength", "fmcw_bandwidth", "fmcw_chirp_time", "fmcw_bins",
+               "fmcw_beam", "fmcw_beam_intensity")
+#: the wavelengths an FMCW lidar may have (nm): ultraviolet to far infrared
+FMCW_WAVELENGTH_RANGE_NM = (200.0, 20000.0)
+#: the FMCW lidar's beams (dopplertof.fmcw.beam)
+FMCW_BEAMS = ("flood", "collimated")
 
 _TYPES = {
     "time": float, "w_g": float, "w_s": float, "g_0": float, "g_1": float,
@@ -346,6 +388,8 @@ _TYPES = {
     "pixel_sets": str,
     "path_correlate_number": int, "is_doppler_integrator": bool, "block_size": int,
     "samples_per_pass": int, "timeout": float,
+    "fmcw_wavelength": float, "fmcw_bandwidth": float, "fmcw_chirp_time": float,
+    "fmcw_bins": int, "fmcw_beam": str, "fmcw_beam_intensity": float,
 }
 assert set(_TYPES) == set(RenderParams.names())
 

@@ -27,9 +27,10 @@ import math
 import drjit as dr
 
 from .. import sampling
-from ..scene.bodies import nearest_hit, occluded, surface_interaction
+from ..params import FMCW_BEAMS
+from ..scene.bodies import nearest_hit, surface_interaction
 
-BEAMS = ("flood", "collimated")
+BEAMS = FMCW_BEAMS
 
 
 class Beam:
@@ -49,9 +50,6 @@ class Beam:
         self.mi = mi
         self.collimated = kind == "collimated"
         self.intensity = float(intensity)
-        #: what ``shade`` takes for its light samples' visibility: traced (None), or none
-        #: visible where the beam is the only light (no shadow rays to the scene's lights)
-        self.light_samples_visible = mi.Bool(False) if self.collimated else None
         if self.collimated:
             sensor = scene.sensor
             if not is_pinhole(sensor) or getattr(scene, "lens_distortion", None) is not None:
@@ -92,23 +90,37 @@ class Beam:
             self.intensity / dr.square(v.length_hit))
         return value, 2.0 * v.length_hit, 2.0 * rate_hit, active
 
-    def from_spot(self, static, frames, si, ray, v, beta, depth, max_depth, rate_hit, u_here,
-                  spot, ctx):
-        """The hit ``si``'s light from the lane's spot: (value, path length, rate,
-        active); none where the path would have more than ``max_depth`` segments (the
-        spot adds two)."""
+    def spot_light(self, spot, depth, max_depth, ctx):
+        """What ``shade`` takes for its light sample at a hit of depth ``depth`` (None
+        when the beam floods): a function ``(si, active) -> (ds, weight)`` giving the
+        lane's spot x_s as a point source of radiant intensity power f_r(x_s) |cos|
+        toward the hit, weight that over the squared distance; ds.pdf 0 (no shadow ray)
+        where the path would have more than ``max_depth`` segments (the spot adds two),
+        the footprint is empty or the hit is the spot. So ``shade``'s own shadow ray and
+        BSDF evaluation serve the connection, as they serve a light sample (neither
+        the scene's lights are sampled, nor a second BSDF evaluated at the hit)."""
+        if not self.collimated:
+            return None
         mi = self.mi
-        xs, u_spot, leg, leg_rate, power = spot
-        to_spot = xs.p - si.p
-        distance = dr.norm(to_spot)
-        w = to_spot / dr.maximum(distance, 1e-30)
-        bsdf = si.bsdf(ray)
-        active = (v.active_next & (depth + 2 < max_depth)
-                  & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-                  & (power > 0.0) & (distance > 0.0))
-        here = bsdf.eval(ctx, si, si.to_local(w), active)
-        there = xs.bsdf().eval(ctx, xs, xs.to_local(-w), active)
-        active &= ~occluded(mi, static, frames, si.spawn_ray_to(xs.p), active)
-        value = beta * here * there * (power / dr.square(distance))
-        rate = rate_hit + dr.dot(w, u_spot - u_here) + leg_rate
-        return value, v.length_hit + distance + leg, rate, active
+        xs, _, _, _, power = spot
+
+        def light(si, active):
+            to_spot = xs.p - si.p
+            distance = dr.norm(to_spot)
+            ds = dr.zeros(mi.DirectionSample3f)
+            ds.p, ds.n, ds.time, ds.dist = xs.p, xs.n, si.time, distance
+            ds.d = to_spot / dr.maximum(distance, 1e-30)
+            lit = active & (depth + 2 < max_depth) & (power > 0.0) & (distance > 0.0)
+            ds.pdf, ds.delta = dr.select(lit, 1.0, 0.0), mi.Bool(True)
+            there = xs.bsdf().eval(ctx, xs, xs.to_local(-ds.d), lit)
+            return ds, there * (power / dr.square(distance))
+
+        return light
+
+    def from_spot(self, v, spot, rate_hit, u_here):
+        """Vertex ``v``'s light from the lane's spot (its light sample, drawn by
+        :meth:`spot_light`; the hit moving at ``u_here``, reached at dL/dt
+        ``rate_hit``): (value, path length, rate, active)."""
+        _, u_spot, leg, leg_rate, _ = spot
+        rate = rate_hit + dr.dot(v.em_sample.d, u_spot - u_here) + leg_rate
+        return v.em_value, v.length_em + leg, rate, v.active_em

@@ -128,22 +128,28 @@ def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.n
 
 
 def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
-         params=None, returns: int = 1, beam: str = "flood", beam_intensity: float = 1.0,
-         speckle: bool = False) -> FMCWResult:
-    """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (default: 1550 nm,
-    1 GHz over 10 us, 256 bins) at ``spp`` samples per pixel (default: the scene's), with
-    the ``returns`` strongest returns of every pixel, lit by ``beam``: "flood" (the
-    scene's emitters) or "collimated" (each pixel's own beam of ``beam_intensity`` W/sr;
-    :mod:`.beam`); ``speckle`` adds the spectra of random path phases summed coherently
-    (:attr:`FMCWResult.speckle`)."""
+         params=None, returns: int = 1, beam: str | None = None,
+         beam_intensity: float | None = None, speckle: bool = False) -> FMCWResult:
+    """The FMCW frame of ``scene`` (a DopplerScene) for ``chirp`` (None: the scene's,
+    its integrator's fmcw_* parameters, by default 1550 nm, 1 GHz over 10 us, 256 bins)
+    at ``spp`` samples per pixel (default: the scene's), with the ``returns`` strongest
+    returns of every pixel, lit by ``beam`` (None: the scene's fmcw_beam, by default
+    "flood"): "flood" (the scene's emitters) or "collimated" (each pixel's own beam of
+    ``beam_intensity`` W/sr, None: the scene's fmcw_beam_intensity; :mod:`.beam`);
+    ``speckle`` adds the spectra of random path phases summed coherently
+    (:attr:`FMCWResult.speckle`). ``params`` (a mapping or RenderParams) override the
+    scene's integrator parameters, the fmcw_* ones included; an argument given here
+    overrides both."""
     from .trace import fmcw_params, render_spectra
 
-    chirp = Chirp() if chirp is None else chirp
-    if not isinstance(chirp, Chirp):
-        raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
     if isinstance(returns, bool) or not isinstance(returns, int) or returns < 1:
         raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     params = fmcw_params(scene, params)
+    chirp = Chirp.of_params(params) if chirp is None else chirp
+    if not isinstance(chirp, Chirp):
+        raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
+    beam = params.fmcw_beam if beam is None else beam
+    beam_intensity = params.fmcw_beam_intensity if beam_intensity is None else beam_intensity
     started = _time.perf_counter()
     spectrum, t0, speckled = render_spectra(scene, chirp, spp, seed, params, beam,
                                             beam_intensity, speckle)

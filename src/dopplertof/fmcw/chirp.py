@@ -17,7 +17,8 @@ range L / 2 (light at the camera); radial velocity (dL/dt) / 2 = lambda (f_up - 
 positive receding as in the rest of the project.
 
 No Mitsuba here: the command line checks its options with this module before the
-scene loads.
+scene loads. A scene carries its chirp as the integrator's fmcw_* parameters
+(:meth:`Chirp.of_params`; docs/fmcw.md section 4).
 """
 
 from __future__ import annotations
@@ -28,9 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..modulation import SPEED_OF_LIGHT
+from ..params import FMCW_WAVELENGTH_RANGE_NM
 
-#: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared
-WAVELENGTH_RANGE = (200e-9, 20e-6)
+#: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared (the
+#: scene's fmcw_wavelength's range, params.FMCW_WAVELENGTH_RANGE_NM)
+WAVELENGTH_RANGE = tuple(nm / 1e9 for nm in FMCW_WAVELENGTH_RANGE_NM)
 
 
 class FMCWError(ValueError):
@@ -69,6 +72,17 @@ class Chirp:
         if isinstance(self.bins, bool) or not isinstance(self.bins, int) or self.bins < 2:
             return f"bins M must be an integer >= 2, got {self.bins!r}"
         return None
+
+    @classmethod
+    def of_params(cls, params, **given) -> "Chirp":
+        """The chirp of ``params`` (RenderParams: the scene's fmcw_wavelength (nm),
+        fmcw_bandwidth (GHz), fmcw_chirp_time (us) and fmcw_bins, XML or defaults) with
+        the values of ``given`` (SI, as the fields; None: the params') over them."""
+        values = {"wavelength": params.fmcw_wavelength / 1e9,
+                  "bandwidth": params.fmcw_bandwidth * 1e9,
+                  "chirp_time": params.fmcw_chirp_time / 1e6, "bins": params.fmcw_bins}
+        values.update({k: v for k, v in given.items() if v is not None})
+        return cls(**values)
 
     @property
     def slope(self) -> float:

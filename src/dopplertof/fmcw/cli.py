@@ -15,28 +15,33 @@ from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
 def add_subcommand(sub) -> None:
     """``fmcw``: the up and down beat spectra of every pixel, range and velocity."""
     f = sub.add_parser("fmcw", help="an FMCW lidar frame: beat spectra of the up and down "
-                       "chirps per pixel, range and radial velocity, truth and errors")
+                       "chirps per pixel, range and radial velocity, truth and errors",
+                       description=PRECEDENCE)
     f.add_argument("scene", help="Mitsuba 3 XML scene (may contain <animation>)")
     f.add_argument("-o", "--output", required=True, metavar="DIR",
                    help=f"output folder ({FOLDER_HELP})")
     f.add_argument("--spp", type=int_at_least(1, "a positive integer"),
                    help="samples per pixel (default: the scene's sampler)")
     f.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    g = f.add_argument_group("the chirp pair")
-    g.add_argument("--wavelength", type=float, default=1550.0, metavar="NM",
-                   help="laser wavelength lambda, nm (default 1550; 200 nm - 20 um)")
-    g.add_argument("--bandwidth", type=float, default=1.0, metavar="GHZ",
-                   help="optical frequency sweep B of one chirp, GHz (default 1)")
-    g.add_argument("--chirp-time", type=float, default=10.0, metavar="US",
-                   help="duration T of one chirp, microseconds (default 10)")
-    g.add_argument("--bins", type=int, default=256, metavar="M",
-                   help="spectrum bins of width 1/T, M >= 2 (default 256)")
-    g.add_argument("--beam", choices=("flood", "collimated"), default="flood",
-                   help="flood: the scene's lights light everything (default); collimated: "
-                   "each pixel its own beam from the camera centre, no other light")
-    g.add_argument("--beam-intensity", type=_positive_float, default=1.0, metavar="W_SR",
-                   help="with --beam collimated: the beam's radiant intensity within each "
-                   "pixel's cone, W/sr (default 1)")
+    g = f.add_argument_group("the chirp pair and the beam (each: this option, else the "
+                             "scene's fmcw_* parameter, else the default)")
+    g.add_argument("--wavelength", type=float, metavar="NM",
+                   help="laser wavelength lambda, nm (fmcw_wavelength; default 1550; "
+                   "200 nm - 20 um)")
+    g.add_argument("--bandwidth", type=float, metavar="GHZ",
+                   help="optical frequency sweep B of one chirp, GHz (fmcw_bandwidth; "
+                   "default 1)")
+    g.add_argument("--chirp-time", type=float, metavar="US",
+                   help="duration T of one chirp, microseconds (fmcw_chirp_time; default 10)")
+    g.add_argument("--bins", type=int, metavar="M",
+                   help="spectrum bins of width 1/T, M >= 2 (fmcw_bins; default 256)")
+    g.add_argument("--beam", choices=("flood", "collimated"),
+                   help="flood: the scene's lights light everything; collimated: each pixel "
+                   "its own beam from the camera centre, no other light (fmcw_beam; "
+                   "default flood)")
+    g.add_argument("--beam-intensity", type=_positive_float, metavar="W_SR",
+                   help="with a collimated beam: its radiant intensity within each pixel's "
+                   "cone, W/sr (fmcw_beam_intensity; default 1)")
     f.add_argument("--speckle", action="store_true",
                    help="also speckle.npy: each path at a random phase, summed coherently "
                    "per bin (its expectation is spectrum.npy)")
@@ -63,18 +68,31 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def chirp_of(args):
-    """The chirp of the options (an FMCWError, one line, when one is out of range)."""
+#: where the chirp and the beam come from (the command's --help; docs/fmcw.md section 4)
+PRECEDENCE = ("The chirp pair and the beam, each parameter on its own: the option given "
+              "here (--wavelength, --bandwidth, --chirp-time, --bins, --beam, "
+              "--beam-intensity), else -P fmcw_...=VALUE, else the scene's <integrator> "
+              "parameter (fmcw_wavelength in nm, fmcw_bandwidth in GHz, fmcw_chirp_time in "
+              "us, fmcw_bins, fmcw_beam, fmcw_beam_intensity in W/sr), else the default.")
+
+
+def chirp_of(args, params=None):
+    """The chirp of the options over ``params``' (RenderParams: the scene's; None: the
+    defaults); an FMCWError, one line, when a value is out of range."""
+    from ..params import RenderParams
     from .chirp import Chirp
 
-    return Chirp(wavelength=args.wavelength * 1e-9, bandwidth=args.bandwidth * 1e9,
-                 chirp_time=args.chirp_time * 1e-6, bins=args.bins)
+    given = (args.wavelength, args.bandwidth, args.chirp_time)
+    wavelength, bandwidth, chirp_time = (None if v is None else convert(v) for v, convert in zip(
+        given, (lambda nm: nm / 1e9, lambda ghz: ghz * 1e9, lambda us: us / 1e6)))
+    return Chirp.of_params(params or RenderParams(), wavelength=wavelength,
+                           bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins)
 
 
 def run_fmcw(args) -> int:
     from ..params import RenderParams
 
-    chirp = chirp_of(args)  # (before anything loads)
+    chirp_of(args)  # (the options given, before anything loads)
     RenderParams.coerced(parse_pairs(args.params, "-P"), "fmcw parameters")
     if not os.path.isfile(args.scene):
         raise ValueError(f"scene file not found: {args.scene}")
@@ -82,14 +100,15 @@ def run_fmcw(args) -> int:
 
     from ..tof.output import prepare_folder
     from .capture import fmcw
+    from .trace import fmcw_params
 
     prepare_folder(args.output)
     dopplertof.set_variant(args.variant)
     scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
-    result = fmcw(scene, chirp, spp=args.spp, seed=args.seed,
-                  params=parse_pairs(args.params, "-P") or None, returns=args.returns,
-                  beam=args.beam, beam_intensity=args.beam_intensity,
-                  speckle=args.speckle)
+    params = fmcw_params(scene, parse_pairs(args.params, "-P") or None)
+    result = fmcw(scene, chirp_of(args, params), spp=args.spp, seed=args.seed,
+                  params=params, returns=args.returns, beam=args.beam,
+                  beam_intensity=args.beam_intensity, speckle=args.speckle)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
     return 0

@@ -203,7 +203,8 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
         v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
                   prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, mi.Float, bsdf_ctx, beam.light_samples_visible)
+                  hide_direct_emitters, mi.Float, bsdf_ctx,
+                  light=beam.spot_light(spot, depth, max_depth, bsdf_ctx))
 
         # ---- The contributions at their beats ----
         u_here = fields.at_surface(si.p, winner)
@@ -212,8 +213,7 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
         if dr.hint(beam.collimated, mode="scalar"):  # the direct return, the lane's spot
             for (value, beat_length, beat_rate, lit), phase in zip((
                     beam.direct(si, ray, v, beta, depth, rate_hit, bsdf_ctx),
-                    beam.from_spot(static, frames, si, ray, v, beta, depth, max_depth,
-                                   rate_hit, u_here, spot, bsdf_ctx)), phases):
+                    beam.from_spot(v, spot, rate_hit, u_here)), phases):
                 splat.add(pixel, _grey(mi, value, wavelengths), beat_length, beat_rate, lit,
                           phase)
         else:  # the emitter hit and the light sample

@@ -223,11 +223,13 @@ class Vertex:
 
 def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
           prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth, hide_direct_emitters, F,
-          bsdf_ctx, visible=None) -> Vertex:
+          bsdf_ctx, visible=None, light=None) -> Vertex:
     """One surface hit of a path (``si``, found for ``ray``) with the decisions'
     random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type;
     ``visible``: whether its light sample is unoccluded, where that is known (a Bool;
-    None: the shadow ray is traced)."""
+    None: the shadow ray is traced); ``light``: None (the scene's lights), or a
+    function ``(si, active) -> (ds, weight)`` drawing the light sample instead (the
+    FMCW collimated beam's spot, fmcw/beam.py)."""
     v = Vertex()
     u_em, u_lobe, u_dir, _ = numbers
     valid = active & si.is_valid()
@@ -252,7 +254,8 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
 
     # ---- Next-event estimation ----
     active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-    ds, em_weight = sample_light(mi, static, light_frames, si, u_em, active_em)
+    ds, em_weight = (sample_light(mi, static, light_frames, si, u_em, active_em)
+                     if light is None else light(si, active_em))
     active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
     if visible is None:
         active_em &= ~occluded(mi, static, frames, si.spawn_ray_to(ds.p), active_em)
