@@ -59,7 +59,7 @@ def test_the_capture_measures_the_exposure_weighted_velocity(profile):
 
 
 def torus_errors(axis: str) -> dict:
-    """Median |error| and mean error of the torus's pixels (32x32, 64 spp, direct light)
+    """Median |error| and mean error of the torus's pixels (64x64, 64 spp, direct light)
     against the mid-exposure truth and the pixel computed from its rays' histories."""
     import importlib.util
 
@@ -67,7 +67,7 @@ def torus_errors(axis: str) -> dict:
         "spinning_torus", os.path.join(ROOT, "benchmarks", "spinning_torus.py"))
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    row = bench.measure(0.02, 30.0, axis, res=32, spp=64, samples=24, footprint=2)
+    row = bench.measure(0.02, 30.0, axis, res=64, spp=64, samples=32, footprint=2)
     return row
 
 
@@ -77,8 +77,10 @@ def test_a_tumbling_torus_reads_the_brightness_curvature_bias():
     row = torus_errors("x")
     prediction = row["curvature_prediction_m_s"]
     assert prediction == pytest.approx(-3.42, abs=0.01)
-    # against the mid-exposure truth: the bias of a turning face (measured -3.60 at 64x64)
-    assert row["mid"]["mean"] == pytest.approx(prediction, rel=0.15)
+    # against the mid-exposure truth: the bias of a turning face (median |error| 3.419,
+    # mean -3.60 +- 0.59 over 231 pixels, 2026-12-03)
+    assert row["mid"]["median_abs"] == pytest.approx(-prediction, rel=0.1)
+    assert row["mid"]["mean"] < 0.5 * prediction
     # the pixel from its rays' histories, brightness included, leaves the noise only
     assert row["model_footprint"]["median_abs"] < 0.1 * row["mid"]["median_abs"]
     assert abs(row["model_footprint"]["mean"]) < 0.05 * abs(prediction)
