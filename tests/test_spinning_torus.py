@@ -95,3 +95,26 @@ def test_a_torus_spinning_about_its_axis_reads_its_facets_time_averaged():
     # the facets' pattern in the mid-exposure truth averages out over the exposure
     assert row["weighted"]["median_abs"] < 0.6 * row["mid"]["median_abs"]
     assert row["model_footprint"]["median_abs"] < 0.5 * row["mid"]["median_abs"]
+
+
+def test_the_committed_meshes_are_the_scripts_output(tmp_path):
+    """examples/meshes/ holds what examples/user_meshes.py writes (byte for byte): an OBJ of
+    quads with vertex normals, a binary little-endian PLY; both pass the mesh checks."""
+    import importlib.util
+
+    from dopplertof.scene.meshes import mesh_file_problem
+
+    spec = importlib.util.spec_from_file_location(
+        "user_meshes", os.path.join(ROOT, "examples", "user_meshes.py"))
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    for path in script.write_meshes(str(tmp_path)):
+        name = os.path.basename(path)
+        with open(path, "rb") as a, open(os.path.join(ROOT, "examples", "meshes", name), "rb") as b:
+            assert a.read() == b.read(), name
+        assert mesh_file_problem(path, name.rsplit(".", 1)[1]) is None
+    text = (tmp_path / "torus.obj").read_text()
+    assert text.count("\nf ") == 48 * 12 and all(
+        len(line.split()) == 5 for line in text.splitlines() if line.startswith("f "))
+    assert (tmp_path / "blob.ply").read_bytes().startswith(
+        b"ply\nformat binary_little_endian 1.0\n")
