@@ -496,3 +496,23 @@ def test_fit_warns_of_an_unfitted_rotation_naming_the_body(tmp_path, capsys):
             assert "angular velocity not fitted; truth (+0.000, +66.667, +0.000)" in printed.out
         else:
             assert not warnings and "warnings" not in saved
+
+
+def test_the_fit_loads_the_scene_with_the_captures_own_defines(tmp_path, capsys):
+    """issue 42, 2026-12-03: `capture -D ...` writes its -D values into summary.json
+    (scene_defines) and the fit loads the scene with them; before, a capture of
+    examples/user_meshes.xml with -D spin=0 was fitted against the scene's default spin
+    (its mid-exposure pose 17 degrees off, its 3-D truth 30 rad/s: +9.6% off)."""
+    from dopplertof.cli import main
+    from dopplertof.diff.fit_capture import load_capture
+
+    scene = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                         "examples", "translating_sphere.xml")
+    out = tmp_path / "cap"
+    assert main(["capture", scene, "-o", str(out), "-D", "res=8", "-D", "spp=4",
+                 "-D", "max_depth=3", "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scene_defines"] == {"res": "8", "spp": "4", "max_depth": "3"}
+    assert load_capture(str(out)).scene.params.max_depth == 3
+    # the fit's own -D values take precedence
+    assert load_capture(str(out), {"max_depth": "2"}).scene.params.max_depth == 2

@@ -338,6 +338,8 @@ def _cmd_capture(args) -> int:
                                 max_depth_std=args.max_depth_std,
                                 keep_mixed_pixels=args.keep_mixed_pixels,
                                 checkpoint=args.checkpoint)
+    if args.defines:  # dopplertof fit loads the scene again with them
+        result.summary["scene_defines"] = parse_pairs(args.defines, "-D")
     result.write(args.output, pointcloud=args.pointcloud)
     if args.checkpoint:  # the outputs are safe: the checkpoint has served (unless timed out)
         remove_checkpoint(args.checkpoint)

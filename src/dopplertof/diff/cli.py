@@ -33,7 +33,8 @@ def add_subcommand(sub) -> None:
     f.add_argument("--start", action="append", metavar="K=VX,VY,VZ",
                    help="start body K's linear velocity (m/s) here instead of the closed "
                    "form (repeatable)")
-    add_defines_option(f, "the capture's -D values for the scene (repeatable)")
+    add_defines_option(f, "-D values for the scene, over the capture's own (summary.json's "
+                          "scene_defines; repeatable)")
     add_variant_option(f, "Mitsuba variant with automatic differentiation (_ad_)")
     f.add_argument("--quiet", action="store_true", help="no progress bar")
     f.set_defaults(func=run)

@@ -46,7 +46,9 @@ def _declared_defaults(path: str) -> set:
 def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
     """The scene, parameters and captures of a capture folder. The scene is loaded with
     its resolution set to the captures' (through the <default> values it declares:
-    res, resx/resy, width/height) and ``defines`` (the capture's -D values)."""
+    res, resx/resy, width/height), the capture's -D values (summary.json's
+    ``scene_defines``, written by ``dopplertof capture``) and ``defines`` (-D values of
+    the fit, which take precedence)."""
     import dopplertof
     from ..params import RenderParams
 
@@ -74,6 +76,8 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
                         ("resy", height), ("height", height)):
         if name in declared and (name != "res" or width == height):
             overrides[name] = str(value)
+    # the capture's own -D values (summary.json's scene_defines, issue 42), then the fit's
+    overrides.update({str(k): str(v) for k, v in (summary.get("scene_defines") or {}).items()})
     overrides.update(defines or {})
     scene = dopplertof.load_file(scene_path, overrides)
     got = tuple(int(v) for v in scene.sensor.film().crop_size())

@@ -172,6 +172,45 @@ def _pixel_centres(mi, width: int, height: int, time: float, nudge=(0.0, 0.0)):
     return position, lane_times(mi, time, width * height)
 
 
+def trace_pixels(scene, time: float, params=None, nudge=(0.0, 0.0)) -> dict:
+    """The pixel-centre rays (moved by ``nudge`` pixels) of a static camera against the
+    scene posed at ``time``: (H, W) arrays ``body`` (index, -1 static, -2 nothing) and
+    ``depth`` (m from the camera centre, NaN: no hit), (H, W, 3) ``point``, ``normal``
+    (geometric), ``shading_normal`` and ``direction`` (unit). For the truth over the
+    exposure (:mod:`.exposure_truth`)."""
+    import drjit as dr
+
+    from ..backend import require_variant
+
+    mi = require_variant()
+    start, _, end = mid_exposure(scene, params)
+    width, height = (int(v) for v in scene.sensor.film().crop_size())
+    ray, si, body = _trace(mi, scene, *_pixel_centres(mi, width, height, time, nudge),
+                           start, end)
+    dr.eval(si.p, si.n, si.sh_frame.n, ray.d, body)
+    p = _as_numpy(si.p)
+    d = np.broadcast_to(_as_numpy(ray.d), p.shape).copy()
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    body = np.asarray(body, dtype=np.int64)
+    depth = np.where(body > -2, np.linalg.norm(p - camera_origin(scene), axis=-1), np.nan)
+    shape2, shape3 = (height, width), (height, width, 3)
+    return {"body": body.reshape(shape2), "depth": depth.reshape(shape2),
+            "point": p.reshape(shape3), "normal": _as_numpy(si.n).reshape(shape3),
+            "shading_normal": _as_numpy(si.sh_frame.n).reshape(shape3),
+            "direction": d.reshape(shape3)}
+
+
+def radial_velocity_at(scene, hit: dict, time: float, exposure: float) -> np.ndarray:
+    """(H, W) radial velocity (u . n) / (d . n) at ``time`` of the hits of
+    :func:`trace_pixels` (a static camera; NaN where the ray hits nothing)."""
+    shape2 = hit["body"].shape
+    flat = {k: v.reshape(-1, 3) if v.ndim == 3 else v.ravel() for k, v in hit.items()}
+    radial, _ = _relative_velocities(scene, None, flat["body"], flat["point"], flat["normal"],
+                                     flat["direction"], camera_origin(scene), flat["depth"],
+                                     time, exposure)
+    return radial.reshape(shape2)
+
+
 def surface_albedo(scene, params=None) -> np.ndarray:
     """(H, W) the diffuse reflectance (mean over channels) of the surface each pixel
     centre sees at mid-exposure, what ambient light reflects (cameras/radiometry.py); 0

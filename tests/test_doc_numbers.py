@@ -1,0 +1,41 @@
+"""tools/check_doc_numbers.py (issue 42, 2026-12-03): the docs' quoted figures it lists are
+still quoted in their docs, and it re-measures two cheap ones within 10% and flags a figure
+that drifted."""
+
+import importlib.util
+import os
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def tool():
+    spec = importlib.util.spec_from_file_location(
+        "check_doc_numbers", os.path.join(ROOT, "tools", "check_doc_numbers.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_registered_figure_is_quoted_in_its_doc():
+    for name, doc, text, quoted, command, _, _ in tool().REGISTRY:
+        with open(os.path.join(ROOT, doc), encoding="utf-8") as f:
+            assert " ".join(text.split()) in " ".join(f.read().split()), (name, doc, text)
+        # the command is the doc's own (its scene, options), with {out} for the folder
+        assert "{out}" in command
+
+
+def test_two_cheap_figures_re_measure_and_a_drift_is_flagged():
+    import dopplertof
+
+    dopplertof.set_variant()
+    check = tool()
+    chosen = [e for e in check.REGISTRY if e[0] in ("sphere-ball-median", "tumble-torus-median")]
+    name, doc, text, quoted, command, read, cheap = chosen[0]
+    drifted = (name + "-doubled", doc, text, 2 * quoted, command, read, cheap)
+    rows = {row[0]: row for row in check.check(chosen + [drifted])}
+    assert rows["sphere-ball-median"][5] == "ok"
+    assert rows["tumble-torus-median"][5] == "ok"
+    assert rows["sphere-ball-median-doubled"][5] == "DRIFT"
+    assert rows["sphere-ball-median-doubled"][4] == pytest.approx(0.5, abs=0.05)
