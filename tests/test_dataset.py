@@ -360,7 +360,12 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
                          "motion.angular_speed: 5000 rad/s turns more than"),
                         # issue 39, D34: a MemoryError after 50 s of planning
                         ({**TINY, "samples": 10**12},
-                         "samples = 1000000000000 plans 1000000000000 shards")):
+                         "samples = 1000000000000 plans 1000000000000 shards"),
+                        # issue 39, 2026-12-03 rerun of D09: every sample failed in the
+                        # workers with Dr.Jit's jit_var_counter() error
+                        ({**TINY, "render": {"resolution": [100000, 100000], "spp": 4}},
+                         "render.resolution = [100000, 100000] at render.spp = 4: a render "
+                         "pass holds 4e+10 samples")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()

@@ -245,6 +245,7 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+    _check_size(values["render"], source)
     _check_time(values["render"], len(preset.frames), source)
 
 
@@ -273,6 +274,24 @@ def describe_sample(render: dict, frames: int) -> str:
     return (f"{RENDERS_PER_FRAME * frames} renders of {width}x{height} pixels at "
             f"{render['spp']} spp, roughly {budget.duration(sample_seconds(render, frames))} "
             f"on {os.cpu_count() or 1} core(s)")
+
+
+def _check_size(render: dict, source: str) -> None:
+    """A render's pass holds min(spp, 8192) samples of every pixel in one Dr.Jit array
+    (budget.py): past 2^32 entries no machine renders it (issue 39, 2026-12-03: a
+    resolution of [100000, 100000] failed every sample in the workers with Dr.Jit's
+    ``jit_var_counter(): tried to create an array with 10000000000 entries``)."""
+    from .. import budget
+
+    width, height = render["resolution"]
+    spp = render["spp"]
+    lanes = budget.estimate(width, height, 1, spp, min(spp, 8192), 1).largest_array
+    if lanes > budget.MAX_LANES:
+        raise DatasetError(
+            f"{source}: render.resolution = [{width}, {height}] at render.spp = {spp}: a "
+            f"render pass holds {lanes:.3g} samples (min(spp, 8192) of each of "
+            f"{width * height:.3g} pixels), more than Dr.Jit's {budget.MAX_LANES + 1:.3g} "
+            "entries per array: lower render.resolution")
 
 
 def _check_time(render: dict, frames: int, source: str) -> None:
