@@ -470,6 +470,26 @@ def test_meshes_are_drawn_copied_into_the_dataset_and_seen(tmp_path, in_process_
                             "<test>", str(tmp_path))
 
 
+@pytest.mark.parametrize("name, content, words", [
+    ("cut.obj", "v 0 0 0\nv 1 0 0\nv 0 1\n",
+     "cut.obj: line 3: a vertex with 2 of 3 coordinates (is the file cut off?)"),
+    ("n.obj", "v 0 0 0\nv nan -1 0\nv 0 1 0\nf 1 2 3\n", "n.obj: line 2: non-finite vertex"),
+    ("junk.obj", "v 0 0 0\0\x01\x02", "junk.obj: binary data (a NUL byte at offset 7)"),
+])
+def test_a_broken_mesh_in_the_mesh_folder_is_named_at_load(tmp_path, name, content, words):
+    """The 2026-12-03 rerun of campaign D28bad and D28nan (issue 39): a cut-off .obj was
+    refused with NumPy's "setting an array element with a sequence ... inhomogeneous
+    shape", a NaN vertex as a mesh that "spans nan x 2 x 0" and must be rescaled; the
+    mesh check of scenes (scene/meshes.py) names the line and the problem now."""
+    (tmp_path / "shapes").mkdir()
+    (tmp_path / "shapes" / name).write_bytes(content.encode("latin-1"))
+    data = copy.deepcopy(TINY)
+    data["objects"].update(shapes=["mesh"], mesh_folder="shapes")
+    with pytest.raises(DatasetError, match="objects.mesh_folder") as caught:
+        config_from_mapping(data, "<test>", str(tmp_path))
+    assert words in str(caught.value) and len(str(caught.value).splitlines()) == 1
+
+
 @pytest.mark.parametrize("placement,offset", [("camera", [0.0, 0.0, 0.0]),
                                               ("offset", [0.4, -0.1, 0.2])])
 def test_the_light_rides_with_the_camera_at_its_offset(placement, offset):

@@ -312,9 +312,15 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
     first that does not, its extent and what objects.size makes of it)."""
     import numpy as np
 
-    from ..scene.meshes import mesh_file_bounds
+    from ..scene.meshes import mesh_file_bounds, mesh_file_problem
 
     for path in mesh_files(folder):
+        # what is wrong with the file first (a cut-off .obj read as NumPy's "inhomogeneous
+        # shape", a NaN vertex as a mesh to rescale: issue 39, 2026-12-03 rerun of D28)
+        plugin = "obj" if path.lower().endswith(".obj") else "ply"
+        problem = mesh_file_problem(path, plugin)
+        if problem:
+            raise DatasetError(f"{source}: objects.mesh_folder: mesh file {path}: {problem}")
         try:
             bounds = mesh_file_bounds(path)
         except (OSError, ValueError) as e:
