@@ -3,7 +3,8 @@
 A campaign is a TSV file, one case a line: id, surface, what was done, expected, observed,
 verdict. A row counts as cited when its id appears in a line of docs/reliability.md that
 names the campaign ("2026-12-03 campaign S01-S09, S12"), alone or inside a range (S01-S09,
-"P1-19 to P1-21"). The rows listed are those whose verdict is neither ``ok`` nor ``clear
+"P1-19 to P1-21"), or opens a table row under a heading naming the campaign and its date
+("## Campaign rerun (issue 39, 2026-12-03)"). The rows listed are those whose verdict is neither ``ok`` nor ``clear
 error`` and whose id no such line cites; ``--all`` lists every row that is not ok, cited or
 not, with the docs line's first words.
 
@@ -38,8 +39,13 @@ def _split(case_id: str):
 def cited_ids(doc_text: str, ids: list, campaign: str) -> dict:
     """{id: the docs line citing it} for the ids of ``ids`` that a line naming
     ``campaign`` (its date) cites, ranges expanded over ``ids``."""
-    known, out = set(ids), {}
+    known, out, rerun = set(ids), {}, False
     for line in doc_text.splitlines():
+        if line.startswith("#"):  # a rerun's section: its table's rows cite their ids
+            rerun = campaign in line and "campaign" in line.lower()
+        first = line.split("|")[1].strip() if rerun and line.startswith("|") else ""
+        if first in known:
+            out.setdefault(first, line)
         if f"{campaign} campaign" not in line:
             continue
         for first, last in _CITE.findall(line):
