@@ -578,6 +578,9 @@ def _three_phase(steps):
     (None, "fov_deg = 20.0", "fov_deg = 179.999", "optics.fov_deg out of range"),  # P22
     (None, "max_range_m = ", "max_range_m = 1e-9 #", "reconstruction.max_range_m out of range"),  # P23
     (None, "integration_s = 0.0005", "integration_s = 1e-15", "integration_s out of range"),  # P39
+    # P28: a half beat was reported as "16 MHz has 2 distinct phase step(s)", not named
+    ((0.0, 120.0, 240.0), "phase_deg = 0.0\n", "phase_deg = 0.0\nhetero_frequency = 0.5\n",
+     "frames[0].hetero_frequency must be an integer number of beat periods, got 0.5"),
 ])
 def test_campaign_presets_that_passed_are_refused_naming_the_key(tmp_path, frames, old, new,
                                                                  message):

@@ -360,7 +360,12 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
                          "motion.angular_speed: 5000 rad/s turns more than"),
                         # issue 39, D34: a MemoryError after 50 s of planning
                         ({**TINY, "samples": 10**12},
-                         "samples = 1000000000000 plans 1000000000000 shards")):
+                         "samples = 1000000000000 plans 1000000000000 shards"),
+                        # issue 39, 2026-12-03 rerun of D09: every sample failed in the
+                        # workers with Dr.Jit's jit_var_counter() error
+                        ({**TINY, "render": {"resolution": [100000, 100000], "spp": 4}},
+                         "render.resolution = [100000, 100000] at render.spp = 4: a render "
+                         "pass holds 4e+10 samples")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()
@@ -463,6 +468,26 @@ def test_meshes_are_drawn_copied_into_the_dataset_and_seen(tmp_path, in_process_
     with pytest.raises(DatasetError, match="holds no"):
         config_from_mapping({**data, "objects": {**data["objects"], "mesh_folder": "."}},
                             "<test>", str(tmp_path))
+
+
+@pytest.mark.parametrize("name, content, words", [
+    ("cut.obj", "v 0 0 0\nv 1 0 0\nv 0 1\n",
+     "cut.obj: line 3: a vertex with 2 of 3 coordinates (is the file cut off?)"),
+    ("n.obj", "v 0 0 0\nv nan -1 0\nv 0 1 0\nf 1 2 3\n", "n.obj: line 2: non-finite vertex"),
+    ("junk.obj", "v 0 0 0\0\x01\x02", "junk.obj: binary data (a NUL byte at offset 7)"),
+])
+def test_a_broken_mesh_in_the_mesh_folder_is_named_at_load(tmp_path, name, content, words):
+    """The 2026-12-03 rerun of campaign D28bad and D28nan (issue 39): a cut-off .obj was
+    refused with NumPy's "setting an array element with a sequence ... inhomogeneous
+    shape", a NaN vertex as a mesh that "spans nan x 2 x 0" and must be rescaled; the
+    mesh check of scenes (scene/meshes.py) names the line and the problem now."""
+    (tmp_path / "shapes").mkdir()
+    (tmp_path / "shapes" / name).write_bytes(content.encode("latin-1"))
+    data = copy.deepcopy(TINY)
+    data["objects"].update(shapes=["mesh"], mesh_folder="shapes")
+    with pytest.raises(DatasetError, match="objects.mesh_folder") as caught:
+        config_from_mapping(data, "<test>", str(tmp_path))
+    assert words in str(caught.value) and len(str(caught.value).splitlines()) == 1
 
 
 @pytest.mark.parametrize("placement,offset", [("camera", [0.0, 0.0, 0.0]),

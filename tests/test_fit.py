@@ -353,6 +353,52 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     assert problem.renders == done + 1
 
 
+class _RoundingColumnProblem(_LinearProblem):
+    """The third parameter's column is rounding, the same in both seeds' Jacobians (the
+    tall box's vertical velocity in issue 39's 2026-12-03 campaign F00: an energy of
+    4e-24 beside 5e-7, diag(G) 3e-24: its signal passed the test of :func:`_metric`)."""
+
+    def __init__(self, start):
+        super().__init__(start)
+        rounding = 1e-12 * np.random.default_rng(5).normal(size=40)
+        self.column_noise = [rounding, rounding]
+
+
+def test_a_column_of_rounding_is_not_seen_and_its_parameter_not_a_result():
+    """F00: ``fit`` reported the tall box's vertical velocity as -19.87 +- 1.17e9 m/s;
+    a column of rounding is not seen, its parameter kept at its start, no uncertainty."""
+    from dopplertof.diff.fit_solve import KEPT, _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_solve import _statuses
+
+    problem = _RoundingColumnProblem([0.5, -1.0, 3.0])
+    silent = _fit_progress(False, 50)
+    theta, state, *_ = _gauss_newton(problem, 1, 50, 1e-9, 0.01, silent, 0.0)
+    assert not problem.seen[2] and theta[2] == 3.0
+    _, sigma = _covariance(state, problem.seen, theta)
+    assert np.isinf(sigma[2])
+    assert _statuses(theta, [0.5, -1.0, 3.0], sigma)[2] == KEPT
+    assert np.allclose(theta[:2], problem.truth[:2], atol=1e-3) and np.isfinite(sigma[:2]).all()
+
+
+def test_an_absurd_uncertainty_is_no_result():
+    """A parameter the captures barely see (a column 2e-6 of the others') gets an
+    uncertainty far beyond every velocity of the fit: not determined (infinite, null in
+    fit.json), its covariance with the others dropped, not printed as a result."""
+    from dopplertof.diff.fit_solve import UNDETERMINED, _covariance
+
+    rng = np.random.default_rng(7)
+    J = rng.normal(size=(40, 3))
+    J[:, 2] *= 2e-6
+    noise = [0.1 * rng.normal(size=40) for _ in range(2)]
+    state = (tuple(noise), (J, J))
+    theta = np.array([1.0, -2.0, 0.0])
+    loose = _covariance(state, np.ones(3, bool))[1]
+    assert loose[2] > UNDETERMINED * np.linalg.norm(theta)  # what it would report
+    cov, sigma = _covariance(state, np.ones(3, bool), theta)
+    assert np.isinf(sigma[2]) and np.isfinite(sigma[:2]).all()
+    assert not cov[2].any() and not cov[:, 2].any()
+
+
 class _NoisyCaptureProblem(_LinearProblem):
     """A linear problem whose capture has its own noise (shared by both seeds' residuals)
     and whose two renders have independent noise of twice its variance (a 128-spp fit

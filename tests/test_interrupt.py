@@ -185,3 +185,48 @@ def test_ctrl_c_while_the_local_cluster_starts_stops_the_run(tmp_path, monkeypat
     assert (code, capsys.readouterr().err) == (130, "dopplertof: interrupted\n")
     assert started and started[0].status.name == "closed"
     assert not list(out.glob("shard_*")) and not list(out.glob(".*.tmp*"))
+
+
+# ---- A kill while the local Dask cluster's workers spawn (issue 39) ---------------------
+
+#: a driver killed right after it started a worker process, before it wrote the worker's
+#: preparation data into the pipe the worker reads (the instant of the 2026-12-03 campaign
+#: G16: SIGKILL at 0.6 s of `dataset`)
+_KILLED_WHILE_SPAWNING = """
+import os, signal, sys
+from multiprocessing import util
+real = util.spawnv_passfds
+def spawn_then_die(path, args, passfds):
+    pid = real(path, args, passfds)
+    if any(b"spawn_main" in os.fsencode(a) for a in args):  # (a worker, not the tracker)
+        os.kill(os.getpid(), signal.SIGKILL)
+    return pid
+util.spawnv_passfds = spawn_then_die
+from dopplertof.cli import main
+sys.exit(main(["dataset", sys.argv[1], "-o", sys.argv[2], "--workers", "1", "--quiet"]))
+"""
+
+
+def test_a_driver_killed_while_its_workers_spawn_leaves_nothing_on_the_terminal(tmp_path):
+    """G16: the half-spawned worker read an empty pipe and printed multiprocessing's
+    `EOFError: Ran out of input` traceback on the user's terminal after the driver died.
+    The local cluster's processes start with their stderr on the run's logs/workers.log."""
+    import subprocess
+    import sys
+    import time
+
+    config = tmp_path / "ds.toml"
+    config.write_text('samples = 2\nsamples_per_shard = 1\nseed = 1\n[render]\n'
+                      'resolution = [8, 8]\nspp = 4\nmax_depth = 3\n')
+    out, terminal = tmp_path / "out", tmp_path / "terminal.txt"
+    with open(terminal, "wb") as err:
+        done = subprocess.run([sys.executable, "-c", _KILLED_WHILE_SPAWNING, str(config),
+                               str(out)], stderr=err, stdout=subprocess.DEVNULL, timeout=300)
+    assert done.returncode == -signal.SIGKILL
+    log = out / "logs" / "workers.log"
+    deadline = time.monotonic() + 30  # the orphaned worker's traceback, once it is written
+    while "EOFError" not in (log.read_text() if log.exists() else "") + terminal.read_text():
+        assert time.monotonic() < deadline, "the orphaned worker said nothing in 30 s"
+        time.sleep(0.2)
+    time.sleep(0.5)
+    assert terminal.read_text() == "" and "Ran out of input" in log.read_text()

@@ -359,6 +359,12 @@ def _check_sequence(preset: CameraPreset) -> None:
     """What the reconstruction needs of the frames: three phase steps per frequency,
     integer beat counts, unwrapping only with two frequencies or more."""
     path = preset.source_file
+    # the beat counts first: a half beat makes its frame heterodyne and takes it from its
+    # frequency's phase steps (issue 39, 2026-12-03 campaign P28)
+    for i, fr in enumerate(preset.frames):
+        if abs(fr.hetero_frequency - round(fr.hetero_frequency)) > 1e-9:
+            raise PresetError(f"{path}: frames[{i}].hetero_frequency must be an integer "
+                              f"number of beat periods, got {fr.hetero_frequency:g}")
     for f in preset.frequencies_mhz:
         steps = {round(fr.phase_deg % 360.0, 9) for fr in preset.frames
                  if fr.homodyne and fr.frequency_mhz == f}
@@ -373,10 +379,6 @@ def _check_sequence(preset: CameraPreset) -> None:
                               "spread them over the period, e.g. 0, 120, 240)")
     if not preset.frequencies_mhz:
         raise PresetError(f"{path}: frames: no homodyne frame (hetero_frequency = 0)")
-    for i, fr in enumerate(preset.frames):
-        if abs(fr.hetero_frequency - round(fr.hetero_frequency)) > 1e-9:
-            raise PresetError(f"{path}: frames[{i}].hetero_frequency must be an integer "
-                              f"number of beat periods, got {fr.hetero_frequency:g}")
     _check_heterodyne(preset)
     n = len(preset.frequencies_mhz)
     scheme = preset.reconstruction["unwrapping"]

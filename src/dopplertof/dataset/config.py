@@ -245,6 +245,7 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+    _check_size(values["render"], source)
     _check_time(values["render"], len(preset.frames), source)
 
 
@@ -275,6 +276,24 @@ def describe_sample(render: dict, frames: int) -> str:
             f"on {os.cpu_count() or 1} core(s)")
 
 
+def _check_size(render: dict, source: str) -> None:
+    """A render's pass holds min(spp, 8192) samples of every pixel in one Dr.Jit array
+    (budget.py): past 2^32 entries no machine renders it (issue 39, 2026-12-03: a
+    resolution of [100000, 100000] failed every sample in the workers with Dr.Jit's
+    ``jit_var_counter(): tried to create an array with 10000000000 entries``)."""
+    from .. import budget
+
+    width, height = render["resolution"]
+    spp = render["spp"]
+    lanes = budget.estimate(width, height, 1, spp, min(spp, 8192), 1).largest_array
+    if lanes > budget.MAX_LANES:
+        raise DatasetError(
+            f"{source}: render.resolution = [{width}, {height}] at render.spp = {spp}: a "
+            f"render pass holds {lanes:.3g} samples (min(spp, 8192) of each of "
+            f"{width * height:.3g} pixels), more than Dr.Jit's {budget.MAX_LANES + 1:.3g} "
+            "entries per array: lower render.resolution")
+
+
 def _check_time(render: dict, frames: int, source: str) -> None:
     if sample_seconds(render, frames) > MAX_SAMPLE_SECONDS:
         raise DatasetError(
@@ -293,9 +312,15 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
     first that does not, its extent and what objects.size makes of it)."""
     import numpy as np
 
-    from ..scene.meshes import mesh_file_bounds
+    from ..scene.meshes import mesh_file_bounds, mesh_file_problem
 
     for path in mesh_files(folder):
+        # what is wrong with the file first (a cut-off .obj read as NumPy's "inhomogeneous
+        # shape", a NaN vertex as a mesh to rescale: issue 39, 2026-12-03 rerun of D28)
+        plugin = "obj" if path.lower().endswith(".obj") else "ply"
+        problem = mesh_file_problem(path, plugin)
+        if problem:
+            raise DatasetError(f"{source}: objects.mesh_folder: mesh file {path}: {problem}")
         try:
             bounds = mesh_file_bounds(path)
         except (OSError, ValueError) as e:

@@ -38,7 +38,9 @@ The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^
 squared residual of the two final renders' mean over its degrees of freedom (the capture's
 noise and the part of the renders' noise that reaches the fitted velocities); a radial velocity's follows from it through its
 derivative. A parameter the captures do not see keeps its start; its uncertainty is
-infinite (null in fit.json).
+infinite (null in fit.json), as is one whose uncertainty passes
+:data:`~.fit_solve.UNDETERMINED` times the parameters' norm: the captures do not
+determine it.
 """
 
 from __future__ import annotations
@@ -108,7 +110,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
-    cov, sigma = _covariance(state, problem.seen)
+    cov, sigma = _covariance(state, problem.seen, theta)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths)
     warnings = [] if angular else problem.rotation_warnings(state, bodies)
     settings = {

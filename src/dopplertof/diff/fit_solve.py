@@ -428,13 +428,20 @@ def _residual_variance(residuals, parameters: int, explained: float = 0.0) -> fl
     return max(energy - explained, 1e-3 * energy) / max(len(r_a) - parameters, 1)
 
 
-def _covariance(state, seen):
+#: a standard deviation above this many times the fitted parameters' norm (at least 1)
+#: is no result: the captures do not determine the parameter (issue 39, 2026-12-03
+#: campaign F00: a velocity of -19.87 +- 1.17e9 m/s was reported)
+UNDETERMINED = 1e3
+
+
+def _covariance(state, seen, theta=None):
     """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the squared
     residual of the two final renders' mean over its degrees of freedom (the capture's
     noise and half of one render's, as in the fitted velocities, whose steps average the
     two seeds' residuals; positive, as the cross loss need not be), over the parameters
     ``seen`` (that the final Jacobian sees too); and the standard deviations (inf for a
-    parameter not seen: unconstrained)."""
+    parameter not seen: unconstrained; with ``theta``, the fitted values, also for one
+    whose deviation passes :data:`UNDETERMINED` times their norm, its covariances 0)."""
     residuals, jacobians = state
     G, seen_now = _metric(jacobians)
     seen = seen & seen_now
@@ -447,6 +454,11 @@ def _covariance(state, seen):
         cov[np.ix_(seen, seen)] = (s2 * _truncated_inverse(Gs, RCOND ** 2)
                                    / np.outer(scale, scale))
     sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
+    if theta is not None:
+        absurd = sigma > UNDETERMINED * max(float(np.linalg.norm(theta)), 1.0)
+        cov[absurd, :] = 0.0
+        cov[:, absurd] = 0.0
+        sigma[absurd] = np.inf
     return cov, sigma
 
 
@@ -470,7 +482,9 @@ def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
                        "^+: the pseudo-inverse over the directions the captures constrain "
                        "(singular values >= %g of the largest, columns scaled); null: a "
                        "parameter the captures do not see (kept at its start, "
-                       "unconstrained: its uncertainty is infinite)" % RCOND,
+                       "unconstrained: its uncertainty is infinite), or whose uncertainty "
+                       "passes %g times the parameters' norm (not determined)"
+                       % (RCOND, UNDETERMINED),
     }
 
 
@@ -500,6 +514,13 @@ def _blocks(masks, block: int) -> np.ndarray:
     return np.unique(used, return_inverse=True)[1]
 
 
+#: a Jacobian column whose energy is below this fraction of the largest column's is
+#: rounding, not signal (issue 39, 2026-12-03 campaign F00: the tall box's vertical
+#: velocity, 4e-24 beside 5e-7, the same in both seeds' renders, passed the signal test;
+#: the fit moved it and reported -19.87 +- 1.17e9 m/s)
+NEGLIGIBLE_COLUMN = 1e-12
+
+
 def _metric(jacobians, snr=0.5):
     """The Gauss-Newton metric from two Jacobians of independent noise: G = (J_A^T J_B +
     J_B^T J_A) / 2, whose expectation is J^T J of the expected Jacobian (J_A^T J_A would
@@ -508,12 +529,14 @@ def _metric(jacobians, snr=0.5):
     its energy (the mean of J_A^T J_A and J_B^T J_B) at the Jacobian's own samples (a
     column of noise only passes as rarely at any sample count: at 512 spp a test scaled
     to the residuals' samples let the tall box's unseen vertical velocity through, and
-    its radial velocity 1.3% off)."""
+    its radial velocity 1.3% off), and whose energy is more than rounding: above
+    :data:`NEGLIGIBLE_COLUMN` of the largest column's."""
     J_a, J_b = jacobians
     G = 0.5 * (J_a.T @ J_b + J_b.T @ J_a)
     energy = 0.5 * (np.sum(J_a * J_a, 0) + np.sum(J_b * J_b, 0))
     d = np.diag(G)
-    seen = (d > 0) & (d >= snr * energy) & (energy > 0)
+    floor = NEGLIGIBLE_COLUMN * (energy.max() if energy.size else 0.0)
+    seen = (d > 0) & (d >= snr * energy) & (energy > floor)
     return G, seen
 
 

@@ -82,7 +82,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         raise ClusterError(f"--workers must be >= 1, got {n}")
     threads = max(MIN_DRJIT_THREADS, (os.cpu_count() or 1) // n)
     _start_resource_tracker_quietly()
-    with _workers_ignore_ctrl_c() as held:
+    with _workers_ignore_ctrl_c() as held, _spawned_stderr_to(log_file):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     if held:  # Ctrl-C while the cluster started: stop it, then act on the Ctrl-C
@@ -193,6 +193,31 @@ def _start_resource_tracker_quietly() -> None:
         os.dup2(saved, 2)
         os.close(saved)
         os.close(devnull)
+
+
+@contextlib.contextmanager
+def _spawned_stderr_to(log_file: str | None):
+    """The processes started while the block runs (the local cluster's workers) have
+    ``log_file`` (appended) as their stderr, and so has this process meanwhile. A worker
+    whose driver was killed before it wrote the worker's start-up data into its pipe
+    printed multiprocessing's `EOFError: Ran out of input` traceback on the user's
+    terminal after the driver died (issue 39, 2026-12-03 campaign G16); it goes to the
+    run's log now. The worker plugin sends a worker's stderr there once it runs."""
+    if log_file is None:
+        yield
+        return
+    os.makedirs(os.path.dirname(log_file) or ".", exist_ok=True)
+    log = os.open(log_file, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    saved = os.dup(2)
+    try:
+        sys.stderr.flush()
+        os.dup2(log, 2)
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(log)
 
 
 @contextlib.contextmanager
