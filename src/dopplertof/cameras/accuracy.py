@@ -113,6 +113,7 @@ def path_depth(result, scene) -> tuple:
     import drjit as dr
     import mitsuba as mi
 
+    from ..scene import bodies
     from ..tof.geometry import pixel_rays
 
     pose = np.asarray(result.geometry["pose_camera_to_world"], np.float64)
@@ -133,9 +134,10 @@ def path_depth(result, scene) -> tuple:
                                  for k in range(3)]))
     ray.maxt = mi.Float(np.asarray(reach[seen] * (1 - 1e-3), np.float32))
     shadow = none.copy()
-    blocked = scene.static.ray_test(ray)
+    queries, active = bodies.QUERIES, mi.Bool(True)
+    blocked = queries.blocked(scene.static, ray, active)
     for body in getattr(scene, "bodies", ()):  # at their reference pose
-        blocked = blocked | body.scene.ray_test(ray)
+        blocked = blocked | queries.blocked(body.scene, ray, active)
     shadow[seen] = np.asarray(dr.detach(blocked), bool)
     return 0.5 * (reach + result.depth_gt), shadow
 
