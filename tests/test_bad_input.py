@@ -382,3 +382,16 @@ def test_a_config_or_preset_that_is_not_utf8_names_the_file(tmp_path, capsys, co
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
     assert f"{path}: not a UTF-8 text file" in err and not out.exists()
+
+
+def test_a_toml_file_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    """issue 39, 2026-12-03 campaign D57: a configuration saved with a byte-order mark (as
+    Windows editors write) failed as 'malformed TOML: Invalid statement (at line 1,
+    column 1)'."""
+    from dopplertof.io import read_toml
+
+    text = 'samples = 3\n[render]\nspp = 4\nname = "wall"\n'
+    (tmp_path / "plain.toml").write_text(text, encoding="utf-8")
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert read_toml(tmp_path / "bom.toml") == read_toml(tmp_path / "plain.toml") == {
+        "samples": 3, "render": {"spp": 4, "name": "wall"}}

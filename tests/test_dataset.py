@@ -314,6 +314,23 @@ def test_a_wrong_variant_does_not_claim_the_folder(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_cuda_variant_without_a_gpu_is_refused_before_the_folder(tmp_path, capsys):
+    """issue 39, O09: `--variant cuda_ad_rgb` on a machine without a GPU claimed the
+    folder and failed every shard (exit 1)."""
+    import mitsuba
+
+    from dopplertof.backend import _has_cuda
+    from dopplertof.cli import main
+
+    if "cuda_ad_rgb" not in mitsuba.variants() or _has_cuda():
+        pytest.skip("needs a Mitsuba with cuda_ad_rgb on a machine without a CUDA device")
+    config = _write_toml(tmp_path / "tiny.toml", TINY)
+    code = main(["dataset", config, "-o", str(tmp_path / "out"), "--variant", "cuda_ad_rgb"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "no CUDA device" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_failing_sample_is_retried_then_listed(tmp_path, monkeypatch, in_process_client):
     """Sample 1 raises every time: tried 1 + retries times, its shard written without it,
     dataset.json and the reader list it; the others are there. A rerun tries it again."""
@@ -365,7 +382,10 @@ def test_bad_configs_are_one_line_with_the_key(tmp_path, capsys):
                         # workers with Dr.Jit's jit_var_counter() error
                         ({**TINY, "render": {"resolution": [100000, 100000], "spp": 4}},
                          "render.resolution = [100000, 100000] at render.spp = 4: a render "
-                         "pass holds 4e+10 samples")):
+                         "pass holds 4e+10 samples"),
+                        # issue 39, D14: every sample failed in the workers, exit 1
+                        ({**TINY, "render": {"resolution": [8, 8], "spp": 3, "max_depth": 4}},
+                         "render.spp = 3 is not a multiple of the correlated group size 2")):
         code = main(["dataset", _write_toml(tmp_path / "bad.toml", data), "-o",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err.strip()

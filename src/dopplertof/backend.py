@@ -145,9 +145,9 @@ def _set_mitsuba_variant(variant: str) -> str:
 
     if variant not in mi.variants():
         raise BackendError(f"variant {variant!r} is not in this Mitsuba build: {mi.variants()}")
-    if variant.startswith("cuda_") and not _has_cuda():
-        raise BackendError(f"variant {variant!r}: no CUDA device or driver was found on this "
-                           f"machine; the variants that work here: {working_variants(mi)}")
+    problem = cuda_problem(mi, variant)
+    if problem:
+        raise BackendError(problem)
     try:
         mi.set_variant(variant)
     except Exception as exc:
@@ -185,6 +185,15 @@ def interrupts_deferred():
         previous(signal.SIGINT, held[0])  # the default handler raises KeyboardInterrupt
     elif held and previous == signal.SIG_DFL:
         signal.raise_signal(signal.SIGINT)
+
+
+def cuda_problem(mi, variant: str) -> str | None:
+    """Why a CUDA ``variant`` cannot run on this machine (None: it is no CUDA variant, or
+    a CUDA device and driver are there)."""
+    if variant.startswith("cuda_") and not _has_cuda():
+        return (f"variant {variant!r}: no CUDA device or driver was found on this machine; "
+                f"the variants that work here: {working_variants(mi)}")
+    return None
 
 
 def _has_cuda() -> bool:

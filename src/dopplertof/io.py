@@ -774,7 +774,10 @@ def read_toml(path, error=ValueError) -> dict:
     path = os.fspath(path)
     try:
         with open(path, "rb") as f:
-            return tomllib.load(f)
+            data = f.read()
+        # a UTF-8 byte-order mark (Windows editors write one) is no TOML statement: read
+        # past it (issue 39, D57: "Invalid statement (at line 1, column 1)")
+        return tomllib.loads(data.removeprefix(b"\xef\xbb\xbf").decode("utf-8"))
     except tomllib.TOMLDecodeError as e:
         raise error(f"{path}: malformed TOML: {e}") from None
     except UnicodeDecodeError as e:  # (issue 39: the file was not named)

@@ -295,6 +295,13 @@ def _check_size(render: dict, source: str) -> None:
 
 
 def _check_time(render: dict, frames: int, source: str) -> None:
+    from ..params import RenderParams
+
+    group = RenderParams().time_correlate_number  # the dataset's scenes use the integrator's default
+    if render["spp"] % group:  # (issue 39, D14: every sample failed in the workers)
+        raise DatasetError(
+            f"{source}: render.spp = {render['spp']} is not a multiple of the correlated "
+            f"group size {group} (time_correlate_number): use {group * -(-render['spp'] // group)}")
     if sample_seconds(render, frames) > MAX_SAMPLE_SECONDS:
         raise DatasetError(
             f"{source}: render.spp = {render['spp']}: each sample takes "

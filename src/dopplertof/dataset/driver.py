@@ -134,15 +134,18 @@ def plan_shards(config: DatasetConfig, output: str, variant: str,
 def check_variant(variant: str) -> None:
     """Refuse a Mitsuba variant the workers cannot render in, before dataset.json names
     it (a typo claimed the folder: the corrected rerun was refused as "another
-    configuration", issue 39, O04)."""
+    configuration", issue 39, O04), or that this machine cannot run (a CUDA variant
+    without a GPU, O09)."""
     import mitsuba
 
-    from ..backend import variant_problem
+    from ..backend import cuda_problem, variant_problem
 
     problem = variant_problem(variant)
     if problem is None and variant not in mitsuba.variants():
         problem = (f"unknown variant {variant!r}: this Mitsuba has "
                    f"{', '.join(v for v in mitsuba.variants() if variant_problem(v) is None)}")
+    if problem is None:  # (issue 39, O09: a CUDA variant without a GPU failed every shard)
+        problem = cuda_problem(mitsuba, variant)
     if problem:
         raise DatasetError(f"--variant: {problem}")
 
