@@ -58,6 +58,7 @@ from .fit_output import FitResult, format_fit, write_fit
 from .fit_solve import (PLATEAU, _covariance, _fit_progress, _FitProblem, _gauss_newton,
                         _method_notes)
 from .motion import VelocityMotion
+from .symmetry import symmetry_notes
 from .settings import FIT_SPP, JACOBIAN_SHARE
 
 __all__ = ["FIT_CAPTURES", "REFLECTANCE_CAPTURES", "FIT_SPP", "FitError", "FitResult",
@@ -75,10 +76,9 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
     the capture's + 1, independent of its noise); ``block``: the residuals are sums over
-    blocks of block x block interior pixels of one body (the module docstring says
-    why); the iterations stop at a step
-    below ``tolerance`` of the velocities, or on a plateau: a step that lowers the loss
-    by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
+    blocks of block x block interior pixels of one body (the module docstring says why);
+    the iterations stop at a step below ``tolerance`` of the velocities, or on a
+    plateau: a step that lowers the loss by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
     Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
     (True; None: when stderr is a terminal), else (None) one line per iteration on
     stderr, or nothing (False). ``reflectances``: fit :func:`reflectance_keys` too, on
@@ -112,7 +112,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
     cov, sigma = _covariance(state, problem.seen, theta)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths)
-    warnings = [] if angular else problem.rotation_warnings(state, bodies)
+    warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
+                + ([] if angular else problem.rotation_warnings(state, bodies)))
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(problem.fitted),
         "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed,

@@ -63,8 +63,10 @@ def _truth_line(body: dict, kind: str, unit: str, shown: str) -> list:
         return []
     errors = [f"{e:+.3f}" + ("" if z is None else f" ({z:+.1f} sd)") for e, z in zip(
         body[f"{kind}_velocity_error_{key}"], body[f"{kind}_velocity_error_sigmas"])]
+    left_out = body.get(f"{kind}_velocity_error_sigmas_leave_out")
     return [f"    {shown}truth ({', '.join(f'{t:+.3f}' for t in truth)}) {unit}, "
-            f"error ({', '.join(errors)}) {unit}"]
+            f"error ({', '.join(errors)}) {unit}"
+            + (f" (sd of the error without {left_out})" if left_out else "")]
 
 
 def _error(value: float, truth) -> str:
