@@ -66,3 +66,21 @@ def test_the_spin_along_a_symmetry_axis_is_left_out_of_the_errors_and_warned():
     _errors_across(entry, [axis])
     np.testing.assert_allclose(entry["angular_velocity_error_sigmas"], [2.0, 0.0, 0.0],
                                atol=1e-9)
+
+
+def test_the_fit_notes_name_the_torus_axis_and_only_with_angular_warn():
+    from dopplertof.diff.motion import VelocityMotion
+    from dopplertof.diff.symmetry import symmetry_notes
+    from dopplertof.scene import load_file
+
+    scene = load_file(os.path.join(ROOT, "examples", "user_meshes.xml"), {"res": "16"})
+    motions = [VelocityMotion.from_motion(b.motion, 0.0, 1e-3, t_ref=0.0)
+               for b in scene.bodies]
+    for angular, warned in ((False, 0), (True, 1)):
+        entries = [{"name": b.names[0], "angular_velocity_rad_s": [0.0, 1.0, 0.0]}
+                   for b in scene.bodies]
+        warnings = symmetry_notes(scene, motions, 0.0, entries, angular)
+        assert len(warnings) == warned and all("torus" in w for w in warnings), warnings
+        torus = next(e for e in entries if e["name"] == "torus")
+        assert len(torus["symmetry_axes"]) == 1
+        assert ("angular_velocity_along_symmetry_axes_rad_s" in torus) == angular
