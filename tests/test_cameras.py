@@ -155,7 +155,8 @@ def _compared(name, error, velocity):
 
     depth_gt = np.full(error.shape, 3.0)
     summary = {"errors": {"depth_m": {"median": 0.01}}, "mixed_footprints": 2,
-               "noise": {"saturated_pixels": 0}}
+               "noise": {"saturated_pixels": 0},
+               "depth": {"masked_pixels": {"unwrapping failed": 3, "saturated": 0}}}
     return SimpleNamespace(preset=SimpleNamespace(name=name), depth=depth_gt + error,
                            depth_gt=depth_gt, velocity_gt=np.ones(error.shape),
                            reconstruction=SimpleNamespace(amplitude=np.ones(error.shape),
@@ -185,6 +186,9 @@ def test_the_comparison_hatches_masked_pixels_and_writes_its_numbers(tmp_path):
     assert written == numbers and [c["camera"] for c in written["cameras"]] == ["a", "b"]
     assert [c["masked_pixels"] for c in written["cameras"]] == [96, 0]
     assert written["cameras"][0]["errors"] == {"depth_m": {"median": 0.01}}
+    # each mask's count (issue 42, 2026-12-03: tools/check_doc_numbers.py reads the unwrap
+    # failures of docs/cameras.md's table there)
+    assert written["cameras"][1]["masked_by"] == {"unwrapping failed": 3, "saturated": 0}
 
 
 # ---- Unwrapping over N frequencies --------------------------------------------------------

@@ -2,10 +2,13 @@
 
 Each entry of REGISTRY is one quoted figure: the doc that quotes it, the text around it
 (checked to be still in the doc: a doc that changed its figure changes the registry),
-the quoted value, the command beside it in the doc (a `dopplertof` command line, run
-in-process in a scratch folder), and how the measured value is read from the command's
-summary.json. Entries sharing a command run it once. Prints quoted, measured and drift per
-figure and exits 1 when any drift is over the tolerance (or a quote is gone from its doc).
+the quoted value, the command beside it in the doc, and how the measured value is read
+from the command's result. A command is either a `dopplertof` command line (run in-process
+in a scratch folder; its result the summary.json it wrote in ``{out}``, or ``{out}.json``
+beside a figure ``{out}.png``) or a :class:`Call`, a Python function that the script the
+doc names runs (its result the function's return value). Entries sharing a command run it
+once. Prints quoted, measured and drift per figure and exits 1 when any drift is over the
+tolerance (or a quote is gone from its doc).
 
     PYTHONPATH=src .venv/bin/python tools/check_doc_numbers.py              # the cheap ones
     PYTHONPATH=src .venv/bin/python tools/check_doc_numbers.py --all        # the demo too
@@ -18,11 +21,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import io
 import json
 import os
 import sys
 import tempfile
+from typing import NamedTuple
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TOLERANCE = 0.10
@@ -32,6 +37,44 @@ SPHERE_MIXED = "capture examples/translating_sphere.xml -o {out} --keep-mixed-pi
 TUMBLE = ("capture examples/user_meshes.xml -D res=64 -D max_depth=2 -D spin_x=1 "
           "-D spin_y=0 -o {out}")
 DEMO = "demo -o {out}"
+STREET = "fmcw examples/fmcw_street.xml -o {out} -D res=96"
+COMPARE = ("cameras --compare examples/cameras_moving.xml --with kinect-v2,azure-kinect,"
+           "opt8241,mlx75027,pmd-argos3d-p320,paper-dtof --res 64x48 --spp 16 -o {out}.png")
+COMPARE_NOISELESS = COMPARE + " --noiseless"
+
+
+class Call(NamedTuple):
+    """A Python function the command ``named`` in the doc beside the figure runs:
+    ``function`` ("module:name") called with ``args`` and ``kwargs`` ((key, value) pairs)."""
+    function: str
+    args: tuple = ()
+    kwargs: tuple = ()
+    named: str = ""
+
+    def __str__(self):
+        arguments = [repr(a) for a in self.args] + [f"{k}={v!r}" for k, v in self.kwargs]
+        return f"{self.function}({', '.join(arguments)}) ({self.named})"
+
+
+def wall(preset: str, distance: float, albedo: float) -> Call:
+    """benchmarks/camera_accuracy.py's measure of one wall (issue 38)."""
+    return Call("dopplertof.cameras.accuracy:wall_accuracy", (preset, distance, albedo),
+                (("seeds", 32),), "benchmarks/camera_accuracy.py")
+
+
+def at(*keys, scale: float = 1.0):
+    """Reads the result's value at ``keys``: a str a mapping's key or an attribute, a
+    (field, value) pair the element of a list whose field has that value; times ``scale``."""
+    def read(result):
+        for key in keys:
+            if isinstance(key, tuple):
+                result = next(e for e in result if e[key[0]] == key[1])
+            elif isinstance(result, dict):
+                result = result[key]
+            else:
+                result = getattr(result, key)
+        return result * scale
+    return read
 
 
 def body(name: str, key: str):
@@ -76,7 +119,116 @@ REGISTRY = [
      body("tall_box", "p95_abs"), False),
     ("demo-static-p95", "README.md", "95th-percentile error of 18.7 m/s", 18.7, DEMO,
      static("p95_abs"), False),
+    # docs/fmcw.md section 5: the street example at 96x96 (issue 43)
+    ("street-car-velocity", "docs/fmcw.md", "the car reads -9.79 m/s", -9.79, STREET,
+     at("regions", ("name", "car"), "velocity_gt_median_m_s"), True),
+    ("street-car-median", "docs/fmcw.md", "median error of 0.00017 m/s", 0.00017, STREET,
+     at("regions", ("name", "car"), "velocity_m_s", "median_abs"), True),
+    ("street-car-p95", "docs/fmcw.md", "percentile 1.2 m/s: its silhouette", 1.2, STREET,
+     at("regions", ("name", "car"), "velocity_m_s", "p95_abs"), True),
+    ("street-pedestrian-velocity", "docs/fmcw.md", "(-0.26 m/s median)", -0.26, STREET,
+     at("regions", ("name", "pedestrian"), "velocity_gt_median_m_s"), True),
+    ("street-pedestrian-median", "docs/fmcw.md", "median) within 0.0002 m/s", 0.0002,
+     STREET, at("regions", ("name", "pedestrian"), "velocity_m_s", "median_abs"), True),
+    ("street-range-median", "docs/fmcw.md", "range within 5.7 cm", 5.7, STREET,
+     at("errors", "range_m", "median_abs", scale=100), True),
+    ("street-range-p95", "docs/fmcw.md", "but 4.2 m at the 95th percentile", 4.2, STREET,
+     at("errors", "range_m", "p95_abs"), True),
 ]
+
+
+def wiggling_entries() -> list:
+    """docs/cameras.md's noise-free wiggling errors (``cameras NAME --wiggling FIG.png``)."""
+    quoted = (("kinect-v2", "kinect-v2 4.6 mm / 6e-5 mm", 4.6),
+              ("azure-kinect", "azure-kinect\n2.6 mm", 2.6),
+              ("opt8241", "opt8241 31 mm", 31), ("mlx75027", "mlx75027 18 mm", 18),
+              ("pmd-argos3d-p320", "pmd-argos3d-p320 85 mm", 85))
+    entries = [(f"wiggling-{name}", "docs/cameras.md", text, value,
+                f"cameras {name} --wiggling {{out}}.png",
+                at("max_abs_error_uncalibrated_m", scale=1e3), True)
+               for name, text, value in quoted]
+    return entries + [("wiggling-kinect-v2-calibrated", "docs/cameras.md", quoted[0][1], 6e-5,
+                       "cameras kinect-v2 --wiggling {out}.png",
+                       at("max_abs_error_reported_m", scale=1e3), True)]
+
+
+#: docs/cameras.md's compare table (noiseless) and the noisy medians after it: (camera, its
+#: row, median mm, 95th percentile mm, pixels failing to unwrap)
+COMPARED = (
+    ("kinect-v2", "| kinect-v2 | 13 ms | 0.47 mm | 1.38 mm | 549 px |", 0.47, 1.38, 549),
+    ("azure-kinect", "| azure-kinect | 12.8 ms | 0.56 mm | 1.88 mm | 461 px |", 0.56, 1.88, 461),
+    ("opt8241", "| opt8241 | 8.7 ms | 0.75 mm | 5.1 mm | 17 px |", 0.75, 5.1, 17),
+    ("mlx75027", "| mlx75027 | 1.95 ms | 0.57 mm | 1.6 mm | 59 px |", 0.57, 1.6, 59),
+    ("pmd-argos3d-p320", "| pmd-argos3d-p320 | 4.3 ms | 1.98 mm | 5.5 mm | 0 |", 1.98, 5.5, 0),
+    ("paper-dtof", "| paper-dtof | 1.5 ms (parallel) | 0.45 mm | 1.49 mm | 0;", 0.45, 1.49, 0))
+NOISY = (("mlx75027", "3.8 mm (mlx75027)", 3.8), ("azure-kinect", "azure-kinect 8.0 mm", 8.0),
+         ("pmd-argos3d-p320", "to 29 mm (pmd-argos3d-p320", 29))
+
+
+def compare_entries() -> list:
+    """docs/cameras.md's one moving scene through every camera (``cameras --compare``)."""
+    entries = []
+    for camera, row, median, p95, failed in COMPARED:
+        depth = ("cameras", ("camera", camera), "errors", "depth_m")
+        entries += [
+            (f"compare-{camera}-median", "docs/cameras.md", row, median, COMPARE_NOISELESS,
+             at(*depth, "median_abs", scale=1e3), True),
+            (f"compare-{camera}-p95", "docs/cameras.md", row, p95, COMPARE_NOISELESS,
+             at(*depth, "p95_abs", scale=1e3), True),
+            (f"compare-{camera}-unwrap", "docs/cameras.md", row, failed, COMPARE_NOISELESS,
+             at("cameras", ("camera", camera), "masked_by", "unwrapping failed"), True)]
+    velocity = ("cameras", ("camera", "paper-dtof"), "errors", "velocity_m_s")
+    entries.append(("compare-paper-dtof-velocity-p95", "docs/cameras.md",
+                    "velocity median 0, 95th percentile 2.4 m/s", 2.4, COMPARE_NOISELESS,
+                    at(*velocity, "p95_abs"), True))
+    entries += [(f"compare-noisy-{camera}-median", "docs/cameras.md", text, value, COMPARE,
+                 at("cameras", ("camera", camera), "errors", "depth_m", "median_abs",
+                    scale=1e3), True) for camera, text, value in NOISY]
+    return entries + [("compare-noisy-paper-dtof-velocity", "docs/cameras.md",
+                       "(70 m/s median", 70, COMPARE, at(*velocity, "median_abs"), True)]
+
+
+#: the far end of each Azure mode in the calibration table (issue 38): (preset, far end m,
+#: docs/cameras.md's row, its random error mm and reported %, docs/benchmarks.md's row, its
+#: random error at albedo 0.15, 0.5, 0.95 mm, systematic at 0.15 mm and reported at 0.15 %)
+CALIBRATION = (
+    ("azure-kinect", 3.86, "| azure-kinect | 3.86 m | 17.8 mm (fitted) | 17 mm | 3.9 mm | 99.2% |",
+     17.8, 99.2, "**3.86 m** (far end) | **17.82** (fitted) | 8.22 | 5.69 | 17 | 3.86 | 0.50 | "
+     "< 14.9 | 99.2% |", (17.82, 8.22, 5.69), 0.50, 99.2),
+    ("azure-kinect-nfov-binned", 5.46, "| azure-kinect-nfov-binned | 5.46 m | 12.4 mm "
+     "(predicted) | 17 mm | 5.5 mm | 100% |", 12.4, 100, "**5.46 m** (far end) | **12.38** "
+     "(predicted: -27%) | 6.42 | 4.57 | 17 | 5.46 | 0.43 | < 16.5 | 100% |",
+     (12.38, 6.42, 4.57), 0.43, 100),
+    ("azure-kinect-wfov-binned", 2.88, "| azure-kinect-wfov-binned | 2.88 m | 17.6 mm (fitted) "
+     "| 17 mm | 2.9 mm | 99.5% |", 17.6, 99.5, "**2.88 m** (far end) | **17.63** (fitted) | "
+     "8.59 | 6.21 | 17 | 2.88 | 0.23 | < 13.9 | 99.5% |", (17.63, 8.59, 6.21), 0.23, 99.5),
+    ("azure-kinect-wfov-unbinned", 2.21, "| azure-kinect-wfov-unbinned | 2.21 m | 20.0 mm "
+     "(predicted: +18%) | 17 mm | 2.2 mm | 98.4% |", 20.0, 98.4, "**2.21 m** (far end) | "
+     "**19.99** (predicted: +18%) | 10.06 | 7.00 | 17 | 2.21 | 0.58 | < 13.2 | 98.4% |",
+     (19.99, 10.06, 7.00), 0.58, 98.4))
+
+
+def calibration_entries() -> list:
+    """docs/cameras.md's and docs/benchmarks.md's far-end rows of the calibration table."""
+    random, reported = at("random_m", scale=1e3), at("valid", scale=100)
+    entries = []
+    for preset, far, row, random_mm, percent, bench, randoms, systematic, bench_percent \
+            in CALIBRATION:
+        entries += [(f"{preset}-random", "docs/cameras.md", row, random_mm,
+                     wall(preset, far, 0.15), random, True),
+                    (f"{preset}-reported", "docs/cameras.md", row, percent,
+                     wall(preset, far, 0.15), reported, True)]
+        entries += [(f"{preset}-random-{albedo:g}", "docs/benchmarks.md", bench, value,
+                     wall(preset, far, albedo), random, True)
+                    for albedo, value in zip((0.15, 0.5, 0.95), randoms)]
+        entries += [(f"{preset}-systematic", "docs/benchmarks.md", bench, systematic,
+                     wall(preset, far, 0.15), at("systematic_m", scale=1e3), True),
+                    (f"{preset}-reported-0.15", "docs/benchmarks.md", bench, bench_percent,
+                     wall(preset, far, 0.15), reported, True)]
+    return entries
+
+
+REGISTRY += wiggling_entries() + compare_entries() + calibration_entries()
 
 #: quoted figures not re-measured here, and why
 NOT_REMEASURED = [
@@ -94,14 +246,45 @@ NOT_REMEASURED = [
      "tests/test_fit.py asserts their accuracy statistically"),
     ("docs/benchmarks.md", "every benchmark's times and variances",
      "the benchmark scripts beside each table re-measure them; times are the machine's"),
-    ("docs/cameras.md, docs/dataset.md, docs/fmcw.md, docs/reliability.md",
-     "their figures", "not yet in the registry (issue 42's target is every number)"),
+    ("docs/benchmarks.md", "the calibration table's rows short of each mode's far end, and "
+     "the fitted powers (43.7 W, 20.4 W)", "the same command (`benchmarks/camera_accuracy.py "
+     "--seeds 32`, about 25 s; `--calibrate`, 14 bisection steps a power) re-measures them; "
+     "the far-end rows above (the fitted 17 mm among them) stand for them"),
+    ("docs/cameras.md", "the calibration summary's bounds (systematic < 0.2 / 0.3 / 1 mm over "
+     "1-3 m) and ratios (3.1x between 15% and 95%)", "a bound or a ratio of two rows, not "
+     "one command's value; the rows they come from are re-measured above"),
+    ("docs/cameras.md", "95 and 1410 photo-electrons per raw frame (15% wall, 3.86 m and 1 m)",
+     "no command beside them (summary.json's noise.radiometry of the accuracy wall); "
+     "tests/test_camera_radiometry.py asserts the camera equation in closed form"),
+    ("docs/cameras.md", "the unwrapping's 99.997% / 70% / 1 in 10^5 and 5.9%, and the earlier "
+     "search's 49% and 50% (this search: 99%, 98.8%, 4.4 mm)", "tests/"
+     "test_camera_radiometry.py asserts the first; no command beside the comparison"),
+    ("docs/cameras.md", "Kinect v2's f^2 weights (0.68, 0.30), its 2.9 ms and 3 cm, the "
+     "sequences' lengths (13 ms ...), pmd's calibrated wiggling below 5e-4 mm",
+     "arithmetic of the presets' numbers, or a bound; no command beside them"),
+    ("docs/cameras.md", "within 1 mm, within 1.5 mm, 48 noise seeds within 10%",
+     "the tests named beside them assert them"),
+    ("docs/fmcw.md", "the street's 1.9 s and the cost section (1.18x, 0.222 s, ...)",
+     "times depend on the machine and its load; benchmarks/fmcw_cost.py measures them"),
+    ("docs/fmcw.md", "the defaults' 38 m, 15 cm, 3.9 cm/s; 12.9 MHz, 2.7 MHz per metre, "
+     "0.6 mm, 134 MB", "arithmetic of the chirp, no command beside them"),
+    ("docs/fmcw.md", "section 8's measured values (0.01 bin, 2.74, 0.02%, 0.991, t = -1.2, "
+     "1.11 and 0.96) and the spot connection's 30x", "tests/test_fmcw.py asserts them (the "
+     "30x was the rejected connection's, no longer in the code)"),
+    ("docs/dataset.md", "346 m/s on a cube face of sample 0, its objects' 9.4 m/s",
+     "no command beside it (a reader of examples/dataset.toml's HDF5 output would be needed); "
+     "not yet in the registry"),
+    ("docs/dataset.md", "the preview's and check's 1.0-1.8 s, an export's 45 s a sample",
+     "times depend on the machine and its load"),
+    ("docs/reliability.md", "its figures", "not yet in the registry (issue 42's target is "
+     "every number)"),
 ]
 
 
-def run_command(command: str, scratch: str) -> dict:
-    """Runs ``dopplertof COMMAND`` (``{out}`` a folder in ``scratch``) from the repository
-    root, its output swallowed: the summary.json it wrote."""
+def run_command(command: str, scratch: str):
+    """Runs ``dopplertof COMMAND`` (``{out}`` a path in ``scratch``) from the repository
+    root, its output swallowed: the summary.json it wrote in ``{out}``, or ``{out}.json``
+    (beside a figure ``{out}.png``)."""
     from dopplertof.cli import main
 
     out = os.path.join(scratch, f"run{len(os.listdir(scratch))}")
@@ -115,21 +298,57 @@ def run_command(command: str, scratch: str) -> dict:
         os.chdir(here)
     if code != 0:
         raise RuntimeError(f"dopplertof {command} exited with {code}")
-    with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+    summary = os.path.join(out, "summary.json")
+    with open(summary if os.path.isfile(summary) else out + ".json", encoding="utf-8") as f:
         return json.load(f)
+
+
+def run_call(call: Call):
+    """Calls ``call.function`` (Mitsuba's default variant set first where none is), its
+    output swallowed: its return value."""
+    import mitsuba as mi
+
+    import dopplertof
+
+    if mi.variant() is None:
+        dopplertof.set_variant()
+    module, name = call.function.split(":")
+    function = getattr(importlib.import_module(module), name)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        return function(*call.args, **dict(call.kwargs))
+
+
+def run(command, scratch: str):
+    """The result of an entry's command: a `dopplertof` command line's JSON, or a Call's
+    return value."""
+    return run_call(command) if isinstance(command, Call) else run_command(command, scratch)
+
+
+def drift_of(quoted: float, measured: float) -> float:
+    """|measured - quoted| / |quoted|; for a quoted 0, 0 where it is measured 0 (else inf)."""
+    if quoted == 0:
+        return 0.0 if measured == 0 else float("inf")
+    return abs(measured - quoted) / abs(quoted)
+
+
+def quoted_in(doc: str, text: str, command) -> bool:
+    """The text around the figure is in ``doc``, and a Call's named command too."""
+    with open(os.path.join(ROOT, doc), encoding="utf-8") as f:
+        words = " ".join(f.read().split())
+    named = command.named if isinstance(command, Call) else ""
+    return " ".join(text.split()) in words and named in words
 
 
 def check(entries, tolerance: float = TOLERANCE) -> list:
     """Rows (name, doc, quoted, measured, drift, flag) for ``entries`` of REGISTRY."""
-    summaries, rows = {}, []
+    results, rows = {}, []
     with tempfile.TemporaryDirectory(prefix="doc_numbers_") as scratch:
         for name, doc, text, quoted, command, read, _ in entries:
-            with open(os.path.join(ROOT, doc), encoding="utf-8") as f:
-                in_doc = " ".join(text.split()) in " ".join(f.read().split())
-            if command not in summaries:
-                summaries[command] = run_command(command, scratch)
-            measured = float(read(summaries[command]))
-            drift = abs(measured - quoted) / abs(quoted)
+            in_doc = quoted_in(doc, text, command)
+            if command not in results:
+                results[command] = run(command, scratch)
+            measured = float(read(results[command]))
+            drift = drift_of(quoted, measured)
             flag = ("QUOTE GONE" if not in_doc else "DRIFT" if drift > tolerance else "ok")
             rows.append((name, doc, quoted, measured, drift, flag))
     return rows
@@ -143,9 +362,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     entries = [e for e in REGISTRY if (e[0] in args.only if args.only else args.all or e[6])]
     rows = check(entries, args.tolerance)
-    print(f"{'figure':<28} {'doc':<16} {'quoted':>9} {'measured':>10} {'drift':>7}")
+    print(f"{'figure':<40} {'doc':<18} {'quoted':>9} {'measured':>10} {'drift':>7}")
     for name, doc, quoted, measured, drift, flag in rows:
-        print(f"{name:<28} {doc:<16} {quoted:>9.4g} {measured:>10.4g} {drift:>7.1%}  {flag}")
+        print(f"{name:<40} {doc:<18} {quoted:>9.4g} {measured:>10.4g} {drift:>7.1%}  {flag}")
     print("\nnot re-measured:")
     for doc, what, why in NOT_REMEASURED:
         print(f"  {doc}: {what}: {why}")

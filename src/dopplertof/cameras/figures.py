@@ -91,9 +91,11 @@ def write_camera_comparison(path, results, title: str) -> dict:
 
 def _comparison_numbers(result, error) -> dict:
     """One camera's row of the comparison: its summary's errors and the pixels masked
-    in its range error (NaN: hatched)."""
+    in its range error (NaN: hatched), and each mask's count (``masked_by``, the summary's:
+    a pixel can be in several)."""
     summary = result.summary
     return {"camera": result.preset.name, "errors": summary["errors"],
             "masked_pixels": int(np.count_nonzero(~np.isfinite(error))),
+            "masked_by": summary["depth"]["masked_pixels"],
             "pixels": int(error.size), "mixed_footprints": summary["mixed_footprints"],
             "saturated_pixels": summary["noise"]["saturated_pixels"]}
