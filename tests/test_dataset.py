@@ -406,6 +406,57 @@ def test_example_config_renders_4_samples_at_32x32(tmp_path, in_process_client):
     assert ds[3]["raw"].shape == (6, 32, 32) and ds[3]["flow"].shape == (32, 32, 2)
 
 
+def _structure(description) -> tuple:
+    """(body count, shape types, BSDF kinds) of a sample's description."""
+    objects = description["objects"]
+    return (len(objects), {o["shape"] for o in objects},
+            {o["material"]["kind"] for o in objects})
+
+
+def _two_structures(config, preset):
+    """Sample 0 and the first sample after it whose body count, shape types and BSDF
+    kinds all differ from sample 0's (drawn, not rendered)."""
+    from dopplertof.dataset.generate import draw_scene
+
+    first = _structure(draw_scene(config, 0, preset))
+    for index in range(1, 100):
+        other = _structure(draw_scene(config, index, preset))
+        if all(a != b for a, b in zip(first, other)):
+            return 0, index
+    raise AssertionError("no sample of another structure in 100")
+
+
+def test_samples_of_another_structure_compile_no_new_kernel(tmp_path):
+    """A dataset's samples share their kernels whatever they draw (issue 40): the kernels
+    trace objects.count's most body slots (fillers, masked off, in the slots a sample
+    leaves) and every shape type and BSDF kind is kept alive beside them
+    (dopplertof.dataset.structure), so that a sample of another body count, other shapes
+    and other materials compiles nothing new after another."""
+    import gc
+
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.dataset.sample import render_sample
+    from test_startup import _kernels_of
+
+    dopplertof.set_variant()
+    config = _config({"objects": {"count": [1, 3]}})
+    first, second = _two_structures(config, load_preset(config["render"]["camera"]))
+    gc.collect()  # (no other test's Mitsuba objects freed between the two)
+    drawn = {}
+
+    def sample(index):
+        def run():
+            drawn[index] = json.loads(render_sample(config, index, str(tmp_path))[1]
+                                      ["description"])
+        return run
+
+    kernels = _kernels_of(sample(first))
+    again = _kernels_of(sample(second))
+    assert all(a != b for a, b in zip(_structure(drawn[first]), _structure(drawn[second])))
+    assert kernels and again <= kernels, (len(again - kernels), "new kernels")
+
+
 OCTAHEDRON = """v 1 0 0
 v -1 0 0
 v 0 1 0

@@ -76,6 +76,7 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera
+    from .structure import with_fixed_structure
 
     render = config["render"]
     for draw in range(MAX_DRAWS):
@@ -83,7 +84,9 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
         problem = enclosed_camera(description)
         if problem is None:
             text = scene_xml(description, render["spp"], render["max_depth"])
-            scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)
+            scene = with_fixed_structure(
+                load_string(text, {}, source=f"sample {index}", base_dir=folder), config,
+                description)
             truth = sample_truth(scene, description, render["grazing_deg"])
             problem = nothing_visible(truth, description)
             if problem is None:
