@@ -413,25 +413,33 @@ def _structure(description) -> tuple:
             {o["material"]["kind"] for o in objects})
 
 
-def _two_structures(config, preset):
-    """Sample 0 and the first sample after it whose body count, shape types and BSDF
-    kinds all differ from sample 0's (drawn, not rendered)."""
+def _other_structures(config, preset) -> tuple:
+    """Sample 0, the first sample of its body count whose shape types and BSDF kinds
+    both differ from its own, and the first sample of another body count (drawn, not
+    rendered)."""
     from dopplertof.dataset.generate import draw_scene
 
-    first = _structure(draw_scene(config, 0, preset))
-    for index in range(1, 100):
-        other = _structure(draw_scene(config, index, preset))
-        if all(a != b for a, b in zip(first, other)):
-            return 0, index
-    raise AssertionError("no sample of another structure in 100")
+    drawn = [_structure(draw_scene(config, index, preset)) for index in range(100)]
+    count, shapes, kinds = drawn[0]
+    same = next(i for i, s in enumerate(drawn) if s[0] == count and s[1] != shapes
+                and s[2] != kinds)
+    other = next(i for i, s in enumerate(drawn) if s[0] != count)
+    return 0, same, other
 
 
-def test_samples_of_another_structure_compile_no_new_kernel(tmp_path):
-    """A dataset's samples share their kernels whatever they draw (issue 40): the kernels
-    trace objects.count's most body slots (fillers, masked off, in the slots a sample
-    leaves) and every shape type and BSDF kind is kept alive beside them
-    (dopplertof.dataset.structure), so that a sample of another body count, other shapes
-    and other materials compiles nothing new after another."""
+#: the kernels a new body count compiles: the ones that trace rays against the bodies (a
+#: body traced alone, two or more visited by a call over their scenes): the full and the
+#: direct split's renders, the truth's rays and the mixed footprints' rays
+#: (dopplertof.dataset.structure)
+BODY_COUNT_KERNELS = 4
+
+
+def test_samples_of_other_shapes_and_materials_compile_no_new_kernel(tmp_path):
+    """A dataset's samples share their kernels whatever shapes and materials they draw
+    (issue 40): every shape type and BSDF kind is kept alive beside them and the
+    registries' id bounds are held (dopplertof.dataset.structure), so that a sample of
+    other shapes and other materials compiles nothing new after another of its body
+    count, and one of another body count only the kernels that trace the bodies."""
     import gc
 
     import dopplertof
@@ -441,20 +449,24 @@ def test_samples_of_another_structure_compile_no_new_kernel(tmp_path):
 
     dopplertof.set_variant()
     config = _config({"objects": {"count": [1, 3]}})
-    first, second = _two_structures(config, load_preset(config["render"]["camera"]))
-    gc.collect()  # (no other test's Mitsuba objects freed between the two)
+    first, same, other = _other_structures(config, load_preset(config["render"]["camera"]))
+    gc.collect()  # (no other test's Mitsuba objects freed between the renders)
     drawn = {}
 
     def sample(index):
         def run():
-            drawn[index] = json.loads(render_sample(config, index, str(tmp_path))[1]
-                                      ["description"])
+            drawn[index] = _structure(json.loads(
+                render_sample(config, index, str(tmp_path))[1]["description"]))
         return run
 
     kernels = _kernels_of(sample(first))
-    again = _kernels_of(sample(second))
-    assert all(a != b for a, b in zip(_structure(drawn[first]), _structure(drawn[second])))
+    again = _kernels_of(sample(same))
+    assert drawn[first][0] == drawn[same][0]
+    assert drawn[first][1] != drawn[same][1] and drawn[first][2] != drawn[same][2]
     assert kernels and again <= kernels, (len(again - kernels), "new kernels")
+    counted = _kernels_of(sample(other))
+    assert drawn[other][0] != drawn[first][0]
+    assert 0 < len(counted - kernels) <= BODY_COUNT_KERNELS, len(counted - kernels)
 
 
 OCTAHEDRON = """v 1 0 0

@@ -76,7 +76,7 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera
-    from .structure import kinds_alive, with_fixed_structure
+    from .structure import kinds_alive
 
     render = config["render"]
     kinds_alive(config)  # (before any scene: the same registry ids in every worker)
@@ -85,9 +85,7 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
         problem = enclosed_camera(description)
         if problem is None:
             text = scene_xml(description, render["spp"], render["max_depth"])
-            scene = with_fixed_structure(
-                load_string(text, {}, source=f"sample {index}", base_dir=folder), config,
-                description)
+            scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)
             truth = sample_truth(scene, description, render["grazing_deg"])
             problem = nothing_visible(truth, description)
             if problem is None:

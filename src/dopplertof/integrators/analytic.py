@@ -31,7 +31,7 @@ import drjit as dr
 
 from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
-from ..scene.bodies import scene_frames
+from ..scene.bodies import BodyFrames
 from ..scene.motion import lane_times
 from .path_steps import (_as_colour, _intersect, advance, film_position, lane_streams,
                          loop_settings, roulette, shade, vertex_numbers)
@@ -99,7 +99,7 @@ def _exposure_ends(mi, setup, layout, streams):
     ends = []
     for t in (t_start, t_start + mi.Float(setup.exposure)):
         ray, ray_weight, offset = setup.camera.ray(pos, t, *lens)
-        frames = scene_frames(mi, scene, t, *span)
+        frames = BodyFrames(mi, scene.bodies, t, *span) if scene.bodies else None
         light_frames = (lights.LightFrames(mi, scene.light_motions, t)
                         if scene.light_motions else None)
         ends.append((ray, ray_weight, offset, frames, light_frames))

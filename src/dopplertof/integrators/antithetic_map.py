@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import drjit as dr
 
-from ..scene.bodies import body_transforms, nearest_hit, scene_frames
+from ..scene.bodies import BodyFrames, body_transforms, nearest_hit
 from ..scene.motion import determinant3, transform_normal, transform_point, transformed_ray
 
 #: a mapped ray meets "the same point" within this fraction of the distance to it
@@ -87,9 +87,9 @@ class PairedCameraRays:
 
     def __init__(self, mi, scene, camera, projection, film_sampler, pos, center, window,
                  crop_size, t0, t1, index, lens, exposure_interval):
-        static = scene.static
-        frames = {0: scene_frames(mi, scene, t0, *exposure_interval),
-                  1: scene_frames(mi, scene, t1, *exposure_interval)}
+        static, bodies = scene.static, scene.bodies
+        frames = {0: BodyFrames(mi, bodies, t0, *exposure_interval) if bodies else None,
+                  1: BodyFrames(mi, bodies, t1, *exposure_interval) if bodies else None}
         times = {0: t0, 1: t1}
 
         def filter_weight(p):

@@ -22,7 +22,7 @@ import drjit as dr
 from .. import sampling
 from ..params import RenderParams
 from ..scene import lights
-from ..scene.bodies import scene_frames
+from ..scene.bodies import BodyFrames
 from ..scene.motion import opaque_tree
 from ..scene.scene import DTOF_INTEGRATORS, loaded
 from . import pipeline
@@ -190,8 +190,8 @@ def _define_class(mi):
             # ---- Lights and bodies at the lanes' times, once per path ----
             light_frames = (lights.LightFrames(mi, scene.light_motions, time)
                             if scene.light_motions else None)
-            frames = scene_frames(mi, scene, time, self.shutter_open,
-                                  self.shutter_open + mod.exposure)
+            frames = (BodyFrames(mi, scene.bodies, time, self.shutter_open,
+                                 self.shutter_open + mod.exposure) if scene.bodies else None)
             return CameraSample(t_rel=t_rel, ray=ray, ray_weight=ray_weight,
                                 camera_offset=camera_offset, first_hit=first_hit, active=active,
                                 film_offset=film_offset, light_frames=light_frames, frames=frames,

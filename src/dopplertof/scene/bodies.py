@@ -65,16 +65,9 @@ class BodyFrames:
     ``to_local[k]`` is its inverse. Entries are ``(A or None, b)`` with Dr.Jit arrays.
     """
 
-    def __init__(self, mi, bodies, time, t_start: float, t_end: float, fillers=None):
+    def __init__(self, mi, bodies, time, t_start: float, t_end: float):
         self.mi = mi
         self.bodies = list(bodies)
-        #: per body, its opaque mask (None: every body is traced, no mask); with
-        #: ``fillers`` (DopplerScene.slot_fillers), the bodies then the fillers, masked off
-        self.present = None
-        if fillers is not None:
-            self.present = [opaque_tree(mi.Bool, k < len(self.bodies))
-                            for k in range(len(self.bodies) + len(fillers))]
-            self.bodies += list(fillers)
         self.boxes = [opaque_box(mi, b.swept_bbox(t_start, t_end)) for b in self.bodies]
         self.local_boxes = [opaque_box(mi, b.local_bbox()) for b in self.bodies]
         self.to_world, self.to_local = [], []
@@ -82,20 +75,6 @@ class BodyFrames:
             rel, inv = body.motion.relative(time)
             self.to_world.append(rel)
             self.to_local.append(inv)
-
-
-def scene_frames(mi, scene, time, t_start: float, t_end: float):
-    """The BodyFrames of ``scene``'s bodies at the lanes' ``time`` (and of the fillers of
-    its body slots, when it fixes them: DopplerScene.slot_fillers), or None when it has
-    none."""
-    if not scene.bodies and not scene.slot_fillers:
-        return None
-    return BodyFrames(mi, scene.bodies, time, t_start, t_end, scene.slot_fillers)
-
-
-def present(frames, k: int, mask):
-    """``mask`` where body slot ``k`` holds a body (unchanged without slots: no mask)."""
-    return mask if frames.present is None else mask & frames.present[k]
 
 
 def opaque_box(mi, box):
@@ -235,11 +214,10 @@ def _box_distances(mi, dr, frames, ray, active, upto):
     body's frame at the lane's time: exact, and tighter than a box swept over the
     exposure in world space (affine maps keep ray parameters, so distances compare)."""
     out = []
-    for k, (box, inv) in enumerate(zip(frames.local_boxes, frames.to_local)):
+    for box, inv in zip(frames.local_boxes, frames.to_local):
         hit, near, far = box_intersect(mi, box, transformed_ray(mi, inv, ray, ray.maxt))
         near = dr.maximum(near, 0.0)
-        seen = present(frames, k, active & hit & (far >= 0) & (near <= upto))
-        out.append(dr.select(seen, near, dr.inf))
+        out.append(dr.select(active & hit & (far >= 0) & (near <= upto), near, dr.inf))
     return out
 
 
@@ -252,7 +230,7 @@ def _body_hits_each(mi, dr, frames, ray, active, pi, best_t, coherent):
     winner = mi.UInt32(len(frames.bodies))
     for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes, frames.to_local)):
         box_hit, box_near, box_far = box_intersect(mi, box, ray)
-        test = present(frames, k, active & box_hit & (box_near < best_t) & (box_far >= 0))
+        test = active & box_hit & (box_near < best_t) & (box_far >= 0)
         pib = QUERIES.preliminary(
             body.scene, transformed_ray(mi, inv, ray, dr.minimum(ray.maxt, best_t)), coherent,
             test)
@@ -410,11 +388,9 @@ def occluded(mi, static_scene, frames: BodyFrames | None, ray, active):
         return blocked
     n = len(frames.bodies)
     if not _dispatched(n):
-        for k, (body, box, inv) in enumerate(zip(frames.bodies, frames.boxes,
-                                                  frames.to_local)):
+        for body, box, inv in zip(frames.bodies, frames.boxes, frames.to_local):
             box_hit, box_near, box_far = box_intersect(mi, box, ray)
-            test = present(frames, k,
-                           active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0))
+            test = active & ~blocked & box_hit & (box_near <= ray.maxt) & (box_far >= 0)
             blocked |= QUERIES.blocked(body.scene, transformed_ray(mi, inv, ray, ray.maxt), test)
         return blocked
 

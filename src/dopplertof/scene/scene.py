@@ -113,11 +113,6 @@ class DopplerScene:
     #: Brown-Conrady (k1, k2, p1, p2, k3) of the lens, OpenCV's order (None: a pinhole;
     #: set by a camera preset, integrators.camera.LensDistortion)
     lens_distortion: tuple | None = None
-    #: None, or the fillers of a fixed count of body slots: the kernels trace the bodies
-    #: and then these (MovingBody, each its own motion), no ray visiting a filler (its
-    #: slot's opaque mask is off), so that scenes of fewer bodies than slots share their
-    #: kernels (a dataset's samples, issue 40); renders are those of the bodies alone
-    slot_fillers: tuple | None = None
 
     @property
     def sensor(self):

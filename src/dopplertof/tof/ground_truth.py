@@ -200,16 +200,16 @@ def _trace(mi, scene, position, time, start: float, end: float):
     import drjit as dr
 
     from ..integrators.camera import Camera, LensDistortion
-    from ..scene.bodies import intersect, scene_frames
+    from ..scene.bodies import BodyFrames, intersect
 
     lens = LensDistortion.of(scene.sensor, scene.lens_distortion)
     ray, _, _ = Camera(mi, scene.sensor, scene.sensor_motion,
                        distortion=lens).ray(position, time,
                                                                   mi.Point2f(0.5, 0.5))
-    frames = scene_frames(mi, scene, time, start, end)
+    frames = BodyFrames(mi, scene.bodies, time, start, end) if scene.bodies else None
     si = intersect(mi, scene.static, frames, ray, mi.Bool(True))
     body = dr.select(si.is_valid(), mi.Int32(-1), mi.Int32(-2))
-    for k, moving in enumerate(frames.bodies if frames is not None else ()):  # (slots too)
+    for k, moving in enumerate(scene.bodies):
         for shape in moving.scene.shapes():
             # (an opaque pointer: a shape's registry id is no literal of the kernel)
             body = dr.select(si.is_valid() & (si.shape == dr.opaque(mi.ShapePtr, shape)),
