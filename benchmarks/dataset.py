@@ -23,7 +23,8 @@ this process and its workers) and renders, one worker each: the dataset of ``--s
 the first one's kernels: what a user's next dataset costs), and that second dataset
 again into another folder (warm: every kernel cached). Printed side by side, with the
 ratios: the new seed over its warm rerun (target: at most 1.3) and the empty cache over
-the warm rerun.
+the warm rerun, and the kernels each run added to the cache (what it compiled: a count
+that a shared machine's load does not move, as it moves the seconds).
 
     .venv/bin/python benchmarks/dataset.py --cold [--camera kinect-v2] [--res 64x53] \
         [--spp 16] [--samples 6]
@@ -86,8 +87,10 @@ def cold_and_warm(args) -> None:
         runs = [(f"seed {args.seed}, empty kernel cache", args.seed),
                 (f"seed {args.seed + 1}, right after", args.seed + 1),
                 (f"seed {args.seed + 1} again (warm)", args.seed + 1)]
-        rows = [run_once(args.res, args.spp, args.samples, 1, seed, args.camera)
-                for _, seed in runs]
+        rows = []
+        for _, seed in runs:  # (the kernels in the cache after each run: what it compiled)
+            rows.append(run_once(args.res, args.spp, args.samples, 1, seed, args.camera))
+            rows[-1]["kernels"] = cache_size(cache)[0]
         kernels, megabytes = cache_size(cache)
     width, height = args.res
     print(f"dopplertof dataset: examples/dataset.toml with {args.camera or 'its camera'} at "
@@ -95,10 +98,12 @@ def cold_and_warm(args) -> None:
           f"{os.cpu_count()} CPUs; the kernel cache ends with {kernels} kernels "
           f"({megabytes:.1f} MB)")
     warm = rows[-1]["wall_s"]
-    print(f"{'run':<36} {'wall s':>8} {'samples/h':>10} {'/ warm':>7}")
+    print(f"{'run':<36} {'wall s':>8} {'samples/h':>10} {'/ warm':>7} {'new kernels':>12}")
+    cached = 0
     for (name, _), row in zip(runs, rows):
         print(f"{name:<36} {row['wall_s']:>8.1f} {row['samples_per_hour']:>10.0f} "
-              f"{row['wall_s'] / warm:>6.2f}x")
+              f"{row['wall_s'] / warm:>6.2f}x {row['kernels'] - cached:>12}")
+        cached = row["kernels"]
     print(f"new seed / its warm rerun: {rows[1]['wall_s'] / warm:.2f}x (target <= 1.3x); "
           f"empty cache / warm: {rows[0]['wall_s'] / warm:.2f}x")
 

@@ -431,6 +431,69 @@ def test_example_config_renders_4_samples_at_32x32(tmp_path, in_process_client):
     assert ds[3]["raw"].shape == (6, 32, 32) and ds[3]["flow"].shape == (32, 32, 2)
 
 
+def _structure(description) -> tuple:
+    """(body count, shape types, BSDF kinds) of a sample's description."""
+    objects = description["objects"]
+    return (len(objects), {o["shape"] for o in objects},
+            {o["material"]["kind"] for o in objects})
+
+
+def _other_structures(config, preset) -> tuple:
+    """Sample 0, the first sample of its body count whose shape types and BSDF kinds
+    both differ from its own, and the first sample of another body count (drawn, not
+    rendered)."""
+    from dopplertof.dataset.generate import draw_scene
+
+    drawn = [_structure(draw_scene(config, index, preset)) for index in range(100)]
+    count, shapes, kinds = drawn[0]
+    same = next(i for i, s in enumerate(drawn) if s[0] == count and s[1] != shapes
+                and s[2] != kinds)
+    other = next(i for i, s in enumerate(drawn) if s[0] != count)
+    return 0, same, other
+
+
+#: the kernels a new body count compiles: the ones that trace rays against the bodies (a
+#: body traced alone, two or more visited by a call over their scenes): the full and the
+#: direct split's renders, the truth's rays and the mixed footprints' rays
+#: (dopplertof.dataset.structure)
+BODY_COUNT_KERNELS = 4
+
+
+def test_samples_of_other_shapes_and_materials_compile_no_new_kernel(tmp_path):
+    """A dataset's samples share their kernels whatever shapes and materials they draw
+    (issue 40): every shape type and BSDF kind is kept alive beside them and the
+    registries' id bounds are held (dopplertof.dataset.structure), so that a sample of
+    other shapes and other materials compiles nothing new after another of its body
+    count, and one of another body count only the kernels that trace the bodies."""
+    import gc
+
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.dataset.sample import render_sample
+    from test_startup import _kernels_of
+
+    dopplertof.set_variant()
+    config = _config({"objects": {"count": [1, 3]}})
+    first, same, other = _other_structures(config, load_preset(config["render"]["camera"]))
+    gc.collect()  # (no other test's Mitsuba objects freed between the renders)
+    drawn = {}
+
+    def sample(index):
+        def run():
+            drawn[index] = _structure(json.loads(
+                render_sample(config, index, str(tmp_path))[1]["description"]))
+        return run
+
+    kernels = _kernels_of(sample(first))
+    again = _kernels_of(sample(same))
+    assert drawn[first][0] == drawn[same][0]
+    assert drawn[first][1] != drawn[same][1] and drawn[first][2] != drawn[same][2]
+    assert kernels and again <= kernels, (len(again - kernels), "new kernels")
+    counted = _kernels_of(sample(other))
+    assert drawn[other][0] != drawn[first][0]
+    assert 0 < len(counted - kernels) <= BODY_COUNT_KERNELS, len(counted - kernels)
+
+
 OCTAHEDRON = """v 1 0 0
 v -1 0 0
 v 0 1 0

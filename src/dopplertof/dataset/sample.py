@@ -76,8 +76,10 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera
+    from .structure import kinds_alive
 
     render = config["render"]
+    kinds_alive(config)  # (before any scene: the same registry ids in every worker)
     for draw in range(MAX_DRAWS):
         description = draw_scene(config, index, preset, draw)
         problem = enclosed_camera(description)

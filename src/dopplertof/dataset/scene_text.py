@@ -22,7 +22,7 @@ def _keyframes(matrix_at, times: dict) -> str:
     return '<animation name="to_world">' + "".join(rows) + "</animation>"
 
 
-def _bsdf(material: dict) -> str:
+def bsdf_xml(material: dict) -> str:
     """The material as a two-sided BSDF (a rectangle or a room is seen from either side)."""
     colour = ", ".join(repr(float(c)) for c in material["colour"])
     alpha = repr(float(material["roughness"]))
@@ -44,7 +44,7 @@ def _object(obj: dict, times: dict) -> str:
         mesh = f"<string name=\"filename\" value={quoteattr(obj['mesh'])}/>"
     motion = _keyframes(lambda tau: object_matrix(obj, tau), times)
     return (f'<shape type="{shape}" id="{obj["id"]}">{mesh}{motion}'
-            f'{_bsdf(obj["material"])}</shape>')
+            f'{bsdf_xml(obj["material"])}</shape>')
 
 
 def _backdrop(backdrop: dict) -> str:
@@ -57,10 +57,10 @@ def _backdrop(backdrop: dict) -> str:
     if backdrop["kind"] == "room":
         m[:3, :3] = np.diag([width / 2, height / 2, depth / 2])
         m[2, 3] = 1.0 - depth / 2
-        return f'<shape type="cube" id="backdrop">{_matrix_transform(m)}{_bsdf(grey)}</shape>'
+        return f'<shape type="cube" id="backdrop">{_matrix_transform(m)}{bsdf_xml(grey)}</shape>'
     m[:3, :3] = np.diag([width / 2, height / 2, 1.0])
     m[2, 3] = -depth
-    return f'<shape type="rectangle" id="backdrop">{_matrix_transform(m)}{_bsdf(grey)}</shape>'
+    return f'<shape type="rectangle" id="backdrop">{_matrix_transform(m)}{bsdf_xml(grey)}</shape>'
 
 
 def _matrix_transform(m) -> str:
