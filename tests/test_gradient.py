@@ -221,8 +221,12 @@ def test_a_dopplerscene_is_differentiated_as_it_is(published_small):
 
     scene, ds = published_small
     loss = lambda image: dr.sum(image, axis=None)  # noqa: E731
-    direct = gradient(scene, loss, names=["g_1"], spp=4)
-    assert direct["g_1"] == gradient(ds, loss, names=["g_1"], spp=4)["g_1"] != 0.0
+    direct = gradient(scene, loss, names=["g_1"], spp=4)["g_1"]
+    # the same gradient; not asserted bitwise: in the whole suite of 2026-12-03 (after
+    # issue 40's merge) the two read -0.00431671179831028 and -0.004316713660955429, 4e-7
+    # apart (float32 accumulation order), equal when this file or the test runs alone
+    assert direct != 0.0
+    assert direct == pytest.approx(gradient(ds, loss, names=["g_1"], spp=4)["g_1"], rel=1e-5)
 
 
 def test_bad_requests_are_one_line_errors(published_small):
