@@ -6,6 +6,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))  # tests/analytic.py
 
 FIXTURES = os.path.join(os.path.dirname(__file__), "fixtures")
+#: the repository's root (benchmarks/, tools/ and examples/ hold scripts the tests load)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PUBLISHED = os.path.join(FIXTURES, "cornell_box_moving.xml")
 
 
@@ -44,3 +46,15 @@ def render_killed_then_resumed(monkeypatch, scene, checkpoint, die_after, **rend
     monkeypatch.setattr(R.Checkpoint, "save", original)
     assert os.path.exists(checkpoint)
     return dopplertof.render(scene, pass_chunks=1, checkpoint=checkpoint, **render_args)
+
+
+def load_script(relative_path: str):
+    """A script of the repository (``benchmarks/reference.py`` and the like, not part of
+    the package) loaded as a module."""
+    import importlib.util
+
+    name = os.path.splitext(os.path.basename(relative_path))[0]
+    spec = importlib.util.spec_from_file_location(name, os.path.join(ROOT, relative_path))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -3,20 +3,13 @@ still quoted in their docs (a Python call's named command too), and it re-measur
 ones within 10% (two `dopplertof` commands and a call of benchmarks/camera_accuracy.py's
 function) and flags a figure that drifted."""
 
-import importlib.util
-import os
-
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from conftest import load_script
 
 
 def tool():
-    spec = importlib.util.spec_from_file_location(
-        "check_doc_numbers", os.path.join(ROOT, "tools", "check_doc_numbers.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("tools/check_doc_numbers.py")
 
 
 def test_every_registered_figure_is_quoted_in_its_doc():

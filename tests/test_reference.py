@@ -1,23 +1,16 @@
 """benchmarks/reference.py: the deep reference renders in resumable pieces."""
 
-import importlib.util
 import json
 import os
 
 import numpy as np
 import pytest
 
-from conftest import FIXTURES
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from conftest import FIXTURES, load_script
 
 
 def reference_script():
-    spec = importlib.util.spec_from_file_location(
-        "reference_script", os.path.join(ROOT, "benchmarks", "reference.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/reference.py")
 
 
 def test_reference_resumes_bitwise_from_its_pieces(tmp_path, monkeypatch):

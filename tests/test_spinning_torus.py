@@ -18,7 +18,7 @@ import dopplertof
 from dopplertof.tof import exposure_truth as et
 from dopplertof.tof import reconstruct as rec
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from conftest import ROOT, load_script
 MODEL = rec.CaptureModel(2 * math.pi * 20e6, 0.02, 1.0)  # examples/user_meshes.xml's
 
 
@@ -61,12 +61,7 @@ def test_the_capture_measures_the_exposure_weighted_velocity(profile):
 def torus_errors(axis: str) -> dict:
     """Median |error| and mean error of the torus's pixels (64x64, 64 spp, direct light)
     against the mid-exposure truth and the pixel computed from its rays' histories."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        "spinning_torus", os.path.join(ROOT, "benchmarks", "spinning_torus.py"))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("benchmarks/spinning_torus.py")
     row = bench.measure(0.02, 30.0, axis, res=64, spp=64, samples=32, footprint=2)
     return row
 
@@ -100,14 +95,9 @@ def test_a_torus_spinning_about_its_axis_reads_its_facets_time_averaged():
 def test_the_committed_meshes_are_the_scripts_output(tmp_path):
     """examples/meshes/ holds what examples/user_meshes.py writes (byte for byte): an OBJ of
     quads with vertex normals, a binary little-endian PLY; both pass the mesh checks."""
-    import importlib.util
-
     from dopplertof.scene.meshes import mesh_file_problem
 
-    spec = importlib.util.spec_from_file_location(
-        "user_meshes", os.path.join(ROOT, "examples", "user_meshes.py"))
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("examples/user_meshes.py")
     for path in script.write_meshes(str(tmp_path)):
         name = os.path.basename(path)
         with open(path, "rb") as a, open(os.path.join(ROOT, "examples", "meshes", name), "rb") as b:
