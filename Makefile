@@ -28,12 +28,14 @@ demo: setup demo_out/summary.json
 demo_out/summary.json: $(DEMO_INPUTS)
 	$(VENV)/bin/dopplertof demo -o demo_out
 
-# the whole suite (what CI runs); `make quick`: the fast tier, for the edit-test loop
+# the whole suite (what CI runs, one process); `make quick`: the fast tier, for the
+# edit-test loop, in two pytest-xdist processes (148 s in one, 101 s in two on the idle
+# 2-core machine, 2026-12-04, docs/testing.md)
 test: setup
 	$(PY) -m pytest -q
 
 quick: setup
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" -n 2
 
 bench: setup
 	$(PY) benchmarks/throughput.py
