@@ -31,12 +31,15 @@ def test_three_cheap_figures_re_measure_and_a_drift_is_flagged():
     dopplertof.set_variant()
     check = tool()
     chosen = [e for e in check.REGISTRY
-              if e[0] in ("sphere-ball-median", "tumble-torus-median", "azure-kinect-random")]
+              if e[0] in ("sphere-ball-median", "tumble-torus-median", "azure-kinect-random",
+                          "readme-azure-kinect-wfov-unbinned-random")]
     name, doc, text, quoted, command, read, cheap = chosen[0]
     drifted = (name + "-doubled", doc, text, 2 * quoted, command, read, cheap)
     rows = {row[0]: row for row in check.check(chosen + [drifted])}
     assert rows["sphere-ball-median"][5] == "ok"
     assert rows["tumble-torus-median"][5] == "ok"
     assert rows["azure-kinect-random"][5] == "ok"
+    # the README quoted 28 mm (2026-12-03) for what its command measures as 20.0 mm
+    assert rows["readme-azure-kinect-wfov-unbinned-random"][5] == "ok"
     assert rows["sphere-ball-median-doubled"][5] == "DRIFT"
     assert rows["sphere-ball-median-doubled"][4] == pytest.approx(0.5, abs=0.05)
