@@ -1,6 +1,6 @@
 """tools/check_doc_numbers.py (issue 42, 2026-12-03): the docs' quoted figures it lists are
-still quoted in their docs (a Python call's named command too), and it re-measures three cheap
-ones within 10% (two `dopplertof` commands and a call of benchmarks/camera_accuracy.py's
+still quoted in their docs (a Python call's named command too), and it re-measures four cheap
+ones within 10% (two `dopplertof` commands and two calls of benchmarks/camera_accuracy.py's
 function) and flags a figure that drifted."""
 
 import pytest
@@ -25,7 +25,7 @@ def test_every_registered_figure_is_quoted_in_its_doc():
     assert check.drift_of(0, 0) == 0 and check.drift_of(0, 1) > check.TOLERANCE
 
 
-def test_three_cheap_figures_re_measure_and_a_drift_is_flagged():
+def test_four_cheap_figures_re_measure_and_a_drift_is_flagged():
     import dopplertof
 
     dopplertof.set_variant()
