@@ -191,6 +191,37 @@ def test_the_comparison_hatches_masked_pixels_and_writes_its_numbers(tmp_path):
     assert written["cameras"][1]["masked_by"] == {"unwrapping failed": 3, "saturated": 0}
 
 
+def test_the_comparison_captions_each_panel_with_its_masked_pixels(tmp_path, monkeypatch):
+    """issue 42 item 3 (2026-12-04): the figure said nothing of how many pixels each panel
+    masks, nor why (the counts were only in FIG.json): the range error's title gives the
+    masked pixels of all and each mask's count that is not 0, the velocity's its NaN."""
+    import matplotlib.text
+
+    from dopplertof.cameras import figures
+
+    texts = []
+    save = figures.io.save_figure
+
+    def keep_texts(fig, path, *rest):
+        texts.extend(t.get_text() for t in fig.findobj(matplotlib.text.Text))
+        return save(fig, path, *rest)
+
+    monkeypatch.setattr(figures.io, "save_figure", keep_texts)
+    error = np.zeros((12, 16))
+    error[:, :8] = np.nan
+    velocity = np.where(np.isnan(error), np.nan, 1.0)
+    figures.write_camera_comparison(tmp_path / "compare.png",
+                                    [_compared("a", error, velocity),
+                                     _compared("b", np.zeros((12, 16)), None)], "t")
+    joined = [" ".join(text.split()) for text in texts]
+    assert ("a: range error (m) masked (hatched): 96 of 192 px: unwrapping failed 3"
+            in joined), joined
+    assert "b: range error (m) masked (hatched): 0 of 192 px: unwrapping failed 3" in joined
+    assert "a: radial velocity (m/s) NaN (hatched): 96 px" in joined
+    assert figures.masked_caption(np.zeros((2, 2)), {"saturated": 0}) == \
+        "masked (hatched): 0 of 4 px"
+
+
 # ---- Unwrapping over N frequencies --------------------------------------------------------
 
 def test_unwrapping_three_frequencies_recovers_depth_and_flags_failures():

@@ -848,3 +848,42 @@ def test_a_configuration_with_nothing_lit_to_see_is_refused_at_load(changes, wor
     with pytest.raises(DatasetError) as error:
         _config(changes)
     assert words in str(error.value)
+
+
+def test_a_diffuse_object_has_no_roughness_and_the_scenes_are_drawn_as_before():
+    """issue 42 item 11 (2026-12-04): a diffuse object's description carried a roughness
+    (a diffuse BSDF has none). The number is still drawn, so a seed's scenes are the same:
+    the scene XML of 8 samples hashes as before the change."""
+    import hashlib
+
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.dataset.generate import draw_scene
+    from dopplertof.dataset.scene_text import scene_xml
+
+    config = _config({"objects": {"count": [3, 3]}})
+    preset = load_preset(config["render"]["camera"])
+    digest, kinds = hashlib.sha256(), set()
+    for index in range(8):
+        description = draw_scene(config, index, preset)
+        digest.update(scene_xml(description, 4, 4).encode())
+        for obj in description["objects"]:
+            material = obj["material"]
+            kinds.add(material["kind"])
+            assert ("roughness" in material) == (material["kind"] != "diffuse"), material
+    assert kinds == {"diffuse", "plastic", "conductor"}
+    assert digest.hexdigest() == ("7f84dda741c6577b1037b4acc24d7ab7"
+                                  "71e6178a9db10698d6a5a1d7a0bf9988")
+
+
+def test_a_samples_description_is_written_with_json_ready_floats(tiny):
+    """issue 42 item 11 (2026-12-04): the HDF5 attributes description and camera_preset
+    held floats such as 0.006500000000000001; they go through io.json_ready (15
+    significant digits, float32 values as their shortest decimal)."""
+    from dopplertof.io import json_ready
+
+    ds = Dataset(tiny[1])
+    for item in range(len(ds)):
+        attributes = ds.attributes(item)
+        for key in ("description", "camera_preset"):
+            assert json.dumps(json_ready(attributes[key]), sort_keys=True) == \
+                json.dumps(attributes[key], sort_keys=True), key

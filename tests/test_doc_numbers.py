@@ -1,6 +1,6 @@
 """tools/check_doc_numbers.py (issue 42, 2026-12-03): the docs' quoted figures it lists are
-still quoted in their docs (a Python call's named command too), and it re-measures three cheap
-ones within 10% (two `dopplertof` commands and a call of benchmarks/camera_accuracy.py's
+still quoted in their docs (a Python call's named command too), and it re-measures four cheap
+ones within 10% (two `dopplertof` commands and two calls of benchmarks/camera_accuracy.py's
 function) and flags a figure that drifted."""
 
 import pytest
@@ -25,18 +25,21 @@ def test_every_registered_figure_is_quoted_in_its_doc():
     assert check.drift_of(0, 0) == 0 and check.drift_of(0, 1) > check.TOLERANCE
 
 
-def test_three_cheap_figures_re_measure_and_a_drift_is_flagged():
+def test_four_cheap_figures_re_measure_and_a_drift_is_flagged():
     import dopplertof
 
     dopplertof.set_variant()
     check = tool()
     chosen = [e for e in check.REGISTRY
-              if e[0] in ("sphere-ball-median", "tumble-torus-median", "azure-kinect-random")]
+              if e[0] in ("sphere-ball-median", "tumble-torus-median", "azure-kinect-random",
+                          "readme-azure-kinect-wfov-unbinned-random")]
     name, doc, text, quoted, command, read, cheap = chosen[0]
     drifted = (name + "-doubled", doc, text, 2 * quoted, command, read, cheap)
     rows = {row[0]: row for row in check.check(chosen + [drifted])}
     assert rows["sphere-ball-median"][5] == "ok"
     assert rows["tumble-torus-median"][5] == "ok"
     assert rows["azure-kinect-random"][5] == "ok"
+    # the README quoted 28 mm (2026-12-03) for what its command measures as 20.0 mm
+    assert rows["readme-azure-kinect-wfov-unbinned-random"][5] == "ok"
     assert rows["sphere-ball-median-doubled"][5] == "DRIFT"
     assert rows["sphere-ball-median-doubled"][4] == pytest.approx(0.5, abs=0.05)

@@ -57,7 +57,7 @@ def test_a_python_block_that_loads_a_scene_sets_the_variant_first(doc, parts):
 _NOT_RUN = re.compile(r"<!-- not run by tests/test_docs\.py: (.*?) -->\s*$")
 
 #: the sizes a block runs at: its numbers made tiny (rule, replacement), shell then Python
-SH_TINY = [(r"^\.venv/bin/", ""), (r"--spp \d+", "--spp 8"),
+SH_TINY = [(r"^\.venv/bin/", ""), (r"(?<=\s)\.venv/bin/", ""), (r"(?<=\s)/tmp/", ""), (r"--spp \d+", "--spp 8"),
            (r"--reference-spp \d+", "--reference-spp 16"), (r"--frames \d+", "--frames 2"),
            (r"--res \d+x\d+", "--res 16x13"), (r"-D res=\d+", "-D res=16"),
            (r"--workers \d+", "--workers 1")]
@@ -67,7 +67,8 @@ PY_TINY = [(r"\bspp=\d+", "spp=8"), (r"resolution=\(\d+, \d+\)", "resolution=(16
            (r'write_figures\("figs/"\)', 'write_figures("figs/", quick=True)')]
 #: options a command gets when it has none of its own (its size)
 SH_ADDED = [(r"^dopplertof demo\b", "--res", "--res 32 --spp 16"),
-            (r"^dopplertof fit\b", "--spp", "--spp 8 --iterations 1"),
+            (r"^dopplertof fit\b", "--spp", "--spp 8"),
+            (r"^dopplertof fit\b", "--iterations", "--iterations 1"),
             (r"^dopplertof capture\b.*--camera", "--res", "--res 16x13"),
             (r"^dopplertof (capture|render|precision|animate)\b", "-D res=", "-D res=16"),
             (r"^dopplertof sweep --preset", "--quick", "--quick -D res=16"),
@@ -170,3 +171,56 @@ def test_every_python_and_shell_block_runs(doc, tmp_path):
     done = subprocess.run([sys.executable, "driver.py", "blocks.json"], cwd=tmp_path,
                           capture_output=True, text=True, timeout=900, env=env)
     assert done.returncode == 0, f"{doc}:\n{done.stdout[-3000:]}\n{done.stderr[-5000:]}"
+
+
+# ---- Every shell command in a block the runner sees ----------------------------------
+
+#: a command line as the docs write one: `dopplertof ...`, `python ...`, `make ...`, after an
+#: optional prompt, `cd DIR && `, `nice -n N `, an environment variable and a folder
+_COMMAND = re.compile(r"^(\$ )?(cd \S+ && )?(nice -n \d+ )?(\w+=\S+ )?(\S*/)?"
+                      r"(dopplertof|python3?|make)( +\S|$)")
+
+
+def commands_outside_blocks(text: str) -> list:
+    """(line, text) of the command lines in ``text`` that tests/test_docs.py never sees:
+    in a fenced block of another language than python or sh (none, bash, console), or
+    indented (an indented code block, or a line a paragraph carries on)."""
+    handled = set()
+    fenced = {}
+    for m in _FENCE.finditer(text):
+        first, last = text.count("\n", 0, m.start()), text.count("\n", 0, m.end())
+        for number in range(first, last + 1):
+            fenced[number] = m.group(1)
+        if m.group(1) in ("python", "sh"):
+            handled.update(range(first, last + 1))
+    found = []
+    for number, line in enumerate(text.split("\n")):
+        if number in handled:
+            continue
+        if (number in fenced or line.startswith("    ")) and _COMMAND.match(line.strip()):
+            found.append((number + 1, line.strip()))
+    return found
+
+
+def test_every_shell_command_is_in_a_fenced_block():
+    """issue 42 (2026-12-04): about 40 command lines of the docs were indented or in a
+    block of no language, so the runner above never ran them nor saw them marked. Each is
+    in a fenced sh block now (run at tiny sizes, or marked with its reason)."""
+    outside = {}
+    for path in DOCS:
+        with open(path, encoding="utf-8") as f:
+            found = commands_outside_blocks(f.read())
+        if found:
+            outside[os.path.relpath(path, ROOT)] = found
+    assert not outside, outside
+
+
+def test_a_command_outside_a_fenced_block_is_found():
+    text = ("Run\n\n    .venv/bin/python benchmarks/film.py\n\nor\n\n```\ndopplertof demo\n```\n"
+            "```bash\n$ make quick\n```\n```sh\ndopplertof demo -o out\n```\n"
+            "dopplertof on LLVM, prose that starts with the name\n"
+            "    cd benchmarks && PYTHONPATH=../src ../.venv/bin/python spinning_torus.py\n")
+    assert commands_outside_blocks(text) == [
+        (3, ".venv/bin/python benchmarks/film.py"), (8, "dopplertof demo"),
+        (11, "$ make quick"),
+        (17, "cd benchmarks && PYTHONPATH=../src ../.venv/bin/python spinning_torus.py")]

@@ -37,7 +37,13 @@ SPHERE_MIXED = "capture examples/translating_sphere.xml -o {out} --keep-mixed-pi
 TUMBLE = ("capture examples/user_meshes.xml -D res=64 -D max_depth=2 -D spin_x=1 "
           "-D spin_y=0 -o {out}")
 DEMO = "demo -o {out}"
+DEMO_MIXED = "capture src/dopplertof/data/cornell_demo.xml --spp 512 --keep-mixed-pixels -o {out}"
 STREET = "fmcw examples/fmcw_street.xml -o {out} -D res=96"
+DIRECT = "capture src/dopplertof/data/cornell_demo.xml -D max_depth=2 -o {out}"
+SPHERE_DIRECT = SPHERE + " -P max_depth=2"
+SPHERE_CAMERA = ("capture examples/translating_sphere.xml --camera paper-dtof --res 24x24 "
+                 "--spp 16 -D max_depth=2 --noiseless -o {out}")
+SPHERE_CAMERA_MIXED = SPHERE_CAMERA + " --keep-mixed-pixels"
 COMPARE = ("cameras --compare examples/cameras_moving.xml --with kinect-v2,azure-kinect,"
            "opt8241,mlx75027,pmd-argos3d-p320,paper-dtof --res 64x48 --spp 16 -o {out}.png")
 COMPARE_NOISELESS = COMPARE + " --noiseless"
@@ -85,6 +91,11 @@ def body(name: str, key: str):
     return read
 
 
+def error(quantity: str, key: str, scale: float = 1.0):
+    """Reads summary.json's errors[quantity][key] (over the whole image) times ``scale``."""
+    return at("errors", quantity, key, scale=scale)
+
+
 def static(key: str):
     return lambda summary: summary["static_surfaces"]["velocity_error_m_s"][key]
 
@@ -109,6 +120,23 @@ REGISTRY = [
      TUMBLE + " -P w_g=30", body("torus", "median_abs"), True),
     ("tumble-torus-median-mixed", "docs/camera.md", "`--keep-mixed-pixels` 6.04 over 381",
      6.04, TUMBLE + " --keep-mixed-pixels", body("torus", "median_abs"), True),
+    ("tumble-torus-pixels", "docs/camera.md", "over the torus's 231 pixels kept", 231, TUMBLE,
+     body("torus", "pixels"), True),
+    ("tumble-torus-mean", "docs/camera.md", "(mean -3.6, 95th percentile\n10.8;", -3.6, TUMBLE,
+     body("torus", "mean_signed"), True),
+    ("tumble-torus-p95", "docs/camera.md", "(mean -3.6, 95th percentile\n10.8;", 10.8, TUMBLE,
+     body("torus", "p95_abs"), True),
+    ("tumble-torus-pixels-mixed", "docs/camera.md", "`--keep-mixed-pixels` 6.04 over 381", 381,
+     TUMBLE + " --keep-mixed-pixels", body("torus", "pixels"), True),
+    # docs/reliability.md's row on mixed footprints quotes the starter sphere's ball
+    ("reliability-ball-p95", "docs/reliability.md", "the ball's 95th-percentile error 5.81 m/s",
+     5.81, SPHERE, body("ball", "p95_abs"), True),
+    ("reliability-ball-mean", "docs/reliability.md", "and mean -0.893 m/s, not 21.2 and -2.41",
+     -0.893, SPHERE, body("ball", "mean_signed"), True),
+    ("reliability-ball-p95-mixed", "docs/reliability.md", "not 21.2 and -2.41", 21.2,
+     SPHERE_MIXED, body("ball", "p95_abs"), True),
+    ("reliability-ball-mean-mixed", "docs/reliability.md", "not 21.2 and -2.41", -2.41,
+     SPHERE_MIXED, body("ball", "mean_signed"), True),
     ("demo-short-box-median", "README.md", "median errors 0.689 m/s", 0.689, DEMO,
      body("short_box", "median_abs"), False),
     ("demo-tall-box-median", "README.md", "1.22 m/s on the tall one", 1.22, DEMO,
@@ -119,6 +147,29 @@ REGISTRY = [
      body("tall_box", "p95_abs"), False),
     ("demo-static-p95", "README.md", "95th-percentile error of 18.7 m/s", 18.7, DEMO,
      static("p95_abs"), False),
+    ("demo-pixels-mixed", "README.md", "are NaN (355 pixels", 355, DEMO,
+     at("velocity", "mixed_footprints"), False),
+    # docs/camera.md's copy of the demo's printout, and the demo's frame with its silhouettes
+    ("demo-image-median", "docs/camera.md", "velocity error: median 1.14 m/s, 95th percentile "
+     "17.1 m/s over 16029 pixels", 1.14, DEMO, error("velocity_m_s", "median_abs"), False),
+    ("demo-image-p95", "docs/camera.md", "velocity error: median 1.14 m/s, 95th percentile "
+     "17.1 m/s over 16029 pixels", 17.1, DEMO, error("velocity_m_s", "p95_abs"), False),
+    ("demo-image-pixels", "docs/camera.md", "17.1 m/s over 16029 pixels", 16029, DEMO,
+     error("velocity_m_s", "pixels"), False),
+    ("demo-depth-median", "docs/camera.md", "depth error: median 0.0563 m, 95th percentile "
+     "0.476 m", 0.0563, DEMO, error("depth_m", "median_abs"), False),
+    ("demo-depth-p95", "docs/camera.md", "depth error: median 0.0563 m, 95th percentile "
+     "0.476 m", 0.476, DEMO, error("depth_m", "p95_abs"), False),
+    ("demo-short-box-mean", "docs/camera.md", "mean -0.278 m/s over 1509 of 1639", -0.278, DEMO,
+     body("short_box", "mean_signed"), False),
+    ("demo-tall-box-mean", "docs/camera.md", "mean +0.305 m/s over 2282 of 2391", 0.305, DEMO,
+     body("tall_box", "mean_signed"), False),
+    ("demo-static-median", "docs/camera.md", "static surfaces: velocity error median 1.26 m/s",
+     1.26, DEMO, static("median_abs"), False),
+    ("demo-short-box-p95-mixed", "docs/camera.md", "short box's 95th percentile is\n15.9 m/s",
+     15.9, DEMO_MIXED, body("short_box", "p95_abs"), False),
+    ("demo-short-box-p95-camera", "docs/camera.md", "15.9 m/s (its silhouettes), 6.08 without",
+     6.08, DEMO, body("short_box", "p95_abs"), False),
     # docs/fmcw.md section 5: the street example at 96x96 (issue 43)
     ("street-car-velocity", "docs/fmcw.md", "the car reads -9.79 m/s", -9.79, STREET,
      at("regions", ("name", "car"), "velocity_gt_median_m_s"), True),
@@ -134,6 +185,53 @@ REGISTRY = [
      at("errors", "range_m", "median_abs", scale=100), True),
     ("street-range-p95", "docs/fmcw.md", "but 4.2 m at the 95th percentile", 4.2, STREET,
      at("errors", "range_m", "p95_abs"), True),
+]
+
+
+#: the demo scene with direct light only (README.md, docs/camera.md), the starter sphere with
+#: direct light and through paper-dtof (docs/camera.md; issue 42, 2026-12-04)
+REGISTRY += [
+    ("direct-static-median", "README.md", "static pixels' median error is 9e-5 m/s", 9e-5,
+     DIRECT, static("median_abs"), True),
+    ("direct-short-box-median", "README.md", "the boxes' 0.08 m/s", 0.08, DIRECT,
+     body("short_box", "median_abs"), True),
+    ("direct-tall-box-median", "README.md", "the boxes' 0.08 m/s", 0.08, DIRECT,
+     body("tall_box", "median_abs"), True),
+    ("direct-short-box-p95", "README.md", "(95th percentiles 0.29 and\n0.24 m/s", 0.29,
+     DIRECT, body("short_box", "p95_abs"), True),
+    ("direct-tall-box-p95", "README.md", "(95th percentiles 0.29 and\n0.24 m/s", 0.24, DIRECT,
+     body("tall_box", "p95_abs"), True),
+    ("direct-image-median", "docs/camera.md", "median velocity error of 1.3e-4 m/s over the "
+     "image", 1.3e-4, DIRECT, error("velocity_m_s", "median_abs"), True),
+    ("direct-static-median-camera", "docs/camera.md", "(static pixels, most of it: 9e-5)", 9e-5,
+     DIRECT, static("median_abs"), True),
+    ("direct-short-box-median-camera", "docs/camera.md", "(0.079 short, 0.077 tall", 0.079,
+     DIRECT, body("short_box", "median_abs"), True),
+    ("direct-tall-box-median-camera", "docs/camera.md", "(0.079 short, 0.077 tall", 0.077,
+     DIRECT, body("tall_box", "median_abs"), True),
+    ("direct-short-box-p95-camera", "docs/camera.md", "95th percentiles 0.29 and 0.24 m/s), and",
+     0.29, DIRECT, body("short_box", "p95_abs"), True),
+    ("direct-tall-box-p95-camera", "docs/camera.md", "95th percentiles 0.29 and 0.24 m/s), and",
+     0.24, DIRECT, body("tall_box", "p95_abs"), True),
+    ("direct-depth-median", "docs/camera.md", "depth error of 0.03 mm", 0.03, DIRECT,
+     error("depth_m", "median_abs", 1e3), True),
+    ("sphere-direct-ball-mean", "docs/camera.md", "kept pixels' mean is +0.0356 m/s", 0.0356,
+     SPHERE_DIRECT, body("ball", "mean_signed"), True),
+    ("sphere-direct-ball-p95", "docs/camera.md", "95th percentile 0.3)", 0.3, SPHERE_DIRECT,
+     body("ball", "p95_abs"), True),
+    ("sphere-paper-dtof-mixed", "docs/camera.md", "24x24: 36 pixels", 36, SPHERE_CAMERA,
+     at("mixed_footprints"), True),
+    ("sphere-paper-dtof-mean-mixed", "docs/camera.md", "the mean velocity error -0.55 m/s with "
+     "them", -0.55, SPHERE_CAMERA_MIXED, error("velocity_m_s", "mean_signed"), True),
+    ("sphere-paper-dtof-mean", "docs/camera.md", "-0.55 m/s with them, -0.025", -0.025,
+     SPHERE_CAMERA, error("velocity_m_s", "mean_signed"), True),
+    # README.md's Azure Kinect summary: the far ends of benchmarks/camera_accuracy.py's table
+    ("readme-azure-kinect-random", "README.md", "(17.8 mm at the NFOV far end", 17.8,
+     wall("azure-kinect", 3.86, 0.15), at("random_m", scale=1e3), True),
+    ("readme-azure-kinect-nfov-binned-random", "README.md", "12.4 mm binned at 5.46 m", 12.4,
+     wall("azure-kinect-nfov-binned", 5.46, 0.15), at("random_m", scale=1e3), True),
+    ("readme-azure-kinect-wfov-unbinned-random", "README.md", "20.0 mm WFOV unbinned at 2.21 m",
+     20.0, wall("azure-kinect-wfov-unbinned", 2.21, 0.15), at("random_m", scale=1e3), True),
 ]
 
 
@@ -276,8 +374,16 @@ NOT_REMEASURED = [
      "not yet in the registry"),
     ("docs/dataset.md", "the preview's and check's 1.0-1.8 s, an export's 45 s a sample",
      "times depend on the machine and its load"),
-    ("docs/reliability.md", "its figures", "not yet in the registry (issue 42's target is "
-     "every number)"),
+    ("docs/reliability.md", "its figures but the mixed footprints' row (re-measured above)",
+     "the campaign's rows quote error messages and the states of 179 reruns, which the tests "
+     "each row names assert, not measured values"),
+    ("README.md", "`make test`'s 16-18 minutes (and `make quick`'s)", "times of the whole "
+     "suite, measured by running it (docs/testing.md's table: 18 min 5 s on 2026-12-03)"),
+    ("docs/camera.md", "the sphere through paper-dtof: its silhouettes 'up to 247 m/s off'",
+     "a maximum over velocity.npy, which summary.json does not hold (its 36 pixels and the "
+     "means with and without them are re-measured above)"),
+    ("docs/differentiable.md", "the plain and cross losses' minima over the sphere's velocity",
+     "benchmarks/loss_minimum.py beside them prints them (45 s at its defaults)"),
 ]
 
 

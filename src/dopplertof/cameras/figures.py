@@ -61,7 +61,9 @@ def write_camera_comparison(path, results, title: str) -> dict:
     for row, result, error in zip(axes, results, errors):
         name = result.preset.name
         shown = show(row[0], error, "PuOr_r", vmin=-limit, vmax=limit)
-        row[0].set_title(f"{name}: range error (m)", fontsize=8)
+        row[0].set_title(f"{name}: range error (m)\n"
+                         + masked_caption(error, result.summary["depth"]["masked_pixels"]),
+                         fontsize=8)
         fig.colorbar(shown, ax=row[0], fraction=0.046,
                      extend=previews.colorbar_extend(error, -limit, limit))
         shown = show(row[1], result.reconstruction.amplitude, "gray")
@@ -71,7 +73,9 @@ def write_camera_comparison(path, results, title: str) -> dict:
         if velocity is not None:
             v = float(np.nanmax(np.abs(result.velocity_gt))) * 1.25 or 1.0
             shown = show(row[2], velocity, "RdBu_r", vmin=-v, vmax=v)
-            row[2].set_title(f"{name}: radial velocity (m/s)", fontsize=8)
+            row[2].set_title(f"{name}: radial velocity (m/s)\n"
+                             f"NaN (hatched): {np.count_nonzero(np.isnan(velocity))} px",
+                             fontsize=8)
             fig.colorbar(shown, ax=row[2], fraction=0.046,
                          extend=previews.colorbar_extend(velocity, -v, v))
         else:
@@ -81,12 +85,25 @@ def write_camera_comparison(path, results, title: str) -> dict:
             ax.set_axis_off()
     fig.suptitle(title, fontsize=10)
     fig.text(0.5, 0.005, previews.NO_SIGNAL_NOTE, ha="center", va="bottom", fontsize=7)
-    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    fig.tight_layout(rect=(0, 0.02, 1, 1 - 0.3 / fig.get_figheight()))  # (the suptitle's)
     io.save_figure(fig, path)
     numbers = {"title": title, "cameras": [_comparison_numbers(r, e)
                                            for r, e in zip(results, errors)]}
     io.write_json(str(path)[:-4] + ".json", numbers)
     return numbers
+
+
+def masked_caption(error, masked_by: dict, width: int = 40) -> str:
+    """The caption of a range-error panel: its masked (NaN, hatched) pixels of all, and each
+    mask's count that is not 0 (a pixel can be in several), wrapped to ``width`` between
+    the masks (no-break spaces within one)."""
+    import textwrap
+
+    masked = int(np.count_nonzero(~np.isfinite(error)))
+    reasons = [f"{reason} {count}".replace(" ", "\u00a0")
+               for reason, count in masked_by.items() if count]
+    text = f"masked (hatched): {masked} of {error.size} px"
+    return textwrap.fill(text + (": " + ", ".join(reasons) if reasons else ""), width)
 
 
 def _comparison_numbers(result, error) -> dict:

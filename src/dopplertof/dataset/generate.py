@@ -144,10 +144,12 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
     velocity = (np.array(_unit_vector(rng)) * _uniform(rng, motion["speed"])).tolist()
     spin = (np.array(_unit_vector(rng)) * _uniform(rng, motion["angular_speed"])).tolist()
     kind = str(rng.choice(objects["materials"]))
-    colour = [_uniform(rng, objects["albedo"]) for _ in range(3)]
+    material = {"kind": kind, "colour": [_uniform(rng, objects["albedo"]) for _ in range(3)]}
+    roughness = _uniform(rng, objects["roughness"])  # drawn for every kind: same seed, same scene
+    if kind != "diffuse":  # a diffuse BSDF has no roughness (issue 42)
+        material["roughness"] = roughness
     return {"id": f"object_{k}", "shape": shape, "mesh": mesh, "size_m": size,
-            "material": {"kind": kind, "colour": colour,
-                         "roughness": _uniform(rng, objects["roughness"])},
+            "material": material,
             "centre_m": centre.tolist(), "rest": rest.tolist(),
             "velocity_m_s": velocity, "angular_velocity_rad_s": spin}
 

@@ -16,6 +16,7 @@ import json
 
 import numpy as np
 
+from ..io import json_ready
 from .config import DatasetConfig
 from .generate import camera_pose, draw_scene
 from .scene_text import scene_xml
@@ -62,8 +63,8 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
     arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
     attributes = {"index": int(index), "render_seed": description["render_seed"],
                   "noise_seed": description["noise_seed"], "scene_xml": text,
-                  "description": json.dumps(description, sort_keys=True),
-                  "camera_preset": json.dumps(preset.describe(), sort_keys=True),
+                  "description": json.dumps(json_ready(description), sort_keys=True),
+                  "camera_preset": json.dumps(json_ready(preset.describe()), sort_keys=True),
                   "photons_per_unit": arrays.pop("photons_per_unit")}
     return arrays, attributes
 

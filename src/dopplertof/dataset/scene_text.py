@@ -25,7 +25,7 @@ def _keyframes(matrix_at, times: dict) -> str:
 def bsdf_xml(material: dict) -> str:
     """The material as a two-sided BSDF (a rectangle or a room is seen from either side)."""
     colour = ", ".join(repr(float(c)) for c in material["colour"])
-    alpha = repr(float(material["roughness"]))
+    alpha = repr(float(material.get("roughness", 0.0)))  # none for a diffuse one
     inner = {
         "diffuse": f'<bsdf type="diffuse"><rgb name="reflectance" value="{colour}"/></bsdf>',
         "plastic": (f'<bsdf type="roughplastic"><float name="alpha" value="{alpha}"/>'
@@ -50,7 +50,7 @@ def _object(obj: dict, times: dict) -> str:
 def _backdrop(backdrop: dict) -> str:
     """The room (a cube around the camera, its back 1 m behind it) or a wall."""
     width, height, depth = backdrop["size_m"]
-    grey = {"kind": "diffuse", "colour": [backdrop["albedo"]] * 3, "roughness": 0.0}
+    grey = {"kind": "diffuse", "colour": [backdrop["albedo"]] * 3}
     if backdrop["kind"] == "none":
         return ""
     m = np.eye(4)
