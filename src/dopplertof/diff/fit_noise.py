@@ -1,0 +1,158 @@
+"""The fit's noise: each residual's variance, estimated from what the fit already has,
+and the sandwich covariance of the fitted parameters (issue 42, 2026-12-04).
+
+The fit's residuals are block sums of render - capture. Their noise is not the same
+everywhere (the Monte Carlo noise of a block depends on its brightness, its pixel count
+and the light's paths), and the capture kinds of one block are correlated (the renders
+of one seed, like the capture, use common random numbers for every kind). So
+s^2 (J^T J)^+ (one variance for every residual) misstates it. Here:
+
+* **the renders' noise**: the two seeds' renders differ by their noise only, so
+  d = (r_A - r_B) / 2, per block and capture kind, has the covariance of the noise of
+  the two renders' mean, which is what the fitted velocities see (their steps average
+  the seeds). Each block (its kinds together) is one cluster: S_R,i = d_i d_i^T,
+  a one-sample estimate, unbiased; summed over the blocks in J^T S J it is consistent;
+* **the capture's noise**, by what the capture folder says of it:
+  ``maps``: its Monte Carlo standard deviations (``<kind>_std_mc.npy``, written by
+  ``dopplertof capture --mc-batches``): per block the sum of its pixels' variances;
+  ``spp``: a capture without sensor noise is a render of the same estimator at its own
+  samples: its variance is one fit render's times spp_fit / spp_capture, i.e.
+  S_C = 2 (spp_fit / spp_capture) S_R, with the same correlation across the kinds;
+  ``residuals`` (sensor noise, whose variance the folder does not hold): the
+  cluster-robust estimate from the residuals of the two renders' mean themselves
+  (each block's residual vector, its leverage taken out), which holds the renders'
+  noise as well;
+* **the covariance**: the fit solves G theta = -g with the metric G (the Jacobians of
+  the two seeds crossed) over the directions the captures constrain, so
+  cov = G^+ M G^+ with the meat M = sum over blocks of J_i^T S_i J_i (the sandwich;
+  J_i the block's rows of the Jacobian: the two seeds' for the renders' part, each
+  seed's Jacobian against the other seed's noise, their mean for the capture's);
+* **the Birge ratio** B = |r|^2 / E|r|^2: the squared residual of the two renders'
+  mean against what the estimated noise predicts after the fit, tr((I - H) S) (H the
+  fit's hat matrix). B near 1: the noise explains the residuals. Its standard
+  deviation under that hypothesis is about sqrt(4 / nu), nu the effective number of
+  independent residuals (3 (sum d^2)^2 / sum d^4: a one-sample variance's fourth
+  moment is 3 times its square); the covariance is scaled by B only where B exceeds 1
+  by more than :data:`BIRGE_SIGMAS` of them (misfit or noise the estimate misses),
+  never scaled down. With the ``residuals`` route B compares with the renders' noise
+  only (the capture's is unknown) and never scales.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+#: the covariance is scaled by the Birge ratio B where B > 1 + BIRGE_SIGMAS sd(B)
+BIRGE_SIGMAS = 2.0
+
+#: a block's leverage is capped here in the ``residuals`` route (1 / (1 - h) at most 10)
+MAX_LEVERAGE = 0.9
+
+
+@dataclass
+class CaptureNoise:
+    """What the fit knows of the capture's noise (see the module docstring)."""
+
+    kinds: int = 1  #: capture kinds fitted: residual k * blocks + i is kind k of block i
+    source: str = "residuals"  #: "maps", "spp" or "residuals"
+    ratio: float = 0.0  #: ``spp``: the capture's variance over one fit render's
+    variance: np.ndarray | None = None  #: ``maps``: per residual, the capture's variance
+
+    def describe(self) -> str:
+        return {"maps": "the capture's Monte Carlo standard deviations (<kind>_std_mc.npy)",
+                "spp": "one fit render's Monte Carlo noise x spp_fit / spp_capture "
+                       f"({self.ratio:.4g}: a capture without sensor noise)",
+                "residuals": "the residuals themselves (cluster-robust: the capture's "
+                             "noise is not in its folder)"}[self.source]
+
+
+def capture_noise(data, problem, spp: int) -> CaptureNoise:
+    """The capture's noise for the fit's ``problem`` at ``spp`` samples: its
+    ``<kind>_std_mc.npy`` maps where the folder has them for every fitted kind and no
+    sensor noise was added, else the spp ratio where no sensor noise was added and the
+    capture's samples are known, else the residuals."""
+    kinds = len(problem.fitted)
+    sensor = bool(data.summary.get("noise"))
+    maps = getattr(data, "std_mc", None) or {}
+    if not sensor and all(c in maps for c in problem.fitted):
+        variance = np.concatenate([problem.pool(np.square(maps[c].ravel()[problem.pixels]))
+                                   for c in problem.fitted])
+        return CaptureNoise(kinds, "maps", variance=variance)
+    capture_spp = data.summary.get("spp_per_capture")
+    if not sensor and capture_spp:
+        return CaptureNoise(kinds, "spp", ratio=float(spp) / float(capture_spp))
+    return CaptureNoise(kinds, "residuals")
+
+
+def load_std_maps(folder, names) -> dict:
+    """name -> (H, W) Monte Carlo standard deviation of each capture in ``names`` that
+    the folder holds as ``<name>_std_mc.npy`` (``dopplertof capture --mc-batches``)."""
+    out = {}
+    for name in names:
+        path = os.path.join(os.fspath(folder), f"{name}_std_mc.npy")
+        if os.path.isfile(path):
+            out[name] = np.load(path).astype(np.float64)
+    return out
+
+
+def _clusters(rows: int, kinds: int) -> np.ndarray:
+    """(blocks, kinds): the residuals of each block, one per capture kind."""
+    kinds = kinds if kinds > 0 and rows % kinds == 0 else 1
+    return np.arange(rows).reshape(kinds, rows // kinds).T
+
+
+def _cluster_sums(J, values, index) -> np.ndarray:
+    """Per block, sum over its kinds of J_r^T values_r: (blocks, parameters)."""
+    return np.einsum("bkp,bk->bp", J[index], values[index])
+
+
+def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
+    """(cov = inverse M inverse, the diagnostics) with ``inverse`` G^+ (zero outside the
+    directions the fit sees) and the meat M of the residuals' estimated covariance
+    (the module docstring)."""
+    noise = noise or CaptureNoise()
+    (r_a, r_b), (J_a, J_b) = residuals, jacobians
+    index = _clusters(len(r_a), noise.kinds)
+    d, mean, J = 0.5 * (r_a - r_b), 0.5 * (r_a + r_b), 0.5 * (J_a + J_b)
+    # the renders' part: each seed's Jacobian against the other seed's noise
+    V_a, V_b = (_cluster_sums(Js, d, index) for Js in (J_a, J_b))
+    meat_r = 0.5 * (V_a.T @ V_a + V_b.T @ V_b)
+    V = _cluster_sums(J, d, index)
+    render_left = float(d @ d) - float(np.einsum("bp,pq,bq->", V, inverse, V))
+    if noise.source == "spp":
+        meat = meat_r + 2.0 * noise.ratio * (V.T @ V)
+        expected = (1.0 + 2.0 * noise.ratio) * render_left
+    elif noise.source == "maps":
+        leverage = np.einsum("rp,pq,rq->r", J, inverse, J)
+        meat = meat_r + J.T @ (noise.variance[:, None] * J)
+        expected = render_left + float(noise.variance @ (1.0 - leverage))
+    else:
+        meat, expected = _residual_meat(J, mean, inverse, index), render_left
+    birge = _birge(float(mean @ mean), expected, d, noise.source != "residuals")
+    scale = birge["scale"]
+    return scale * (inverse @ meat @ inverse), birge
+
+
+def _residual_meat(J, mean, inverse, index):
+    """The cluster-robust meat from the residuals of the two renders' mean: per block
+    J_i^T r_i scaled by 1 / sqrt(1 - h_i), h_i its mean leverage (at most
+    :data:`MAX_LEVERAGE`): a fitted residual is smaller than its noise by it."""
+    leverage = np.einsum("rp,pq,rq->r", J, inverse, J)[index].mean(1)
+    U = _cluster_sums(J, mean, index) / np.sqrt(1.0 - np.minimum(leverage, MAX_LEVERAGE))[:, None]
+    return U.T @ U
+
+
+def _birge(energy: float, expected: float, d, may_scale: bool) -> dict:
+    """fit.json's ``noise`` diagnostics: the Birge ratio |r|^2 / E|r|^2, its standard
+    deviation sqrt(4 / nu) without misfit, and the scale applied to the covariance
+    (B where it exceeds 1 by more than :data:`BIRGE_SIGMAS` of them, else 1)."""
+    d2 = d * d
+    nu = 3.0 * float(d2.sum()) ** 2 / max(float(np.sum(d2 * d2)), 1e-300)
+    ratio = energy / expected if expected > 0 else float("inf")
+    sd = float(np.sqrt(4.0 / max(nu, 1.0)))
+    scaled = may_scale and ratio > 1.0 + BIRGE_SIGMAS * sd
+    return {"birge_ratio": float(ratio), "birge_ratio_sd": sd,
+            "effective_residuals": float(nu), "scale": float(ratio) if scaled else 1.0}
