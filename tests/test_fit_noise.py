@@ -111,16 +111,51 @@ def test_sandwich_z_scores_scatter_as_normals_where_s2_does_not(route):
 
 def test_birge_ratio_scales_only_an_excess_beyond_its_noise():
     """A capture noise the estimate misses (told 0 where it is half a render's
-    variance): the Birge ratio exceeds 1 by many of its standard deviations and the
-    covariance is scaled by it; with the right ratio it is not scaled."""
+    variance: the residuals then carry twice the predicted energy): over 40 fits the
+    Birge ratio exceeds 1 by more than 2 of its standard deviations and scales the
+    covariance in most (its sd is conservative with one sample per block: 0.4 reported,
+    0.18 measured over 200 fits of 400 blocks); told right, its median is 1 within 0.1
+    and it scales almost none (at most 10%)."""
     from dopplertof.diff.fit_noise import CaptureNoise
     from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
 
-    problem = _HeteroscedasticProblem(np.random.default_rng(2), blocks=400)
-    _, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, _fit_progress(False, 20), 0.0)
-    told_none, right = {}, {}
-    _covariance(state, problem.seen, None, CaptureNoise(2, "spp", ratio=0.0), told_none)
-    _covariance(state, problem.seen, None, CaptureNoise(2, "spp", ratio=0.5), right)
-    assert told_none["birge_ratio"] > 1 + 4 * told_none["birge_ratio_sd"], told_none
-    assert told_none["scale"] == told_none["birge_ratio"]
-    assert right["scale"] == 1.0 and abs(right["birge_ratio"] - 1) < 3 * right["birge_ratio_sd"]
+    rng = np.random.default_rng(2)
+    told_none, right = [], []
+    for _ in range(40):
+        problem = _HeteroscedasticProblem(rng, blocks=400)
+        _, state, *_ = _gauss_newton(problem, 1, 20, 1e-9, 1e-6, _fit_progress(False, 20), 0.0)
+        for ratio, out in ((0.0, told_none), (0.5, right)):
+            report = {}
+            _covariance(state, problem.seen, None, CaptureNoise(2, "spp", ratio=ratio), report)
+            out.append(report)
+    assert np.mean([r["scale"] == r["birge_ratio"] > 1 for r in told_none]) > 0.75
+    assert np.mean([r["scale"] != 1.0 for r in right]) <= 0.1
+    assert abs(np.median([r["birge_ratio"] for r in right]) - 1) < 0.1
+
+
+def test_fits_over_capture_seeds_land_within_3_reported_sd(tmp_path):
+    """End to end: the translating sphere (32x32, direct light, 32 spp capture and
+    fit) captured with 4 seeds and fitted: every fitted component within 3 of its
+    reported standard deviations, the capture's noise taken from the spp ratio, and the
+    Birge ratio (settings.noise) finite and below 3."""
+    import contextlib
+    import io
+    import os
+
+    from dopplertof.cli import main
+    from dopplertof.diff.fit import fit
+
+    scene = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                         "examples", "translating_sphere.xml")
+    z = []
+    for seed in range(1, 5):
+        cap = str(tmp_path / f"cap{seed}")
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert main(["capture", scene, "-o", cap, "--spp", "32", "--seed", str(seed),
+                         "--quiet", "-D", "res=32", "-D", "max_depth=2"]) == 0
+        result = fit(cap, spp=32, progress=False)
+        noise = result.settings["noise"]
+        assert noise["capture_noise"].startswith("one fit render's Monte Carlo noise x")
+        assert 0 < noise["birge_ratio"] < 3, noise
+        z += [x for b in result.bodies for x in b["linear_velocity_error_sigmas"]]
+    assert len(z) == 12 and all(x is not None and abs(x) <= 3 for x in z), z

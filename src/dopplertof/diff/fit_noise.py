@@ -8,10 +8,14 @@ of one seed, like the capture, use common random numbers for every kind). So
 s^2 (J^T J)^+ (one variance for every residual) misstates it. Here:
 
 * **the renders' noise**: the two seeds' renders differ by their noise only, so
-  d = (r_A - r_B) / 2, per block and capture kind, has the covariance of the noise of
-  the two renders' mean, which is what the fitted velocities see (their steps average
-  the seeds). Each block (its kinds together) is one cluster: S_R,i = d_i d_i^T,
-  a one-sample estimate, unbiased; summed over the blocks in J^T S J it is consistent;
+  delta = (render_A - render_B) / 2, per pixel and capture kind, is a sample of the noise
+  of the two renders' mean, which is what the fitted velocities see (their steps average
+  the seeds). Per block i the covariance across the kinds of that noise's block sum is
+  S_R,i = sum over the block's pixels of delta delta^T (:func:`block_covariances`: the
+  pixels' noise is independent, the examples' box filter splatting each sample into one
+  pixel): an estimate from the block's pixels, not from its one block sum. Without the
+  per-pixel renders (a problem that has none) d_i d_i^T, d = (r_A - r_B) / 2 of the
+  block sums, one sample per block: unbiased, consistent summed over the blocks;
 * **the capture's noise**, by what the capture folder says of it:
   ``maps``: its Monte Carlo standard deviations (``<kind>_std_mc.npy``, written by
   ``dopplertof capture --mc-batches``): per block the sum of its pixels' variances;
@@ -30,12 +34,13 @@ s^2 (J^T J)^+ (one variance for every residual) misstates it. Here:
 * **the Birge ratio** B = |r|^2 / E|r|^2: the squared residual of the two renders'
   mean against what the estimated noise predicts after the fit, tr((I - H) S) (H the
   fit's hat matrix). B near 1: the noise explains the residuals. Its standard
-  deviation under that hypothesis is about sqrt(4 / nu), nu the effective number of
-  independent residuals (3 (sum d^2)^2 / sum d^4: a one-sample variance's fourth
-  moment is 3 times its square); the covariance is scaled by B only where B exceeds 1
-  by more than :data:`BIRGE_SIGMAS` of them (misfit or noise the estimate misses),
-  never scaled down. With the ``residuals`` route B compares with the renders' noise
-  only (the capture's is unknown) and never scales.
+  deviation under that hypothesis is sqrt(2 / nu + 2 / nu'), nu = (tr S)^2 / |S|^2 the
+  residuals' effective number and nu' that of the pixels S is estimated from (one
+  sample per block: nu / 3, a one-sample variance's fourth moment being 3 times its
+  square); the covariance is scaled by B only where B exceeds 1 by more than
+  :data:`BIRGE_SIGMAS` of them (misfit or noise the estimate misses), never scaled
+  down. With the ``residuals`` route B compares with the renders' noise only (the
+  capture's is unknown) and never scales.
 """
 
 from __future__ import annotations
@@ -60,6 +65,10 @@ class CaptureNoise:
     source: str = "residuals"  #: "maps", "spp" or "residuals"
     ratio: float = 0.0  #: ``spp``: the capture's variance over one fit render's
     variance: np.ndarray | None = None  #: ``maps``: per residual, the capture's variance
+    #: (blocks, kinds, kinds) the renders' noise per block (:func:`block_covariances`);
+    #: None: one sample per block from the two seeds' block sums
+    render_cov: np.ndarray | None = None
+    estimate_samples: float = 0.0  #: the pixels ``render_cov`` is estimated from
 
     def describe(self) -> str:
         return {"maps": "the capture's Monte Carlo standard deviations (<kind>_std_mc.npy)",
@@ -75,16 +84,20 @@ def capture_noise(data, problem, spp: int) -> CaptureNoise:
     sensor noise was added, else the spp ratio where no sensor noise was added and the
     capture's samples are known, else the residuals."""
     kinds = len(problem.fitted)
+    renders = getattr(problem, "pixel_renders", None)
+    cov = (None if renders is None
+           else block_covariances(renders, problem.groups, problem.n_groups))
+    common = {"render_cov": cov, "estimate_samples": float(len(problem.pixels))}
     sensor = bool(data.summary.get("noise"))
     maps = getattr(data, "std_mc", None) or {}
     if not sensor and all(c in maps for c in problem.fitted):
         variance = np.concatenate([problem.pool(np.square(maps[c].ravel()[problem.pixels]))
                                    for c in problem.fitted])
-        return CaptureNoise(kinds, "maps", variance=variance)
+        return CaptureNoise(kinds, "maps", variance=variance, **common)
     capture_spp = data.summary.get("spp_per_capture")
     if not sensor and capture_spp:
-        return CaptureNoise(kinds, "spp", ratio=float(spp) / float(capture_spp))
-    return CaptureNoise(kinds, "residuals")
+        return CaptureNoise(kinds, "spp", ratio=float(spp) / float(capture_spp), **common)
+    return CaptureNoise(kinds, "residuals", **common)
 
 
 def load_std_maps(folder, names) -> dict:
@@ -109,6 +122,23 @@ def _cluster_sums(J, values, index) -> np.ndarray:
     return np.einsum("bkp,bk->bp", J[index], values[index])
 
 
+def block_covariances(pixel_renders, groups, blocks: int) -> np.ndarray:
+    """(blocks, kinds, kinds): per block, the covariance across the capture kinds of
+    the noise of the two seeds' mean render's block sum, from the per-pixel renders
+    (per seed (kinds, pixels), each kind's rendered pixels): the sum over the block's
+    pixels of delta delta^T, delta = (render_A - render_B) / 2 per kind (independent
+    pixels: the examples' box filter splats every sample into one pixel)."""
+    a, b = (np.asarray(x, np.float64) for x in pixel_renders)
+    delta = 0.5 * (a - b)  # (kinds, pixels)
+    kinds = delta.shape[0]
+    out = np.zeros((blocks, kinds, kinds))
+    for k in range(kinds):
+        for m in range(k, kinds):
+            out[:, k, m] = out[:, m, k] = np.bincount(groups, weights=delta[k] * delta[m],
+                                                      minlength=blocks)
+    return out
+
+
 def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
     """(cov = inverse M inverse, the diagnostics) with ``inverse`` G^+ (zero outside the
     directions the fit sees) and the meat M of the residuals' estimated covariance
@@ -117,23 +147,26 @@ def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
     (r_a, r_b), (J_a, J_b) = residuals, jacobians
     index = _clusters(len(r_a), noise.kinds)
     d, mean, J = 0.5 * (r_a - r_b), 0.5 * (r_a + r_b), 0.5 * (J_a + J_b)
+    S = noise.render_cov if noise.render_cov is not None else \
+        np.einsum("bk,bl->bkl", d[index], d[index])  # one sample per block
     # the renders' part: each seed's Jacobian against the other seed's noise
-    V_a, V_b = (_cluster_sums(Js, d, index) for Js in (J_a, J_b))
-    meat_r = 0.5 * (V_a.T @ V_a + V_b.T @ V_b)
-    V = _cluster_sums(J, d, index)
-    render_left = float(d @ d) - float(np.einsum("bp,pq,bq->", V, inverse, V))
+    meat = 0.5 * sum(np.einsum("bkp,bkl,blq->pq", Js[index], S, Js[index])
+                     for Js in (J_a, J_b))
     if noise.source == "spp":
-        meat = meat_r + 2.0 * noise.ratio * (V.T @ V)
-        expected = (1.0 + 2.0 * noise.ratio) * render_left
+        capture = 2.0 * noise.ratio * S
     elif noise.source == "maps":
-        leverage = np.einsum("rp,pq,rq->r", J, inverse, J)
-        meat = meat_r + J.T @ (noise.variance[:, None] * J)
-        expected = render_left + float(noise.variance @ (1.0 - leverage))
+        capture = np.einsum("bk,kl->bkl", noise.variance[index], np.eye(index.shape[1]))
     else:
-        meat, expected = _residual_meat(J, mean, inverse, index), render_left
-    birge = _birge(float(mean @ mean), expected, d, noise.source != "residuals")
-    scale = birge["scale"]
-    return scale * (inverse @ meat @ inverse), birge
+        capture = None
+    if capture is not None:
+        meat = meat + np.einsum("bkp,bkl,blq->pq", J[index], capture, J[index])
+        S = S + capture
+    else:
+        meat = _residual_meat(J, mean, inverse, index)
+    left = float(np.einsum("bkk->", S) - np.einsum("bkp,pq,blq,bkl->", J[index], inverse,
+                                                   J[index], S))
+    birge = _birge(float(mean @ mean), left, S, noise)
+    return birge["scale"] * (inverse @ meat @ inverse), birge
 
 
 def _residual_meat(J, mean, inverse, index):
@@ -145,14 +178,17 @@ def _residual_meat(J, mean, inverse, index):
     return U.T @ U
 
 
-def _birge(energy: float, expected: float, d, may_scale: bool) -> dict:
+def _birge(energy: float, expected: float, S, noise: CaptureNoise) -> dict:
     """fit.json's ``noise`` diagnostics: the Birge ratio |r|^2 / E|r|^2, its standard
-    deviation sqrt(4 / nu) without misfit, and the scale applied to the covariance
-    (B where it exceeds 1 by more than :data:`BIRGE_SIGMAS` of them, else 1)."""
-    d2 = d * d
-    nu = 3.0 * float(d2.sum()) ** 2 / max(float(np.sum(d2 * d2)), 1e-300)
+    deviation without misfit (sqrt(2 / nu + 2 / nu'), nu the residuals' effective
+    number (tr S)^2 / |S|^2, nu' that of the noise's estimate: per pixel (its pixels'
+    number) or, one sample per block, nu / 3), and the scale applied to the covariance
+    (B where it exceeds 1 by more than :data:`BIRGE_SIGMAS` of them, else 1; never
+    with the ``residuals`` route, whose B compares with the renders' noise only)."""
+    nu = float(np.einsum("bkk->", S)) ** 2 / max(float(np.sum(S * S)), 1e-300)
+    nu_estimate = noise.estimate_samples if noise.render_cov is not None else nu / 3.0
     ratio = energy / expected if expected > 0 else float("inf")
-    sd = float(np.sqrt(4.0 / max(nu, 1.0)))
-    scaled = may_scale and ratio > 1.0 + BIRGE_SIGMAS * sd
+    sd = float(np.sqrt(2.0 / max(nu, 1.0) + 2.0 / max(nu_estimate, 1.0)))
+    scaled = noise.source != "residuals" and ratio > 1.0 + BIRGE_SIGMAS * sd
     return {"birge_ratio": float(ratio), "birge_ratio_sd": sd,
             "effective_residuals": float(nu), "scale": float(ratio) if scaled else 1.0}

@@ -81,16 +81,18 @@ class _FitProblem:
     def evaluate(self, samples: int, jacobian: bool = True):
         """Residuals at the current motions from two renders of ``samples`` spp of
         independent random numbers (A, B), and (``jacobian``) their Jacobians
-        (:meth:`jacobians`): ((r_A, r_B), (J_A, J_B)), the Jacobians None without."""
+        (:meth:`jacobians`): ((r_A, r_B), (J_A, J_B)), the Jacobians None without. The
+        renders' per-pixel values stay in ``pixel_renders`` (per seed (kinds, pixels)):
+        the renders' noise per block (:func:`.fit_noise.block_covariances`)."""
         from .render import render_derivatives
 
-        residuals = []
+        residuals, self.pixel_renders = [], []
         for seed in self.seeds:
-            residual = [self.pool(render_derivatives(self.scenes[c], [], spp=samples,
-                                                     seed=seed, pixels=self.pixels)
-                                  .image.mean(-1).ravel()[self.pixels])
-                        for c in self.fitted]
-            residuals.append(np.concatenate(residual) - self.target)
+            rendered = np.array([render_derivatives(self.scenes[c], [], spp=samples, seed=seed,
+                                                    pixels=self.pixels)
+                                 .image.mean(-1).ravel()[self.pixels] for c in self.fitted])
+            self.pixel_renders.append(rendered)  # the noise's estimate (fit_noise)
+            residuals.append(np.concatenate([self.pool(x) for x in rendered]) - self.target)
         return tuple(residuals), (self.jacobians() if jacobian else (None, None))
 
     def jacobians(self):
