@@ -14,12 +14,16 @@ the z-scores' RMS and the Birge ratios.
 
 (a scene is a file of examples/; `direct` captures and fits with -D max_depth=2,
 `multipath` as the scene is written; --spp: of the capture and the fit, 64 as
-docs/differentiable.md's tables; --res: the capture's resolution, 48 as there.)
+docs/differentiable.md's tables; --res: the capture's resolution, 48 as there; -D: more
+-D values of the captures, e.g. -D spin=0; --json: every row. The rows also hold, for
+comparison, z_plain: the sandwich without its outlying blocks' rule, and z_robust: the
+cluster-robust sandwich from the residuals alone.)
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -36,15 +40,18 @@ def _recording_covariance():
     """Patches the fit's covariance to record the old s^2 (J^T J)^+ beside the new
     sandwich from the same final state: returns the list each fit appends to."""
     from dopplertof.diff import fit as fit_module
-    from dopplertof.diff import fit_solve
+    from dopplertof.diff import fit_noise, fit_solve
 
     records = []
     new = fit_solve._covariance
 
     def both(state, seen, theta=None, noise=None, report=None):
         cov, sigma = new(state, seen, theta, noise, report)
+        robust = fit_noise.CaptureNoise(noise.kinds, "residuals")  # for comparison
+        plain = dataclasses.replace(noise, outliers=False)
         records.append({"old": fit_solve._old_covariance(state, seen)[1], "new": sigma,
-                        "report": report})
+                        "robust": new(state, seen, theta, robust)[1],
+                        "plain": new(state, seen, theta, plain)[1], "report": report})
         return cov, sigma
 
     fit_module._covariance = both
@@ -52,7 +59,7 @@ def _recording_covariance():
 
 
 def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool,
-            records: list, folder: str) -> list:
+            records: list, folder: str, defines=()) -> list:
     """Capture and fit once; one row per body and fitted component."""
     from dopplertof.cli import main
     from dopplertof.diff.fit import fit
@@ -60,6 +67,7 @@ def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool
     cap = os.path.join(folder, f"{scene}_{light}_{seed}")
     args = ["capture", os.path.join(EXAMPLES, f"{scene}.xml"), "-o", cap, "--spp", str(spp),
             "--seed", str(seed), "--quiet", "-D", f"res={res}"] + LIGHTS[light]
+    args += [x for d in defines for x in ("-D", d)]
     with open(os.devnull, "w") as quiet:
         stdout, sys.stdout = sys.stdout, quiet
         try:
@@ -85,6 +93,8 @@ def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool
                              "component": f"{kind[0]}{'xyz'[a]}", "fitted": fitted[a],
                              "truth": truth[a], "sd_old": old, "z_old": error / old,
                              "sd_new": new, "z_new": error / new,
+                             "z_robust": error / record["robust"][i],
+                             "z_plain": error / record["plain"][i],
                              "birge": record["report"].get("birge_ratio"),
                              "scale": record["report"].get("scale"), "seconds": seconds})
     return rows
@@ -132,6 +142,8 @@ def main(argv=None) -> int:
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--res", type=int, default=48)
     p.add_argument("--angular", action="store_true")
+    p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE",
+                   help="a -D value of the captures (e.g. spin=0)")
     p.add_argument("--json", help="write every row and the summary here")
     a = p.parse_args(argv)
     import dopplertof
@@ -144,7 +156,8 @@ def main(argv=None) -> int:
         for scene in a.scene:
             for light in a.light:
                 for seed in a.seeds:
-                    new = run_one(scene, light, seed, a.spp, a.res, a.angular, records, folder)
+                    new = run_one(scene, light, seed, a.spp, a.res, a.angular, records, folder,
+                                  a.defines)
                     _print_rows(new)
                     rows += new
     summary = summarize(rows)

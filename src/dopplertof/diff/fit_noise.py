@@ -69,6 +69,7 @@ class CaptureNoise:
     #: None: one sample per block from the two seeds' block sums
     render_cov: np.ndarray | None = None
     estimate_samples: float = 0.0  #: the pixels ``render_cov`` is estimated from
+    outliers: bool = True  #: a block's improbable residual as its capture noise
 
     def describe(self) -> str:
         return {"maps": "the capture's Monte Carlo standard deviations (<kind>_std_mc.npy)",
@@ -159,6 +160,8 @@ def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
     else:
         capture = None
     if capture is not None:
+        if noise.outliers and noise.render_cov is not None:  # (not from one sample)
+            capture = _outlying_blocks(capture, S, mean[index])
         meat = meat + np.einsum("bkp,bkl,blq->pq", J[index], capture, J[index])
         S = S + capture
     else:
@@ -167,6 +170,24 @@ def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
                                                    J[index], S))
     birge = _birge(float(mean @ mean), left, S, noise)
     return birge["scale"] * (inverse @ meat @ inverse), birge
+
+
+#: chi-square (of the capture kinds' number of degrees of freedom) above which a block's
+#: residual is improbable under its estimated noise (once in 1000 blocks)
+OUTLIER_CHI2 = {1: 10.83, 2: 13.82, 3: 16.27, 4: 18.47}
+
+
+def _outlying_blocks(capture, render, residual):
+    """The capture's noise per block, with each block whose residual r_i is improbable
+    under its estimated noise (r_i^T S_i^+ r_i above :data:`OUTLIER_CHI2`: a rare
+    bright path in the capture, which the renders' difference cannot show) given the
+    residual's own r_i r_i^T instead."""
+    total = capture + render
+    q = np.einsum("bk,bkl,bl->b", residual, np.linalg.pinv(total), residual)
+    out = capture.copy()
+    far = q > OUTLIER_CHI2.get(residual.shape[1], 18.47)
+    out[far] = np.einsum("bk,bl->bkl", residual[far], residual[far])
+    return out
 
 
 def _residual_meat(J, mean, inverse, index):
