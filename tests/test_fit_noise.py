@@ -159,3 +159,28 @@ def test_fits_over_capture_seeds_land_within_3_reported_sd(tmp_path):
         assert 0 < noise["birge_ratio"] < 3, noise
         z += [x for b in result.bodies for x in b["linear_velocity_error_sigmas"]]
     assert len(z) == 12 and all(x is not None and abs(x) <= 3 for x in z), z
+
+
+def test_capture_noise_comes_from_maps_then_spp_then_residuals():
+    """The capture's noise: its std_mc maps where the folder has them (per block the
+    sum of its pixels' variances), else the spp ratio without sensor noise, else the
+    residuals (sensor noise: its variance is not in the folder)."""
+    from types import SimpleNamespace
+
+    from dopplertof.diff.fit_noise import capture_noise
+
+    groups = np.array([0, 0, 1, 1])
+    problem = SimpleNamespace(
+        fitted=("heterodyne_0", "heterodyne_0.25"), pixels=np.arange(4), groups=groups,
+        n_groups=2, pool=lambda v: np.bincount(groups, weights=v, minlength=2),
+        pixel_renders=[np.ones((2, 4)), np.zeros((2, 4))])
+    maps = {k: np.full((2, 2), 0.5) for k in problem.fitted}
+    data = SimpleNamespace(summary={"spp_per_capture": 64, "noise": None}, std_mc=maps)
+    noise = capture_noise(data, problem, 16)
+    assert noise.source == "maps" and np.allclose(noise.variance, 0.5)  # 2 pixels x 0.25
+    assert np.allclose(noise.render_cov, 0.5)  # 2 pixels x (1/2)^2, each kind and across
+    data.std_mc = {}
+    noise = capture_noise(data, problem, 16)
+    assert noise.source == "spp" and noise.ratio == 0.25
+    data.summary["noise"] = {"read_noise_e": 5}
+    assert capture_noise(data, problem, 16).source == "residuals"

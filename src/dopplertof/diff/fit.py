@@ -34,9 +34,13 @@ residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pi
 The iterations stop on a plateau (a step lowering the loss by less than :data:`PLATEAU`
 of itself) or a step below ``tolerance``.
 
-The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
-squared residual of the two final renders' mean over its degrees of freedom (the capture's
-noise and the part of the renders' noise that reaches the fitted velocities); a radial velocity's follows from it through its
+The uncertainties are the sandwich covariance of the fit's estimate (issue 42,
+2026-12-04; :mod:`.fit_noise`): cov = G^+ (sum over blocks of J_i^T S_i J_i) G^+, S_i each
+block's noise across the capture kinds, the renders' from the two seeds' per-pixel
+difference, the capture's from its std maps, its samples or the residuals, scaled by the
+Birge ratio only where the residuals exceed what that noise predicts significantly
+(before: s^2 (J^T J)^-1, one variance for every residual, whose errors in reported
+standard deviations scattered 1.3-2x too wide); a radial velocity's follows from it through its
 derivative. A parameter the captures do not see keeps its start; its uncertainty is
 infinite (null in fit.json), as is one whose uncertainty passes
 :data:`~.fit_solve.UNDETERMINED` times the parameters' norm: the captures do not

@@ -26,6 +26,11 @@ s^2 (J^T J)^+ (one variance for every residual) misstates it. Here:
   cluster-robust estimate from the residuals of the two renders' mean themselves
   (each block's residual vector, its leverage taken out), which holds the renders'
   noise as well;
+* **outlying blocks**: a block whose residual r_i is improbable under its estimated
+  noise S_i (r_i^T S_i^+ r_i above the chi-square's 1e-3 quantile, :data:`OUTLIER_CHI2`)
+  takes r_i r_i^T as its capture noise: a rare bright path in the capture (Monte Carlo
+  noise of indirect light is heavy-tailed) that the renders' difference cannot show
+  (only with the per-pixel estimate: one sample per block tests nothing);
 * **the covariance**: the fit solves G theta = -g with the metric G (the Jacobians of
   the two seeds crossed) over the directions the captures constrain, so
   cov = G^+ M G^+ with the meat M = sum over blocks of J_i^T S_i J_i (the sandwich;
@@ -160,8 +165,9 @@ def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
     else:
         capture = None
     if capture is not None:
+        outlying = 0
         if noise.outliers and noise.render_cov is not None:  # (not from one sample)
-            capture = _outlying_blocks(capture, S, mean[index])
+            capture, outlying = _outlying_blocks(capture, S, mean[index])
         meat = meat + np.einsum("bkp,bkl,blq->pq", J[index], capture, J[index])
         S = S + capture
     else:
@@ -169,6 +175,7 @@ def sandwich(residuals, jacobians, inverse, noise: CaptureNoise | None = None):
     left = float(np.einsum("bkk->", S) - np.einsum("bkp,pq,blq,bkl->", J[index], inverse,
                                                    J[index], S))
     birge = _birge(float(mean @ mean), left, S, noise)
+    birge["outlying_blocks"] = outlying if capture is not None else None
     return birge["scale"] * (inverse @ meat @ inverse), birge
 
 
@@ -181,13 +188,13 @@ def _outlying_blocks(capture, render, residual):
     """The capture's noise per block, with each block whose residual r_i is improbable
     under its estimated noise (r_i^T S_i^+ r_i above :data:`OUTLIER_CHI2`: a rare
     bright path in the capture, which the renders' difference cannot show) given the
-    residual's own r_i r_i^T instead."""
+    residual's own r_i r_i^T instead; and the number of such blocks."""
     total = capture + render
     q = np.einsum("bk,bkl,bl->b", residual, np.linalg.pinv(total), residual)
     out = capture.copy()
     far = q > OUTLIER_CHI2.get(residual.shape[1], 18.47)
     out[far] = np.einsum("bk,bl->bkl", residual[far], residual[far])
-    return out
+    return out, int(far.sum())
 
 
 def _residual_meat(J, mean, inverse, index):
