@@ -96,7 +96,7 @@ def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool
                              "sd_new": new, "z_new": error / new,
                              "z_robust": error / record["robust"][i],
                              "z_plain": error / record["plain"][i],
-                             "birge": record["report"].get("birge_ratio"),
+                             "birge": record["report"].get("birge_ratio") or float("nan"),
                              "scale": record["report"].get("scale"), "seconds": seconds})
     return rows
 

@@ -215,8 +215,10 @@ def _birge(energy: float, expected: float, S, noise: CaptureNoise) -> dict:
     with the ``residuals`` route, whose B compares with the renders' noise only)."""
     nu = float(np.einsum("bkk->", S)) ** 2 / max(float(np.sum(S * S)), 1e-300)
     nu_estimate = noise.estimate_samples if noise.render_cov is not None else nu / 3.0
-    ratio = energy / expected if expected > 0 else float("inf")
+    # no noise predicted (renders without noise): no ratio (null in fit.json), no scale
+    ratio = float(energy / expected) if expected > 0 else None
     sd = float(np.sqrt(2.0 / max(nu, 1.0) + 2.0 / max(nu_estimate, 1.0)))
-    scaled = noise.source != "residuals" and ratio > 1.0 + BIRGE_SIGMAS * sd
-    return {"birge_ratio": float(ratio), "birge_ratio_sd": sd,
-            "effective_residuals": float(nu), "scale": float(ratio) if scaled else 1.0}
+    scaled = (noise.source != "residuals" and ratio is not None
+              and ratio > 1.0 + BIRGE_SIGMAS * sd)
+    return {"birge_ratio": ratio, "birge_ratio_sd": sd,
+            "effective_residuals": float(nu), "scale": ratio if scaled else 1.0}
