@@ -134,6 +134,11 @@ def test_cli_fit_writes_fit_json(capture_dir, tmp_path, capsys):
     assert "radial" in printed.out and "linear velocity" in printed.out
     with open(out / "fit.json") as f:
         saved = json.load(f)
+    # issue 42, 2026-12-04: the sandwich's diagnostics (fit_noise), the capture's noise
+    # from its samples (no sensor noise, no std maps)
+    noise = saved["settings"]["noise"]
+    assert {"birge_ratio", "birge_ratio_sd", "scale", "outlying_blocks"} <= set(noise)
+    assert noise["capture_noise"].startswith("one fit render's Monte Carlo noise")
     # the printed and saved final loss is the history's last entry (afb2c4e: another)
     assert saved["loss"] == saved["history"][-1]["loss"]
     assert f"final loss {saved['loss']:.4g}" in printed.out

@@ -34,9 +34,13 @@ residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pi
 The iterations stop on a plateau (a step lowering the loss by less than :data:`PLATEAU`
 of itself) or a step below ``tolerance``.
 
-The uncertainties are those of a least-squares fit: cov = s^2 (J^T J)^-1 with s^2 the
-squared residual of the two final renders' mean over its degrees of freedom (the capture's
-noise and the part of the renders' noise that reaches the fitted velocities); a radial velocity's follows from it through its
+The uncertainties are the sandwich covariance of the fit's estimate (issue 42,
+2026-12-04; :mod:`.fit_noise`): cov = G^+ (sum over blocks of J_i^T S_i J_i) G^+, S_i each
+block's noise across the capture kinds, the renders' from the two seeds' per-pixel
+difference, the capture's from its std maps, its samples or the residuals, scaled by the
+Birge ratio only where the residuals exceed what that noise predicts significantly
+(before: s^2 (J^T J)^-1, one variance for every residual, whose errors in reported
+standard deviations scattered 1.3-2x too wide); a radial velocity's follows from it through its
 derivative. A parameter the captures do not see keeps its start; its uncertainty is
 infinite (null in fit.json), as is one whose uncertainty passes
 :data:`~.fit_solve.UNDETERMINED` times the parameters' norm: the captures do not
@@ -54,6 +58,7 @@ import numpy as np
 from ..arguments import check_seed
 from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitError,
                           _truth, closed_form_velocity, interior, load_capture)
+from .fit_noise import capture_noise
 from .fit_output import FitResult, format_fit, write_fit
 from .fit_solve import (PLATEAU, _covariance, _fit_progress, _FitProblem, _gauss_newton,
                         _method_notes)
@@ -110,7 +115,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
-    cov, sigma = _covariance(state, problem.seen, theta)
+    cov, sigma, noise = _uncertainties(data, problem, spp, state, theta)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths)
     warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
                 + ([] if angular else problem.rotation_warnings(state, bodies)))
@@ -123,11 +128,20 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         "parameters": problem.names, "angular": bool(angular),
         "start": "user" if start else "closed form (velocity.npy)",
         **_method_notes(t_mid, tolerance, plateau),
-        "stopped": stop, **_unconstrained(problem.names, theta, history[0], sigma),
+        "noise": noise, "stopped": stop, **_unconstrained(problem.names, theta, history[0], sigma),
         "seconds": round(_time.perf_counter() - started, 3),
     }
     return FitResult(bodies, done, loss, history, settings,
                      problem.reflectance_entries(theta, sigma), warnings)
+
+
+def _uncertainties(data, problem, spp: int, state, theta):
+    """(cov, sigma, fit.json's settings.noise) at the end of the fit: the sandwich
+    covariance with the capture's noise as its folder gives it (:mod:`.fit_noise`)."""
+    capture = capture_noise(data, problem, spp)
+    noise = {"capture_noise": capture.describe()}
+    cov, sigma = _covariance(state, problem.seen, theta, capture, noise)
+    return cov, sigma, noise
 
 
 def _unconstrained(names, theta, first: dict, sigma) -> dict:

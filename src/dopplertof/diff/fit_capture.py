@@ -8,10 +8,11 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .fit_noise import load_std_maps
 from .motion import VelocityMotion
 
 #: captures fitted (their Doppler content is what the velocities change)
@@ -34,6 +35,9 @@ class CaptureData:
     captures: dict  #: name -> (H, W) float64
     records: dict  #: name -> summary.json's capture record
     velocity: np.ndarray | None  #: closed-form radial velocity (H, W) or None
+    #: name -> (H, W) the capture's Monte Carlo standard deviation, where the folder has
+    #: ``<name>_std_mc.npy`` (``dopplertof capture --mc-batches``)
+    std_mc: dict = field(default_factory=dict)
 
 
 # ---- Reading a capture folder ------------------------------------------------------
@@ -100,7 +104,8 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
         captures[name] = image
     vpath = os.path.join(folder, "velocity.npy")
     velocity = np.load(vpath).astype(np.float64) if os.path.isfile(vpath) else None
-    return CaptureData(scene, base, summary, captures, records, velocity)
+    return CaptureData(scene, base, summary, captures, records, velocity,
+                       load_std_maps(folder, fitted))
 
 
 def _capture_params(data: CaptureData, name: str):

@@ -10,6 +10,7 @@ import numpy as np
 
 from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, _capture_params,
                           _truth, radial_velocity)
+from .fit_noise import BIRGE_SIGMAS, sandwich
 from .loss import cross_loss
 from .progress import IterationProgress
 
@@ -80,16 +81,18 @@ class _FitProblem:
     def evaluate(self, samples: int, jacobian: bool = True):
         """Residuals at the current motions from two renders of ``samples`` spp of
         independent random numbers (A, B), and (``jacobian``) their Jacobians
-        (:meth:`jacobians`): ((r_A, r_B), (J_A, J_B)), the Jacobians None without."""
+        (:meth:`jacobians`): ((r_A, r_B), (J_A, J_B)), the Jacobians None without. The
+        renders' per-pixel values stay in ``pixel_renders`` (per seed (kinds, pixels)):
+        the renders' noise per block (:func:`.fit_noise.block_covariances`)."""
         from .render import render_derivatives
 
-        residuals = []
+        residuals, self.pixel_renders = [], []
         for seed in self.seeds:
-            residual = [self.pool(render_derivatives(self.scenes[c], [], spp=samples,
-                                                     seed=seed, pixels=self.pixels)
-                                  .image.mean(-1).ravel()[self.pixels])
-                        for c in self.fitted]
-            residuals.append(np.concatenate(residual) - self.target)
+            rendered = np.array([render_derivatives(self.scenes[c], [], spp=samples, seed=seed,
+                                                    pixels=self.pixels)
+                                 .image.mean(-1).ravel()[self.pixels] for c in self.fitted])
+            self.pixel_renders.append(rendered)  # the noise's estimate (fit_noise)
+            residuals.append(np.concatenate([self.pool(x) for x in rendered]) - self.target)
         return tuple(residuals), (self.jacobians() if jacobian else (None, None))
 
     def jacobians(self):
@@ -434,25 +437,30 @@ def _residual_variance(residuals, parameters: int, explained: float = 0.0) -> fl
 UNDETERMINED = 1e3
 
 
-def _covariance(state, seen, theta=None):
-    """cov = s^2 (J^T J)^+ of the parameters (the module docstring), s^2 = the squared
-    residual of the two final renders' mean over its degrees of freedom (the capture's
-    noise and half of one render's, as in the fitted velocities, whose steps average the
-    two seeds' residuals; positive, as the cross loss need not be), over the parameters
-    ``seen`` (that the final Jacobian sees too); and the standard deviations (inf for a
-    parameter not seen: unconstrained; with ``theta``, the fitted values, also for one
-    whose deviation passes :data:`UNDETERMINED` times their norm, its covariances 0)."""
+def _covariance(state, seen, theta=None, noise=None, report=None):
+    """cov = G^+ M G^+ of the parameters (:func:`.fit_noise.sandwich`: the meat M of
+    each residual's estimated noise, the renders' from the two seeds' difference, the
+    capture's from ``noise``, a :class:`.fit_noise.CaptureNoise`, by default from the
+    residuals), G the metric over the parameters ``seen`` (that the final Jacobian sees
+    too; columns scaled, directions below RCOND^2 dropped); and the standard deviations
+    (inf for a parameter not seen: unconstrained; with ``theta``, the fitted values,
+    also for one whose deviation passes :data:`UNDETERMINED` times their norm, its
+    covariances 0). ``report``: a dict that receives the noise's diagnostics (the
+    Birge ratio)."""
     residuals, jacobians = state
     G, seen_now = _metric(jacobians)
     seen = seen & seen_now
     n = G.shape[0]
-    s2 = _residual_variance(residuals, int(seen.sum()))
     cov = np.zeros((n, n))
     if seen.any():
         scale = np.sqrt(np.diag(G)[seen])
         Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
-        cov[np.ix_(seen, seen)] = (s2 * _truncated_inverse(Gs, RCOND ** 2)
-                                   / np.outer(scale, scale))
+        inverse = np.zeros((n, n))
+        inverse[np.ix_(seen, seen)] = (_truncated_inverse(Gs, RCOND ** 2)
+                                       / np.outer(scale, scale))
+        cov, diagnostics = sandwich(residuals, jacobians, inverse, noise)
+        if report is not None:
+            report.update(diagnostics)
     sigma = np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
     if theta is not None:
         absurd = sigma > UNDETERMINED * max(float(np.linalg.norm(theta)), 1.0)
@@ -460,6 +468,23 @@ def _covariance(state, seen, theta=None):
         cov[:, absurd] = 0.0
         sigma[absurd] = np.inf
     return cov, sigma
+
+
+def _old_covariance(state, seen):
+    """The uncertainties before 2026-12-04 (issue 42), for comparison only
+    (benchmarks/fit_uncertainty.py): cov = s^2 (J^T J)^+, s^2 the squared residual of
+    the two renders' mean over its degrees of freedom (one variance for every residual)."""
+    residuals, jacobians = state
+    G, seen_now = _metric(jacobians)
+    seen = seen & seen_now
+    cov = np.zeros(G.shape)
+    if seen.any():
+        s2 = _residual_variance(residuals, int(seen.sum()))
+        scale = np.sqrt(np.diag(G)[seen])
+        Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
+        cov[np.ix_(seen, seen)] = (s2 * _truncated_inverse(Gs, RCOND ** 2)
+                                   / np.outer(scale, scale))
+    return cov, np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
 
 
 def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
@@ -477,14 +502,20 @@ def _method_notes(t_mid: float, tolerance: float, plateau: float) -> dict:
         "stopping": "after a step below %g of the velocities' norm, or on a plateau: a "
                     "step that lowers the loss by less than %g of itself, or when no "
                     "damped step lowers it" % (tolerance, plateau),
-        "uncertainty": "sqrt(diag(s^2 (J^T J)^+)), s^2 = the squared residual of the "
-                       "two final renders' mean / (residuals - parameters), "
+        "uncertainty": "sqrt(diag(G^+ M G^+)): the sandwich covariance of the fit's "
+                       "estimate, G the metric (the two seeds' Jacobians crossed), M = "
+                       "sum over blocks of J_i^T S_i J_i with S_i each block's estimated "
+                       "noise covariance across the capture kinds: the renders' from the "
+                       "difference of the two seeds' renders, the capture's as "
+                       "settings.noise.capture_noise says; scaled by the Birge ratio B "
+                       "(the residuals' energy over what that noise predicts after the "
+                       "fit) only where B > 1 + %g sd(B); "
                        "^+: the pseudo-inverse over the directions the captures constrain "
                        "(singular values >= %g of the largest, columns scaled); null: a "
                        "parameter the captures do not see (kept at its start, "
                        "unconstrained: its uncertainty is infinite), or whose uncertainty "
                        "passes %g times the parameters' norm (not determined)"
-                       % (RCOND, UNDETERMINED),
+                       % (BIRGE_SIGMAS, RCOND, UNDETERMINED),
     }
 
 
