@@ -39,6 +39,7 @@ from fit_uncertainty import EXAMPLES, LIGHTS  # noqa: E402  (the same scenes and
 RADIAL_TARGET = 0.02   # issue 42: the radial velocity within 2%
 SIGMA_TARGET = 3.0     # and every fitted component within 3 reported sd
 NEAR_ZERO = 0.1        # m/s: a truth below this makes a relative error meaningless
+UNITS = (("linear", "m_s"), ("angular", "rad_s"))
 
 
 def starter_scenes() -> list:
@@ -108,6 +109,9 @@ def rows_from_fit(saved: dict, scene: str, light: str, seed: int, kind: str) -> 
                      "truth": truth, "error_m_s": fitted - truth,
                      "error_pct": 100.0 * (fitted - truth) / abs(truth) if truth else None,
                      "components": dict(zip(names, sigmas)),
+                     "velocity": {k: b.get(f"{k}_velocity_{u}") for k, u in UNITS},
+                     "velocity_sd": {k: b.get(f"{k}_velocity_uncertainty_{u}") for k, u in UNITS},
+                     "velocity_truth": {k: b.get(f"truth_{k}_velocity_{u}") for k, u in UNITS},
                      "iterations": saved.get("iterations"), "seconds": saved.get("seconds"),
                      "warnings": len(saved.get("warnings") or [])})
     return rows
