@@ -108,6 +108,8 @@ def rows_from_fit(saved: dict, scene: str, light: str, seed: int, kind: str) -> 
                      "radial": fitted, "radial_sd": b.get("radial_velocity_uncertainty_m_s"),
                      "truth": truth, "error_m_s": fitted - truth,
                      "error_pct": 100.0 * (fitted - truth) / abs(truth) if truth else None,
+                     "radial_z": (fitted - truth) / sd if (sd := b.get(
+                         "radial_velocity_uncertainty_m_s")) else None,
                      "components": dict(zip(names, sigmas)),
                      "velocity": {k: b.get(f"{k}_velocity_{u}") for k, u in UNITS},
                      "velocity_sd": {k: b.get(f"{k}_velocity_uncertainty_{u}") for k, u in UNITS},
@@ -175,6 +177,43 @@ def summary_line(rows: list) -> str:
             f"{within} of {len(zs)} components with an sd within 3 sd ({unseen} without one)")
 
 
+SUMMARY_HEAD = ("| scene | light | fit | body | seeds | radial truth m/s | radial error m/s, "
+                "worst | error %, worst | within 2% | radial error in sd, worst | "
+                "components within 3 sd (with an sd, of all) | worst z |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+def summarize(rows: list) -> list:
+    """Per scene, light, fit and body over the seeds: the radial velocity's worst error
+    (m/s and %), how many seeds meet 2%, the components within 3 sd and the worst z."""
+    out = []
+    fitted = [r for r in rows if "note" not in r]
+    for key in dict.fromkeys((r["scene"], r["light"], r["fit"], r["body"]) for r in fitted):
+        group = [r for r in fitted if (r["scene"], r["light"], r["fit"], r["body"]) == key]
+        errors = [r["error_m_s"] for r in group]
+        worst = max(errors, key=abs)
+        zs = [z for r in group for z in r["components"].values() if z is not None]
+        count = sum(len(r["components"]) for r in group)
+        truth = group[0]["truth"]
+        radial_z = [r["radial_z"] for r in group if r["radial_z"] is not None]
+        out.append({"scene": key[0], "light": key[1], "fit": key[2], "body": key[3],
+                    "seeds": len(group), "truth": truth, "worst_m_s": worst,
+                    "worst_pct": 100 * worst / abs(truth) if truth else None,
+                    "within_2": sum(abs(e) <= RADIAL_TARGET * abs(truth) for e in errors),
+                    "radial_z": max(radial_z, key=abs) if radial_z else None,
+                    "within_3": sum(abs(z) <= SIGMA_TARGET for z in zs), "with_sd": len(zs),
+                    "components": count, "worst_z": max(zs, key=abs) if zs else None})
+    return out
+
+
+def format_summary(s: dict) -> str:
+    pct = "-" if s["worst_pct"] is None else f"{s['worst_pct']:+.2f}%"
+    return (f"| {s['scene']} | {s['light']} | {s['fit']} | {s['body']} | {s['seeds']} | "
+            f"{s['truth']:+.4g} | {s['worst_m_s']:+.3g} | {pct} | {s['within_2']} of "
+            f"{s['seeds']} | {_sd(s['radial_z'])} | {s['within_3']} of {s['with_sd']} "
+            f"({s['components']}) | {_sd(s['worst_z'])} |")
+
+
 def _parse_res(text: str) -> int:
     w, _, h = text.lower().partition("x")
     if h and h != w:
@@ -205,6 +244,10 @@ def main(argv=None) -> int:
                     for r in new:
                         print(format_row(r), flush=True)
                     rows += new
+    print("\nper scene, light, fit and body over the seeds (components: with an sd of all)")
+    print(SUMMARY_HEAD)
+    for s in summarize(rows):
+        print(format_summary(s))
     print("\n" + summary_line(rows))
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:

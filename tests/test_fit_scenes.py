@@ -45,6 +45,12 @@ def test_rows_table_and_last_line_from_a_fit_json(script):
     assert script.summary_line(rows).startswith("1 of 2 fitted bodies within 2%")
     assert "4 of 5 components with an sd within 3 sd (1 without one)" in \
         script.summary_line(rows)
+    assert ball["radial_z"] == pytest.approx(1.0)
+    summary = script.summarize(rows + script.rows_from_fit(saved, "scene", "direct", 2, "linear"))
+    assert [(s["body"], s["seeds"], s["within_2"]) for s in summary] == [("ball", 2, 2),
+                                                                          ("cube", 2, 0)]
+    assert summary[0]["within_3"] == 4 and summary[0]["worst_z"] == 3.5
+    assert "| 2 of 2 | +1.0 | 4 of 6 (6) | +3.5 |" in script.format_summary(summary[0])
     angular = script.rows_from_fit(saved, "scene", "direct", 1, "angular")
     assert list(angular[0]["components"]) == ["vx", "vy", "vz", "wx", "wy", "wz"]
 
