@@ -567,3 +567,43 @@ def test_the_fit_loads_the_scene_with_the_captures_own_defines(tmp_path, capsys)
     assert load_capture(str(out)).scene.params.max_depth == 3
     # the fit's own -D values take precedence
     assert load_capture(str(out), {"max_depth": "2"}).scene.params.max_depth == 2
+
+
+def test_a_combination_the_captures_do_not_see_is_named_and_has_no_uncertainty():
+    """A face seen only along its normal (issue 42, 2026-12-04: examples/cameras_moving's
+    box): v_x and v_z each pass the column test, their in-plane combination d = (0.866, 0,
+    -0.5) is invisible. fixed_combinations names d; v_x and v_z lose their uncertainty
+    (before: the pseudo-inverse gave d no variance, errors of -588 reported sd), v_y and a
+    second body's components keep theirs; the body's radial velocity has none, the other
+    body's does, unless its gradient leans on a parameter without one."""
+    from dopplertof.diff.fit_solve import (PARTLY_FIXED, _covariance, _radial_uncertainty,
+                                           _statuses, fixed_combinations)
+
+    rng = np.random.default_rng(5)
+    d = np.array([np.sqrt(3) / 2, 0.0, -0.5])
+    normal = np.array([0.5, 0.0, np.sqrt(3) / 2])  # the face's normal, orthogonal to d
+    J = np.zeros((60, 6))
+    J[:, :3] = np.outer(rng.normal(size=60), normal) + np.outer(rng.normal(size=60),
+                                                                [0.0, 1.0, 0.0])
+    J[:, 3:] = rng.normal(size=(60, 3))
+    jacobians = tuple(J + 1e-4 * rng.normal(size=J.shape) for _ in range(2))
+    residuals = tuple(1e-3 * rng.normal(size=60) for _ in range(2))
+    seen = np.ones(6, bool)
+    directions, affected = fixed_combinations((residuals, jacobians), seen)
+    assert directions.shape == (1, 6)
+    assert np.allclose(directions[0], np.concatenate([d, np.zeros(3)]), atol=1e-3)
+    assert affected.tolist() == [True, False, True, False, False, False]
+    cov, sigma = _covariance((residuals, jacobians), seen)
+    assert np.all(np.isfinite(sigma))  # (what the fit reported before: finite, too narrow)
+    sigma = np.where(affected, np.inf, sigma)
+    assert _statuses([1.0, 2.0, 3.0], [0.0, 0.0, 0.0], sigma[:3], affected[:3]) == [
+        PARTLY_FIXED, "fitted", PARTLY_FIXED]
+    own = [np.arange(6) < 3, np.arange(6) >= 3]
+    g = np.array([0.1, 0.0, 0.9, 0.0, 0.0, 1.0])
+    assert _radial_uncertainty(g, cov, sigma, affected, own[0]) is None
+    assert _radial_uncertainty(g, cov, sigma, affected, own[1]) > 0
+    sigma[4] = np.inf  # the second body's v_y unseen: a gradient leaning on it has none
+    assert _radial_uncertainty(np.array([0, 0, 0, 0, 0.2, 1.0]), cov, sigma, affected,
+                               own[1]) is None
+    assert _radial_uncertainty(np.array([0, 0, 0, 0, 1e-3, 1.0]), cov, sigma, affected,
+                               own[1]) > 0

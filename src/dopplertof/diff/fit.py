@@ -61,7 +61,7 @@ from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitEr
 from .fit_noise import capture_noise
 from .fit_output import FitResult, format_fit, write_fit
 from .fit_solve import (PLATEAU, _covariance, _fit_progress, _FitProblem, _gauss_newton,
-                        _method_notes)
+                        _method_notes, fixed_combinations)
 from .motion import VelocityMotion
 from .symmetry import symmetry_notes
 from .settings import FIT_SPP, JACOBIAN_SHARE
@@ -115,20 +115,20 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     loss = history[-1]["loss"]
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
-    cov, sigma, noise = _uncertainties(data, problem, spp, state, theta)
-    bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths)
+    cov, sigma, noise, fixed = _uncertainties(data, problem, spp, state, theta)
+    bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths, fixed)
     warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
                 + ([] if angular else problem.rotation_warnings(state, bodies)))
     settings = {
         "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(problem.fitted),
         "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed,
-        "jacobian_seed": seed + 1,
-        "pixels": int(problem.pixels.size), "block": int(block),
+        "jacobian_seed": seed + 1, "pixels": int(problem.pixels.size), "block": int(block),
         "residuals": "per capture, sums over blocks of interior pixels of one body",
         "parameters": problem.names, "angular": bool(angular),
         "start": "user" if start else "closed form (velocity.npy)",
         **_method_notes(t_mid, tolerance, plateau),
-        "noise": noise, "stopped": stop, **_unconstrained(problem.names, theta, history[0], sigma),
+        "noise": noise, "stopped": stop,
+        **_unconstrained(problem.names, theta, history[0], sigma, fixed[0]),
         "seconds": round(_time.perf_counter() - started, 3),
     }
     return FitResult(bodies, done, loss, history, settings,
@@ -136,21 +136,38 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
 
 
 def _uncertainties(data, problem, spp: int, state, theta):
-    """(cov, sigma, fit.json's settings.noise) at the end of the fit: the sandwich
-    covariance with the capture's noise as its folder gives it (:mod:`.fit_noise`)."""
+    """(cov, sigma, fit.json's settings.noise, fixed) at the end of the fit: the sandwich
+    covariance with the capture's noise as its folder gives it (:mod:`.fit_noise`);
+    ``fixed``: the combinations the captures do not constrain and the mask of the
+    parameters weighing on them (:func:`.fit_solve.fixed_combinations`), which have no
+    uncertainty (``cov`` keeps them: a radial velocity that does not depend on a fixed
+    combination has its variance from them all)."""
     capture = capture_noise(data, problem, spp)
     noise = {"capture_noise": capture.describe()}
     cov, sigma = _covariance(state, problem.seen, theta, capture, noise)
-    return cov, sigma, noise
+    fixed = fixed_combinations(state, problem.seen)
+    return cov, np.where(fixed[1], np.inf, sigma), noise, fixed
 
 
-def _unconstrained(names, theta, first: dict, sigma) -> dict:
+def _combinations(names, directions) -> list:
+    """fit.json's fixed combinations: per direction the parameters weighing on it (unit
+    norm in the parameters' own units) and the prior that holds it."""
+    return [{"direction": {n: round(float(c), 6) for n, c in zip(names, d)
+                           if abs(c) >= 1e-3},
+             "prior": "kept at its start: the captures do not constrain it (an eigenvalue "
+                      "of the column-scaled metric below RCOND^2 of the largest)"}
+            for d in directions]
+
+
+def _unconstrained(names, theta, first: dict, sigma, directions) -> dict:
     """fit.json's settings that name the parameters without an uncertainty at the end
-    (``unconstrained``) and those of them the fit never moved (``kept_at_start``)."""
+    (``unconstrained``), those of them the fit never moved (``kept_at_start``) and the
+    combinations the captures do not constrain (``fixed_combinations``)."""
     start = np.asarray(first["parameters"], np.float64)
     loose = [i for i, s in enumerate(sigma) if not np.isfinite(s)]
     return {"unconstrained": [names[i] for i in loose],
-            "kept_at_start": [names[i] for i in loose if theta[i] == start[i]]}
+            "kept_at_start": [names[i] for i in loose if theta[i] == start[i]],
+            "fixed_combinations": _combinations(names, directions)}
 
 
 def _jacobian_samples(spp: int, jacobian_spp, base) -> int:

@@ -96,9 +96,15 @@ def format_fit(result: FitResult) -> str:
             lines += _truth_line(b, "angular", "rad/s", "")
         elif any(abs(w) > 1e-6 for w in b.get("truth_angular_velocity_rad_s") or []):
             lines += _truth_line(b, "angular", "rad/s", "angular velocity not fitted; ")
+        sd = b["radial_velocity_uncertainty_m_s"]
         lines.append(f"    radial velocity {b['radial_velocity_m_s']:+.3f} "
-                     f"+- {b['radial_velocity_uncertainty_m_s']:.3f} m/s (median over the body)"
+                     + ("(no uncertainty: it depends on what the captures do not see)"
+                        if sd is None else f"+- {sd:.3f} m/s")
+                     + " (median over the body)"
                      + _error(b["radial_velocity_m_s"], b.get("capture_velocity_gt_median_m_s")))
+    for combination in result.settings.get("fixed_combinations") or []:
+        lines.append("  kept at its start, the captures do not see it: " + " ".join(
+            f"{c:+.3f} {name}" for name, c in combination["direction"].items()))
     for key, r in result.reflectances.items():
         spread = "not seen: kept at its start" if r["uncertainty"] is None else \
             f"+- {r['uncertainty']:.4f}"

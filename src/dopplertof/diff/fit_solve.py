@@ -185,12 +185,15 @@ class _FitProblem:
         self.set_values(theta)
         return grad_radial
 
-    def body_entries(self, theta, cov, sigma, first: dict, closed_form, truths=None) -> list:
+    def body_entries(self, theta, cov, sigma, first: dict, closed_form, truths=None,
+                     fixed=None) -> list:
         """fit.json's per-body entries at the fitted ``theta`` (the current motions),
         with the uncertainties from ``cov`` and ``sigma``, what happened to each
         component (:func:`_statuses`), the start (``first``: the history's first entry),
         the capture's own record of the body and, with ``truths`` (per body (v, omega)
-        of the capture's scene), the 3-D truth and the per-component errors."""
+        of the capture's scene), the 3-D truth and the per-component errors. ``fixed``:
+        :func:`fixed_combinations`' (directions, affected), None: none."""
+        partly = fixed[1] if fixed is not None else np.zeros(len(theta), bool)
         radial = self.radial()
         # the radial velocities' derivatives (central differences of the truth; linear in u)
         grad_radial = self.radial_gradient(theta)
@@ -202,15 +205,19 @@ class _FitProblem:
             entry = {
                 "name": ", ".join(self.data.scene.bodies[k].names),
                 "radial_velocity_m_s": radial[k],
-                "radial_velocity_uncertainty_m_s": float(np.sqrt(max(g @ cov @ g, 0.0))),
+                "radial_velocity_uncertainty_m_s": _radial_uncertainty(
+                    g, cov, sigma, partly, np.isin(np.arange(len(theta)), range(
+                        k * per, (k + 1) * per))),
                 "linear_velocity_m_s": theta[linear].tolist(),
                 "linear_velocity_uncertainty_m_s": _or_none(sigma[linear]),
-                "linear_velocity_status": _statuses(theta[linear], start[linear], sigma[linear]),
+                "linear_velocity_status": _statuses(theta[linear], start[linear], sigma[linear],
+                                                    partly[linear]),
                 "angular_velocity_rad_s": [float(x) for x in m.angular_velocity],
                 "angular_velocity_uncertainty_rad_s": (
                     _or_none(sigma[angular]) if self.angular else None),
                 "angular_velocity_status": (
-                    _statuses(theta[angular], start[angular], sigma[angular]) if self.angular
+                    _statuses(theta[angular], start[angular], sigma[angular], partly[angular])
+                    if self.angular
                     else [NOT_FITTED] * 3),
                 "pivot_m": m.pivot,
                 "start_linear_velocity_m_s": first["parameters"][linear],
@@ -277,15 +284,18 @@ FITTED = "fitted"
 KEPT = "not seen: kept at its start"
 MOVED_UNCONSTRAINED = "moved from its start, unconstrained at the end: no uncertainty"
 NOT_FITTED = "not fitted (held at 0; --angular fits it)"
+PARTLY_FIXED = "in a combination the captures do not see, kept at its start: no uncertainty"
 
 
-def _statuses(values, start, sigma) -> list:
-    """Per component: :data:`FITTED` (a finite uncertainty), else :data:`KEPT` where the
-    value is its start's, else :data:`MOVED_UNCONSTRAINED` (issue 42: a component the
-    start's Jacobian saw and the fit moved, 0 to 20.4 rad/s, but the final Jacobian did
-    not constrain, was labelled as kept at its start)."""
-    return [FITTED if np.isfinite(s) else KEPT if v == s0 else MOVED_UNCONSTRAINED
-            for v, s0, s in zip(values, start, sigma)]
+def _statuses(values, start, sigma, partly_fixed=(False, False, False)) -> list:
+    """Per component: :data:`FITTED` (a finite uncertainty), else :data:`PARTLY_FIXED`
+    where it weighs on a combination the captures do not constrain, else :data:`KEPT`
+    where the value is its start's, else :data:`MOVED_UNCONSTRAINED` (issue 42: a
+    component the start's Jacobian saw and the fit moved, 0 to 20.4 rad/s, but the final
+    Jacobian did not constrain, was labelled as kept at its start)."""
+    return [FITTED if np.isfinite(s) else PARTLY_FIXED if fixed else KEPT if v == s0
+            else MOVED_UNCONSTRAINED
+            for v, s0, s, fixed in zip(values, start, sigma, partly_fixed)]
 
 
 def _truth_entries(entry: dict, v_true, w_true) -> dict:
@@ -468,6 +478,57 @@ def _covariance(state, seen, theta=None, noise=None, report=None):
         cov[:, absurd] = 0.0
         sigma[absurd] = np.inf
     return cov, sigma
+
+
+#: a parameter whose unit direction (columns scaled) weighs at least this on a combination
+#: the captures do not constrain is not determined by them (issue 42, 2026-12-04: the
+#: cameras_moving box's front face sees only the velocity along its normal; v_x and v_z
+#: each passed the column test, the pseudo-inverse dropped their in-plane combination and
+#: gave it no variance: errors of -588 reported standard deviations)
+FIXED_WEIGHT = 0.1
+
+#: a radial velocity whose gradient weighs this fraction of its norm on a parameter without
+#: an uncertainty has none either: its error along it is the prior's, not the noise's
+#: (issue 42, 2026-12-04: the street's pedestrian, its uncertainty leaving out its unseen
+#: components, read -184.7 sd; that box's, its body in a fixed combination, +16.8 sd)
+RADIAL_BLIND = 0.01
+
+
+def fixed_combinations(state, seen):
+    """The combinations of the parameters ``seen`` that the captures do not constrain:
+    the eigen-directions of the column-scaled metric at or below RCOND^2 of the largest
+    eigenvalue, which :func:`_covariance`'s pseudo-inverse leaves out (the steps, at
+    RCOND, leave them at their start). Returns (directions, affected): the directions in
+    the parameters' own units, unit rows, and the mask of the parameters weighing at least
+    :data:`FIXED_WEIGHT` on one of them."""
+    G, seen_now = _metric(state[1])
+    seen = seen & seen_now
+    n = G.shape[0]
+    affected, directions = np.zeros(n, bool), []
+    if seen.sum() >= 2:
+        scale = np.sqrt(np.diag(G)[seen])
+        w, V = np.linalg.eigh(G[np.ix_(seen, seen)] / np.outer(scale, scale))
+        for v in V[:, w <= RCOND ** 2 * max(w.max(), 1e-300)].T:
+            affected[np.flatnonzero(seen)[np.abs(v) >= FIXED_WEIGHT]] = True
+            d = np.zeros(n)
+            d[seen] = v / scale
+            d /= np.linalg.norm(d)
+            directions.append(d if d[np.argmax(np.abs(d))] > 0 else -d)
+    return np.reshape(directions, (-1, n)), affected
+
+
+def _radial_uncertainty(g, cov, sigma, partly, own):
+    """sqrt(g^T cov g) of a radial velocity of gradient ``g``, or None where it depends on
+    what the captures do not see: where its body's parameters (the mask ``own``) weigh on
+    a fixed combination (``partly``: the median over its pixels moves along it, each
+    pixel by its own ray's share, however small the median pixel's), or where ``g``
+    weighs :data:`RADIAL_BLIND` of its norm on a parameter without an uncertainty."""
+    if np.any(partly & own):
+        return None
+    loose = ~np.isfinite(sigma) & ~partly
+    if np.any(np.abs(g[loose]) >= RADIAL_BLIND * float(np.linalg.norm(g))) and g.any():
+        return None
+    return float(np.sqrt(max(g @ cov @ g, 0.0)))
 
 
 def _old_covariance(state, seen):
