@@ -144,6 +144,7 @@ def test_birge_ratio_scales_only_an_excess_beyond_its_noise():
     assert abs(np.median([r["birge_ratio"] for r in right]) - 1) < 0.1
 
 
+@pytest.mark.slow  # (4 captures and fits: 4-10 s, the fast tier's longest test)
 def test_fits_over_capture_seeds_land_within_3_reported_sd(tmp_path):
     """End to end: the translating sphere (32x32, direct light, 32 spp capture and
     fit) captured with 4 seeds and fitted: every fitted component within 3 of its
