@@ -206,8 +206,7 @@ class _FitProblem:
                 "name": ", ".join(self.data.scene.bodies[k].names),
                 "radial_velocity_m_s": radial[k],
                 "radial_velocity_uncertainty_m_s": _radial_uncertainty(
-                    g, cov, sigma, partly, np.isin(np.arange(len(theta)), range(
-                        k * per, (k + 1) * per))),
+                    g, cov, sigma, partly, slice(k * per, (k + 1) * per)),
                 "linear_velocity_m_s": theta[linear].tolist(),
                 "linear_velocity_uncertainty_m_s": _or_none(sigma[linear]),
                 "linear_velocity_status": _statuses(theta[linear], start[linear], sigma[linear],
@@ -447,6 +446,16 @@ def _residual_variance(residuals, parameters: int, explained: float = 0.0) -> fl
 UNDETERMINED = 1e3
 
 
+def _scaled_metric(jacobians, seen):
+    """The metric of :func:`_metric` over the parameters ``seen`` that it sees too:
+    (G, that mask, the columns' scales sqrt(diag G), the column-scaled block of G over
+    them), which the covariances and :func:`fixed_combinations` decompose."""
+    G, seen_now = _metric(jacobians)
+    seen = seen & seen_now
+    scale = np.sqrt(np.diag(G)[seen])
+    return G, seen, scale, G[np.ix_(seen, seen)] / np.outer(scale, scale)
+
+
 def _covariance(state, seen, theta=None, noise=None, report=None):
     """cov = G^+ M G^+ of the parameters (:func:`.fit_noise.sandwich`: the meat M of
     each residual's estimated noise, the renders' from the two seeds' difference, the
@@ -458,13 +467,10 @@ def _covariance(state, seen, theta=None, noise=None, report=None):
     covariances 0). ``report``: a dict that receives the noise's diagnostics (the
     Birge ratio)."""
     residuals, jacobians = state
-    G, seen_now = _metric(jacobians)
-    seen = seen & seen_now
+    G, seen, scale, Gs = _scaled_metric(jacobians, seen)
     n = G.shape[0]
     cov = np.zeros((n, n))
     if seen.any():
-        scale = np.sqrt(np.diag(G)[seen])
-        Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
         inverse = np.zeros((n, n))
         inverse[np.ix_(seen, seen)] = (_truncated_inverse(Gs, RCOND ** 2)
                                        / np.outer(scale, scale))
@@ -501,13 +507,11 @@ def fixed_combinations(state, seen):
     RCOND, leave them at their start). Returns (directions, affected): the directions in
     the parameters' own units, unit rows, and the mask of the parameters weighing at least
     :data:`FIXED_WEIGHT` on one of them."""
-    G, seen_now = _metric(state[1])
-    seen = seen & seen_now
+    G, seen, scale, Gs = _scaled_metric(state[1], seen)
     n = G.shape[0]
     affected, directions = np.zeros(n, bool), []
     if seen.sum() >= 2:
-        scale = np.sqrt(np.diag(G)[seen])
-        w, V = np.linalg.eigh(G[np.ix_(seen, seen)] / np.outer(scale, scale))
+        w, V = np.linalg.eigh(Gs)
         for v in V[:, w <= RCOND ** 2 * max(w.max(), 1e-300)].T:
             affected[np.flatnonzero(seen)[np.abs(v) >= FIXED_WEIGHT]] = True
             d = np.zeros(n)
@@ -519,14 +523,14 @@ def fixed_combinations(state, seen):
 
 def _radial_uncertainty(g, cov, sigma, partly, own):
     """sqrt(g^T cov g) of a radial velocity of gradient ``g``, or None where it depends on
-    what the captures do not see: where its body's parameters (the mask ``own``) weigh on
+    what the captures do not see: where its body's parameters (``own``, their index) weigh on
     a fixed combination (``partly``: the median over its pixels moves along it, each
     pixel by its own ray's share, however small the median pixel's), or where ``g``
     weighs :data:`RADIAL_BLIND` of its norm on a parameter without an uncertainty."""
-    if np.any(partly & own):
+    if np.any(partly[own]):
         return None
     loose = ~np.isfinite(sigma) & ~partly
-    if np.any(np.abs(g[loose]) >= RADIAL_BLIND * float(np.linalg.norm(g))) and g.any():
+    if g.any() and np.any(np.abs(g[loose]) >= RADIAL_BLIND * float(np.linalg.norm(g))):
         return None
     return float(np.sqrt(max(g @ cov @ g, 0.0)))
 
@@ -536,13 +540,10 @@ def _old_covariance(state, seen):
     (benchmarks/fit_uncertainty.py): cov = s^2 (J^T J)^+, s^2 the squared residual of
     the two renders' mean over its degrees of freedom (one variance for every residual)."""
     residuals, jacobians = state
-    G, seen_now = _metric(jacobians)
-    seen = seen & seen_now
+    G, seen, scale, Gs = _scaled_metric(jacobians, seen)
     cov = np.zeros(G.shape)
     if seen.any():
         s2 = _residual_variance(residuals, int(seen.sum()))
-        scale = np.sqrt(np.diag(G)[seen])
-        Gs = G[np.ix_(seen, seen)] / np.outer(scale, scale)
         cov[np.ix_(seen, seen)] = (s2 * _truncated_inverse(Gs, RCOND ** 2)
                                    / np.outer(scale, scale))
     return cov, np.where(seen, np.sqrt(np.maximum(np.diag(cov), 0.0)), np.inf)
