@@ -24,8 +24,6 @@ capture and the fit, 64; --json: every row.)
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import json
 import os
 import re
@@ -34,7 +32,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from fit_uncertainty import EXAMPLES, LIGHTS  # noqa: E402  (the same scenes and lights)
+from fit_uncertainty import EXAMPLES, LIGHTS, capture, cli  # noqa: E402  (the same scenes, lights, runs)
 
 RADIAL_TARGET = 0.02   # issue 42: the radial velocity within 2%
 SIGMA_TARGET = 3.0     # and every fitted component within 3 reported sd
@@ -50,24 +48,6 @@ def declared_defaults(scene: str) -> dict:
     """The scene's <default name=... value=...> values."""
     with open(os.path.join(EXAMPLES, f"{scene}.xml"), encoding="utf-8") as f:
         return dict(re.findall(r'<default\s+name="([^"]+)"\s+value="([^"]*)"', f.read()))
-
-
-def cli(args: list) -> tuple:
-    """dopplertof.cli.main(args) in this process: its exit status and what it printed."""
-    from dopplertof.cli import main
-
-    text = io.StringIO()
-    with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
-        rc = main(args)
-    return rc, text.getvalue()
-
-
-def capture(scene: str, light: str, seed: int, res: int, spp: int, folder: str) -> tuple:
-    cap = os.path.join(folder, f"{scene}_{light}_{seed}")
-    rc, text = cli(["capture", os.path.join(EXAMPLES, f"{scene}.xml"), "-o", cap,
-                    "--spp", str(spp), "--seed", str(seed), "--quiet", "-D", f"res={res}"]
-                   + LIGHTS[light])
-    return (cap if rc == 0 else None), text
 
 
 def fit(cap: str, spp: int, angular: bool, iterations=None) -> tuple:

@@ -23,7 +23,9 @@ cluster-robust sandwich from the residuals alone.)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import io
 import json
 import os
 import sys
@@ -34,6 +36,27 @@ import numpy as np
 
 EXAMPLES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples")
 LIGHTS = {"direct": ["-D", "max_depth=2"], "multipath": []}
+
+
+def cli(args: list) -> tuple:
+    """dopplertof.cli.main(args) in this process: its exit status and what it printed."""
+    from dopplertof.cli import main
+
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
+        rc = main(args)
+    return rc, text.getvalue()
+
+
+def capture(scene: str, light: str, seed: int, res: int, spp: int, folder: str,
+            defines=()) -> tuple:
+    """`dopplertof capture` of examples/SCENE.xml at res x res (with ``defines``, each
+    "name=value"): its folder (None where it failed) and what it printed."""
+    cap = os.path.join(folder, f"{scene}_{light}_{seed}")
+    args = ["capture", os.path.join(EXAMPLES, f"{scene}.xml"), "-o", cap, "--spp", str(spp),
+            "--seed", str(seed), "--quiet", "-D", f"res={res}"] + LIGHTS[light]
+    rc, text = cli(args + [x for d in defines for x in ("-D", d)])
+    return (cap if rc == 0 else None), text
 
 
 def _recording_covariance():
@@ -61,20 +84,10 @@ def _recording_covariance():
 def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool,
             records: list, folder: str, defines=()) -> list:
     """Capture and fit once; one row per body and fitted component."""
-    from dopplertof.cli import main
     from dopplertof.diff.fit import fit
 
-    cap = os.path.join(folder, f"{scene}_{light}_{seed}")
-    args = ["capture", os.path.join(EXAMPLES, f"{scene}.xml"), "-o", cap, "--spp", str(spp),
-            "--seed", str(seed), "--quiet", "-D", f"res={res}"] + LIGHTS[light]
-    args += [x for d in defines for x in ("-D", d)]
-    with open(os.devnull, "w") as quiet:
-        stdout, sys.stdout = sys.stdout, quiet
-        try:
-            rc = main(args)
-        finally:
-            sys.stdout = stdout
-    assert rc == 0, args
+    cap, text = capture(scene, light, seed, res, spp, folder, defines)
+    assert cap is not None, text
     started = time.perf_counter()
     result = fit(cap, spp=spp, angular=angular, progress=False)
     seconds = time.perf_counter() - started
