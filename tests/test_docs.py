@@ -185,12 +185,10 @@ def commands_outside_blocks(text: str) -> list:
     """(line, text) of the command lines in ``text`` that tests/test_docs.py never sees:
     in a fenced block of another language than python or sh (none, bash, console), or
     indented (an indented code block, or a line a paragraph carries on)."""
-    handled = set()
-    fenced = {}
+    handled, fenced = set(), set()
     for m in _FENCE.finditer(text):
         first, last = text.count("\n", 0, m.start()), text.count("\n", 0, m.end())
-        for number in range(first, last + 1):
-            fenced[number] = m.group(1)
+        fenced.update(range(first, last + 1))
         if m.group(1) in ("python", "sh"):
             handled.update(range(first, last + 1))
     found = []
