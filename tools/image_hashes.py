@@ -137,6 +137,41 @@ def hashes(extra_params: dict, only=None) -> dict:
     frame = dopplertof.capture(scene, spp=16, seed=3, params=extra_params or None)
     out["capture"] = _digest(*(frame.captures[k] for k in sorted(frame.captures)),
                              frame.velocity, frame.depth)
+    out.update(capture_hashes(extra_params))
+    return out
+
+
+def capture_hashes(extra_params: dict) -> dict:
+    """The captures' frame loop and outputs: a frame with error-bar batches, one
+    through a checkpoint folder, a camera preset's frame and an FMCW spectrum."""
+    import tempfile
+
+    import dopplertof
+    from dopplertof.cameras.capture import capture_through
+    from dopplertof.fmcw import fmcw
+
+    out = {}
+    params = extra_params or None
+    scene = dopplertof.load_file(PUBLISHED, resx="6", resy="6")
+    frame = dopplertof.capture(scene, spp=8, seed=3, params=params, mc_batches=2)
+    out["capture-error-bars"] = _digest(*(frame.captures[k] for k in sorted(frame.captures)),
+                                        frame.velocity, frame.depth)
+    with tempfile.TemporaryDirectory() as folder:
+        frame = dopplertof.capture(scene, spp=8, seed=3, params=params,
+                                   checkpoint=os.path.join(folder, "ckpt"))
+        out["capture-checkpoint"] = _digest(
+            *(frame.captures[k] for k in sorted(frame.captures)), frame.velocity, frame.depth)
+    for camera in ("azure-kinect", "kinect-v2"):
+        result, = capture_through(os.path.join(ROOT, "examples", "translating_sphere.xml"),
+                                  [camera], resolution=(8, 6), spp=8, seed=2, params=params)
+        out[f"camera-{camera}"] = _digest(result.rendered, result.raw, result.depth,
+                                          *(np.asarray(v) for _, v in sorted(
+                                              vars(result.reconstruction).items())
+                                            if isinstance(v, np.ndarray)))
+    street = dopplertof.load_file(os.path.join(ROOT, "examples", "fmcw_street.xml"),
+                                  {"res": "6", "spp": "8"})
+    spectra = fmcw(street, seed=1, params=params)
+    out["fmcw"] = _digest(spectra.spectrum, spectra.range, spectra.velocity)
     return out
 
 

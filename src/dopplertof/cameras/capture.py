@@ -308,29 +308,24 @@ def _render_frames(scene, preset: CameraPreset, base: RenderParams, spp: int, se
     """Every raw frame in its own window and the radiance over the sequence: (frames
     (K, H, W), radiance (H, W, C), records, the sequence's scene and parameters).
     ``checkpoint``: a folder that keeps every render (tof.checkpoint)."""
-    from ..render import render_result
-    from ..tof.checkpoint import CaptureCheckpoint
+    from ..tof.frames import FrameRender, render_frames
 
     t0 = scene.shutter_open
     renders = _frame_renders(scene, preset, base)
-    saved = None if checkpoint is None else CaptureCheckpoint.open(
-        checkpoint, scene, [(name, window.shutter_window, p, spp, seed)
-                            for name, window, p, _ in renders])
-    results = []
-    for name, window, p, spec in renders:
-        result = render_result(window, spp=spp, seed=seed, params=p, progress=progress,
-                               checkpoint=None if saved is None else saved.path(name))
-        results.append(result)
-        if saved is not None:
-            saved.count(result.metadata)
-        if on_frame is not None and spec.kind != "radiance":
-            on_frame(spec, result.metadata["render_seconds"])
-    if saved is not None:
-        saved.report("renders (raw frames and radiance)")
+    specs = {name: spec for name, _, _, spec in renders}
+
+    def raw_frame_done(render, done):
+        if on_frame is not None and specs[render.name].kind != "radiance":
+            on_frame(specs[render.name], done.seconds)
+
+    results = render_frames(
+        scene, [FrameRender(name, window, p, seed) for name, window, p, _ in renders], spp,
+        progress=progress, checkpoint=checkpoint, what="renders (raw frames and radiance)",
+        on_render=raw_frame_done)
     records = [{"name": spec.name, "kind": spec.kind, "w_g_MHz": spec.frequency_mhz,
                 "phase_deg": frame.phase_deg, "hetero_frequency": spec.hetero_frequency,
                 "window_s": [t0 + frame.start_s, t0 + frame.start_s + frame.integration_s],
-                "render_seconds": round(result.metadata["render_seconds"], 3)}
+                "render_seconds": round(result.seconds, 3)}
                for (_, _, _, spec), frame, result in zip(renders, preset.frames, results)]
     frames = [result.image.mean(axis=-1, dtype=np.float64) for result in results[:-1]]
     _, sequence, p, _ = renders[-1]

@@ -411,71 +411,44 @@ def _check_signal_fraction(min_signal_fraction):
 
 def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: bool,
                      mc_batches, progress, on_capture, checkpoint=None):
-    """Every capture of ``specs``: the captures (mean of channels, float32), their
-    records for the summary, the radiance image, and (mc_batches) each capture's batch
-    stack's channel mean. ``checkpoint``: a folder that keeps every render
-    (:mod:`.checkpoint`)."""
-    from ..render import render_result
+    """Every capture of ``specs`` (the frame loop, :mod:`.frames`): the captures (mean
+    of channels, float32), their records for the summary, the radiance image, and
+    (mc_batches) each capture's batch stack's channel mean. ``checkpoint``: a folder
+    that keeps every render (:mod:`.checkpoint`)."""
+    from .frames import FrameRender, render_frames
 
     # ---- Every capture's seed, checked before the first render (all below 2^64; the
     # batch seeds, prec.batch_seeds, are below 2^64 by construction) ----
     capture_seeds = [check_seed(int(seed) + (0 if common_random_numbers else index),
                                 "seed + capture index", CaptureError)
                      for index in range(len(specs))]
-    saved = (None if checkpoint is None else
-             _open_checkpoint(checkpoint, scene, base, specs, spp, capture_seeds, mc_batches))
+    renders = [FrameRender(spec.name, scene, spec.params(base), capture_seed)
+               for spec, capture_seed in zip(specs, capture_seeds)]
+    by_name = {spec.name: spec for spec in specs}
+    results = render_frames(
+        scene, renders, spp, batches=mc_batches or 0, progress=progress,
+        checkpoint=checkpoint, what="renders" if mc_batches else "captures",
+        on_render=None if on_capture is None else
+        lambda r, done: on_capture(by_name[r.name], done.seconds))
     rendered, records, radiance, batches = {}, [], None, {}
-    for index, spec in enumerate(specs):
-        capture_seed = capture_seeds[index]
-        extra_seconds = None
-        if mc_batches:
-            image, stack, seconds, extra_seconds, dropped = prec.render_batches(
-                scene, spp, capture_seed, spec.params(base), mc_batches, progress, saved,
-                spec.name)
-            if spec.kind != "radiance":
-                batches[spec.name] = stack.mean(axis=-1, dtype=np.float64)
-        else:
-            result = render_result(scene, spp=spp, seed=capture_seed,
-                                   params=spec.params(base), progress=progress,
-                                   checkpoint=None if saved is None else
-                                   saved.path(spec.name))
-            if saved is not None:
-                saved.count(result.metadata)
-            image = result.image
-            seconds = result.metadata["render_seconds"]
-            dropped = result.metadata["nonfinite_samples_dropped"]
+    for index, (spec, r, done) in enumerate(zip(specs, renders, results)):
         if spec.kind == "radiance":
-            radiance = image
+            radiance = done.image
         else:
-            rendered[spec.name] = image.mean(axis=-1, dtype=np.float64).astype(np.float32)
+            rendered[spec.name] = done.image.mean(axis=-1, dtype=np.float64).astype(np.float32)
+            if mc_batches:
+                batches[spec.name] = done.stack.mean(axis=-1, dtype=np.float64)
         records.append({
             "order": index, "name": spec.name, "file": f"{spec.name}.npy", "kind": spec.kind,
             "w_g_MHz": spec.frequency_mhz, "hetero_frequency": spec.hetero_frequency,
-            "hetero_offset": spec.hetero_offset, "seed": capture_seed, "spp": spp,
-            "render_seconds": round(seconds, 3),
-            "nonfinite_samples_dropped": dropped,
+            "hetero_offset": spec.hetero_offset, "seed": r.seed, "spp": spp,
+            "render_seconds": round(done.seconds, 3),
+            "nonfinite_samples_dropped": done.dropped,
         })
         if mc_batches:
-            records[-1]["batch_seeds"] = prec.batch_seeds(capture_seed, mc_batches)
-            records[-1]["error_bar_render_seconds"] = round(extra_seconds, 3)
-        if on_capture is not None:
-            on_capture(spec, seconds)
-    if saved is not None:
-        saved.report("renders" if mc_batches else "captures")
+            records[-1]["batch_seeds"] = prec.batch_seeds(r.seed, mc_batches)
+            records[-1]["error_bar_render_seconds"] = round(done.extra_seconds, 3)
     return rendered, records, radiance, batches
-
-
-def _open_checkpoint(folder, scene, base, specs, spp: int, seeds, mc_batches):
-    """The CaptureCheckpoint in ``folder`` of every render of ``specs`` (and of their
-    error-bar batches)."""
-    from .checkpoint import CaptureCheckpoint, batch_name
-
-    renders = [(batch_name(spec.name, b), scene.shutter_window, spec.params(base), spp,
-                batch_seed)
-               for spec, seed in zip(specs, seeds)
-               for b, batch_seed in enumerate(prec.batch_seeds(seed, mc_batches)
-                                              if mc_batches else [seed])]
-    return CaptureCheckpoint.open(folder, scene, renders)
 
 
 def _homodyne_set(captures, prefix):
