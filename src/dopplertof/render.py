@@ -18,7 +18,8 @@ if TYPE_CHECKING:  # (the annotations' names)
 
 # the pipeline's public names, imported on first use (with NumPy and the pipeline)
 __getattr__, __dir__, _PIPELINE_NAMES = lazy_exports(__name__, {
-    ".integrators.pipeline": ("Checkpoint", "CheckpointError", "RenderResult"),
+    ".integrators.checkpoint": ("Checkpoint", "CheckpointError"),
+    ".integrators.pipeline": ("RenderResult",),
 })
 __all__ = ["render", "render_result", *_PIPELINE_NAMES]
 
