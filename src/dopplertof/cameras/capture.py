@@ -25,10 +25,10 @@ import numpy as np
 from ..arguments import check_camera_capture
 from ..params import RenderParams
 from ..scene.scene import keyframe_coverage_warning
-from ..tof.capture import (RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed,
-                           error_stats)
+from ..tof.capture import RADIANCE_FREQUENCY_MHZ, CaptureError, CaptureSpec, check_spp_seed
 from ..tof.geometry import camera_geometry, intrinsics
 from ..tof.ground_truth import camera_forward, ground_truth, mixed_footprints
+from ..tof.summary import error_stats
 from . import radiometry
 from . import sensor as camera_sensor
 from .preset import CameraPreset, load_preset

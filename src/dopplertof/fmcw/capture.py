@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import io
-from ..tof.capture import STATIC_SURFACES, error_stats
+from ..tof.summary import STATIC_SURFACES, error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
 from ..tof.output import prepare_folder
 from .chirp import Chirp, FMCWError

@@ -10,11 +10,12 @@ See docs/camera.md for the conventions and formulas.
 """
 
 from .capture import (CaptureError, CaptureResult, CaptureSpec, Reconstruction, capture,
-                      error_stats, format_summary, plan_captures)
+                      plan_captures)
 from .ground_truth import GroundTruth, ground_truth, light_colocation
 from .noise import NoiseError, NoiseModel, apply_noise
 from .output import OutputFolderError, prepare_folder
 from .reconstruct import CaptureModel, ReconstructionError
+from .summary import error_stats, format_summary
 
 __all__ = [
     "capture", "CaptureResult", "CaptureSpec", "CaptureError", "Reconstruction",
