@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-PIXEL_SETS = ("independent", "joint")  #: (sampling.PIXEL_SETS, in the order rendered)
+PIXEL_SETS = ("independent", "joint")  #: (pixel_sets.PIXEL_SETS, in the order rendered)
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURES = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "fixtures", "published"))
 EXPOSURE = 0.0015

@@ -5,7 +5,7 @@ import pytest
 from scipy import stats
 
 import dopplertof
-from dopplertof import sampling
+from dopplertof import pixel_sets, sampling, sequences
 from dopplertof.sampling import FULL_CORRELATION
 
 
@@ -113,7 +113,7 @@ def test_film_positions_are_a_scrambled_02_sequence():
     import mitsuba as mi
 
     idx = np.arange(64)
-    pts = sampling.sobol_2d(mi, mi.UInt32(idx), mi.UInt32(0x1234567), mi.UInt32(0x89ABCDE))
+    pts = sequences.sobol_2d(mi, mi.UInt32(idx), mi.UInt32(0x1234567), mi.UInt32(0x89ABCDE))
     x, y = np.asarray(pts.x), np.asarray(pts.y)
     assert x.min() >= 0 and x.max() < 1 and y.min() >= 0 and y.max() < 1
     for cols, rows in ((64, 1), (8, 8), (1, 64), (16, 4)):  # every elementary interval
@@ -134,7 +134,7 @@ def assert_shifted_lattice(x, y, n):
     dx, dy = np.mod(x - x[0], 1.0) * n, np.mod(y - y[0], 1.0) * n  # offsets from point 0
     k = np.rint(dx).astype(np.int64)
     assert np.abs(dx - k).max() < 1e-4
-    expected = np.mod(k * sampling.LATTICE_GENERATOR, n)
+    expected = np.mod(k * sequences.LATTICE_GENERATOR, n)
     assert np.abs(np.mod(dy - expected + n / 2, n) - n / 2).max() < 1e-4
 
 
@@ -162,7 +162,7 @@ def test_the_lattice_generator_spreads_every_power_of_two_of_points():
     for m in range(3, 28):
         n = 1 << m
         packing = (2.0 / (3.0 ** 0.5 * n)) ** 0.5
-        assert _shortest_lattice_vector(sampling.LATTICE_GENERATOR, m) >= 0.7 * packing, m
+        assert _shortest_lattice_vector(sequences.LATTICE_GENERATOR, m) >= 0.7 * packing, m
     assert _shortest_lattice_vector(1, 10) < 0.1 * (2.0 / (3.0 ** 0.5 * 1024)) ** 0.5
 
 
@@ -297,7 +297,7 @@ def joint_streams(width, height, spp, K=2, depth=0, pilot=0, seed=7):
     """Streams of every sample of every pixel of a width x height film, joint sets."""
     import mitsuba as mi
 
-    joint = sampling.JointSets(width, spp, K, K, pilot, height)
+    joint = pixel_sets.JointSets(width, spp, K, K, pilot, height)
     pixel = np.repeat(np.arange(width * height), spp)
     sample = np.tile(np.arange(spp), width * height)
     s = sampling.CorrelatedStreams(mi, mi.UInt32(pixel), mi.UInt32(sample // K),
@@ -410,7 +410,7 @@ def test_joint_sets_with_counts_and_sizes_not_powers_of_two(width, height, spp):
     s, pixel, sample = joint_streams(width, height, spp)
     x, y = absolute_film(s, pixel, sample, width, G=spp // 2)
     assert len(set(zip(x.round(6), y.round(6)))) == len(x)
-    joint = sampling.JointSets(width, spp, 2, 2, 0, height)
+    joint = pixel_sets.JointSets(width, spp, 2, 2, 0, height)
     beyond = np.arange(4 * spp)  # samples of one pixel far above spp
     many = sampling.CorrelatedStreams(mi, mi.UInt32(np.zeros_like(beyond)),
                                       mi.UInt32(beyond // 2), mi.UInt32(beyond),

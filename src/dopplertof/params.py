@@ -15,8 +15,9 @@ from dataclasses import dataclass, field, fields, replace
 
 from .hints import unknown_name
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
+from .pixel_sets import PIXEL_SETS
 from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
-                       METHOD_NAMES, PIXEL_SETS, auto_sampling)
+                       METHOD_NAMES, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -103,7 +104,7 @@ class RenderParams:
     #: filter weight (unbiased)
     film_normalization: str = "weights"
     #: "joint": a pixel's film, time and first-hit sets are strata of one scrambled
-    #: sequence with its neighbours' (sampling.JointSets); "independent": each pixel's
+    #: sequence with its neighbours' (pixel_sets.JointSets); "independent": each pixel's
     #: own
     pixel_sets: str = "independent"
     # ---- Execution (the published integrators' own; none changes the image) ----

@@ -20,6 +20,7 @@ from __future__ import annotations
 import drjit as dr
 
 from .. import sampling
+from ..pixel_sets import JointSets
 from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
@@ -124,7 +125,7 @@ def _define_class(mi):
             self.stratify: bool = params.use_stratified_sampling_for_each_interval
             #: the tiles' joint sets (pixel_sets="joint"), else None (each pixel's own)
             crop_width, crop_height = sensor.film().crop_size()
-            self.joint_sets = (None if params.pixel_sets != "joint" else sampling.JointSets(
+            self.joint_sets = (None if params.pixel_sets != "joint" else JointSets(
                 crop_width, spp, self.group_size, self.path_group_size,
                 pipeline.pilot_samples(spp, self.group_size, params), crop_height))
             self.shutter_open: float = scene.shutter_open  #: the exposure's start (s)
