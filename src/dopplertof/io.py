@@ -82,7 +82,11 @@ def is_disk_full(exc: BaseException) -> bool:
 def check_output_folder(folder) -> str:
     """Before any work: ``folder`` is an existing writable folder, or a missing one that
     can be created (its nearest existing ancestor is a writable folder). Creates
-    nothing; the writers create it. Returns the absolute path."""
+    nothing; the writers create it. Returns the absolute path. An empty name is no
+    folder (it would be the current one): '.' names that."""
+    if not str(os.fspath(folder)).strip():
+        raise OutputError(f"output folder {os.fspath(folder)!r} is empty: name a folder "
+                          "('.' for the current one)")
     folder = os.path.abspath(os.fspath(folder))
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise OutputError(f"output path exists and is not a folder: {folder}")

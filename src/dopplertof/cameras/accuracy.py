@@ -72,11 +72,13 @@ def wall_accuracy(camera, distance: float, albedo: float, ambient: float | None 
     from ..scene import load_string
     from .capture import capture_camera, with_illuminator
     from .preset import CameraPreset, load_preset
+    from .radiometry import view_tangents
 
     preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
-    text = wall_scene_xml(distance, albedo, crop_fov(preset, crop), crop, spp)
+    fov = crop_fov(preset, crop)
+    text = wall_scene_xml(distance, albedo, fov, crop, spp)
     if preset.absolute:
-        text = with_illuminator(text, preset)
+        text = with_illuminator(text, preset, view_tangents(fov, crop, crop))
     scene = load_string(text, {}, source=f"wall at {distance:g} m")
     result = capture_camera(scene, preset, spp, seed, noise=False, progress=False,
                             ambient_irradiance=ambient if preset.absolute else None)

@@ -75,7 +75,9 @@ class CameraResult:
         ``pointcloud`` also pointcloud.ply."""
         from .output import write_camera_result
 
-        return write_camera_result(self, folder, pointcloud)
+        if not isinstance(pointcloud, (bool, np.bool_)):
+            raise TypeError(f"pointcloud must be True or False, got {pointcloud!r}")
+        return write_camera_result(self, folder, bool(pointcloud))
 
 
 # ---- The frames' render settings -------------------------------------------------------
@@ -228,7 +230,8 @@ def _ambient_irradiance(preset: CameraPreset, value) -> float:
     """The ambient irradiance a capture uses (uW/cm^2/nm), checked."""
     if value is None:
         return preset.default_ambient
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+    if isinstance(value, (bool, np.bool_)) \
+            or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not (math.isfinite(value) and 0 <= value <= 1000):
         raise CaptureError(f"ambient_irradiance must be a number of uW/cm^2/nm in [0, 1000] "
                            f"(indoor 2.2, sunlight at 850 nm about "
@@ -405,9 +408,10 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
         source, "a camera preset", CaptureError)
 
 
-def with_illuminator(text: str, preset: CameraPreset) -> str:
-    """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`)
-    added when it has no light at all (a scene's own point and spot lights stand for it
+def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
+    """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
+    confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
+    reaches past it; default the preset's view) added when it has no light at all (a scene's own point and spot lights stand for it
     otherwise): at the preset's offset from the lens, riding with the camera. The offset
     is in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left
     and y up, so the light is translated by (-x, -y, z) in the camera's frame."""
@@ -416,7 +420,7 @@ def with_illuminator(text: str, preset: CameraPreset) -> str:
     root = ET.fromstring(text)
     if next(root.iter("emitter"), None) is not None:
         return text
-    light = ET.fromstring(radiometry.illuminator_xml(preset))
+    light = ET.fromstring(radiometry.illuminator_xml(preset, view))
     sensor = root.find("sensor")
     placed = next((t for t in sensor.findall("transform") if t.get("name") == "to_world"),
                   None) if sensor is not None else None
@@ -449,7 +453,8 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     width, height = resolution or preset.resolution
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
     if preset.absolute:
-        text = with_illuminator(text, preset)
+        text = with_illuminator(text, preset,
+                                radiometry.view_tangents(preset.fov_deg, width, height))
     return load_string(text, dict(defines or {}), source=os.fspath(path),
                        base_dir=os.path.dirname(os.path.abspath(path)))
 

@@ -27,6 +27,12 @@ from ..modulation import WAVEFORMS
 #: the folder of the packaged presets
 PRESET_FOLDER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets")
 
+#: an illuminator's narrowest field (deg): below it a field is a beam, or radians
+MIN_ILLUMINATOR_FOV_DEG = 5.0
+#: a dark pixel's reading must stay this many read-noise deviations (plus one DN of
+#: rounding) inside the ADC's range: a reading at either end counts as saturated
+DARK_MARGIN_SIGMAS = 5.0
+
 #: unwrapping schemes a preset may name
 UNWRAPPING = ("none", "wrap-search")
 
@@ -65,7 +71,8 @@ SCHEMA = {
     "optics": {"resolution": (list, None, "[width, height] pixels"),
                "fov_deg": (float, lambda x: 0.1 <= x <= 160, "a pinhole's horizontal field "
                            "of view, 0.1 to 160 degrees (a wider lens is no pinhole)"),
-               "pixel_pitch_um": (float, _positive, "micrometres"),
+               "pixel_pitch_um": (float, lambda x: 0.1 <= x <= 1000, "micrometres, 0.1 to "
+                                  "1000 (sensor pixels are about 1 to 100)"),
                "f_number": (float, lambda x: 0.3 <= x <= 64, "the lens's f-number N"),
                "transmission": (float, _fraction, "lens and band-pass filter transmission at "
                                 "the illuminator's wavelength"),
@@ -78,8 +85,11 @@ SCHEMA = {
                               "Brown-Conrady [k1, k2, p1, p2, k3] (OpenCV's order)")},
     "illuminator": {"power_w": (float, lambda x: 0 < x <= 100, "mean optical power (W)"),
                     "wavelength_nm": (float, lambda x: 300 <= x <= 2000, "nm"),
-                    "fov_deg": (list, _finite_list(2, lambda v: 0 < v < 180),
-                                "[horizontal, vertical] full angles lit, degrees"),
+                    "fov_deg": (list, _finite_list(2, lambda v: MIN_ILLUMINATOR_FOV_DEG <= v
+                                                   < 180),
+                                f"[horizontal, vertical] full angles lit, degrees, "
+                                f"{MIN_ILLUMINATOR_FOV_DEG:g} to 180 (radians are no "
+                                "degrees: 1.31 rad = 75 deg)"),
                     "offset_m": (list, _finite_list(3, lambda v: abs(v) < 1),
                                  "[x, y, z] of the emitter from the lens centre, camera axes "
                                  "(m)")},
@@ -91,10 +101,13 @@ SCHEMA = {
                                 "demodulation contrast in [0.01, 1]")},
     "sensor": {"quantum_efficiency": (float, _fraction, "electrons per photon"),
                "full_well_electrons": (float, _positive, "electrons per tap"),
-               "read_noise_electrons": (float, _non_negative, "electrons rms per tap"),
-               "dark_current_electrons_per_s": (float, _non_negative, "per tap"),
+               "read_noise_electrons": (float, lambda x: 0 <= x <= 1e4,
+                                        "electrons rms per tap, 0 to 10000"),
+               "dark_current_electrons_per_s": (float, lambda x: 0 <= x <= 1e9,
+                                                "per tap, 0 to 1e9"),
                "adc_bits": (int, lambda x: 1 <= x <= 24, "ADC resolution"),
-               "gain_electrons_per_dn": (float, _positive, "electrons per DN"),
+               "gain_electrons_per_dn": (float, lambda x: 1e-3 <= x <= 1e4,
+                                         "electrons per DN, 0.001 to 10000"),
                "offset_dn": (float, _non_negative, "DN of a zero differential signal"),
                "well_fill": (float, _fraction, "auto photon scale: the brightest unmodulated "
                              "signal fills this fraction of the full well"),
@@ -230,7 +243,12 @@ def preset_names() -> list:
 
 def preset_path(name_or_path) -> str:
     """The file of a packaged preset's name, or ``name_or_path`` when it is a TOML file."""
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise TypeError(f"camera preset: a packaged preset's name or a path to a .toml "
+                        f"file, got {name_or_path!r}")
     text = os.fspath(name_or_path)
+    if not isinstance(text, str):
+        raise TypeError(f"camera preset: a path must be text, got {name_or_path!r}")
     if text.endswith(".toml") or os.sep in text:
         if not os.path.isfile(text):
             raise PresetError(f"camera preset file not found: {text}")
@@ -277,6 +295,13 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
                           sections["sensor"], sections["reconstruction"], raw, optics,
                           illuminator, conditions)
     _check_radiometry(preset)
+    ignored = [f"[{name}]" for name in ("illuminator", "conditions") if name in data]
+    if ignored and not preset.absolute:
+        raise PresetError(f"{path}: {' and '.join(ignored)} would be ignored: "
+                          "sensor.auto_exposure = true chooses the photon scale per capture "
+                          "(set it false for absolute radiometry, or remove the "
+                          f"section{'s' if len(ignored) > 1 else ''})")
+    _check_ranges(preset)
     _check_sequence(preset)
     return preset
 
@@ -339,10 +364,16 @@ def _check_radiometry(preset: CameraPreset) -> None:
     """An absolute preset (auto_exposure = false) needs its illuminator and optics; the
     ADC's offset must lie inside its range."""
     path, sensor = preset.source_file, preset.sensor
-    if sensor["offset_dn"] >= (1 << sensor["adc_bits"]) - 1:
+    top = (1 << sensor["adc_bits"]) - 1
+    if sensor["offset_dn"] >= top:
         raise PresetError(f"{path}: sensor.offset_dn = {sensor['offset_dn']:g} is past the "
-                          f"{sensor['adc_bits']}-bit ADC's largest value "
-                          f"{(1 << sensor['adc_bits']) - 1}")
+                          f"{sensor['adc_bits']}-bit ADC's largest value {top}")
+    margin = DARK_MARGIN_SIGMAS * sensor["read_noise_electrons"] / sensor["gain_electrons_per_dn"] + 1
+    if not margin <= sensor["offset_dn"] <= top - margin:
+        raise PresetError(f"{path}: sensor.offset_dn = {sensor['offset_dn']:g} leaves a pixel "
+                          f"without signal saturated: it must lie {margin:.3g} DN "
+                          f"({DARK_MARGIN_SIGMAS:g} read-noise deviations and a DN) inside "
+                          f"the {sensor['adc_bits']}-bit ADC's 0 to {top}")
     if not preset.absolute:
         return
     if preset.illuminator is None:
@@ -353,6 +384,25 @@ def _check_radiometry(preset: CameraPreset) -> None:
             meaning = SCHEMA["optics"][key][2]
             raise PresetError(f"{path}: missing key optics.{key} ({meaning}; "
                               "sensor.auto_exposure = false needs it)")
+
+
+def _check_ranges(preset: CameraPreset) -> None:
+    """The reconstruction's range is an interval; the lens distortion can be inverted
+    over the image (integrators/camera.py, LensDistortion.problem)."""
+    path, r = preset.source_file, preset.reconstruction
+    if r["min_range_m"] >= r["max_range_m"]:
+        raise PresetError(f"{path}: reconstruction.min_range_m = {r['min_range_m']:g} is not "
+                          f"below reconstruction.max_range_m = {r['max_range_m']:g}: no depth "
+                          "could be reported")
+    if any(preset.distortion):
+        from ..integrators.camera import LensDistortion
+
+        width, height = preset.resolution
+        problem = LensDistortion(preset.distortion, width, height,
+                                 preset.fov_deg).problem(width, height)
+        if problem:
+            raise PresetError(f"{path}: optics.distortion = {list(preset.distortion)}: "
+                              f"{problem}")
 
 
 def _check_sequence(preset: CameraPreset) -> None:

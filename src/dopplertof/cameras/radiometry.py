@@ -85,15 +85,84 @@ def ambient_photon_rate(preset, irradiance_uw_cm2_nm: float, albedo) -> np.ndarr
     return radiance * collection(preset) / photon_energy(preset.illuminator["wavelength_nm"])
 
 
-def illuminator_xml(preset) -> str:
-    """The camera's illuminator as a Mitsuba point light riding with the camera at the
-    preset's offset (given in OpenCV's camera axes, x right, y down, z forward; Mitsuba's
-    camera has +x left and +y up), of intensity I = P / Omega: the scene's only light.
-    The transform holds the offset only; :func:`..capture.with_illuminator` appends the
-    camera's placement."""
+def illuminator_xml(preset, view=None) -> str:
+    """The camera's illuminator as a Mitsuba light riding with the camera at the preset's
+    offset (given in OpenCV's camera axes, x right, y down, z forward; Mitsuba's camera
+    has +x left and +y up), of intensity I = P / Omega inside its field ``fov_deg`` and
+    none outside (:func:`light_xml`): the scene's only light. ``view``: the
+    (tan_x, tan_y) of the view's half extents (:func:`view_tangents`; default the
+    preset's). The transform holds the offset only;
+    :func:`..capture.with_illuminator` appends the camera's placement."""
     x, y, z = preset.illuminator["offset_m"]  # OpenCV axes: Mitsuba's are (-x, -y, z)
-    intensity = radiant_intensity(preset.illuminator)
-    return (f'<emitter type="point" id="camera_illuminator"><rgb name="intensity" '
-            f'value="{intensity!r}"/><transform name="to_world"><translate x="{-x!r}" '
-            f'y="{-y!r}" z="{z!r}"/></transform><animation name="to_world" '
-            f'follow="sensor"/></emitter>')
+    view = view or view_tangents(preset.fov_deg, *preset.resolution)
+    placement = (f'<transform name="to_world"><translate x="{-x!r}" y="{-y!r}" '
+                 f'z="{z!r}"/></transform>')
+    return light_xml(radiant_intensity(preset.illuminator),
+                     confined_field(preset, view, (x, y, z)), placement,
+                     ident="camera_illuminator")
+
+
+def view_tangents(fov_deg: float, width: int, height: int) -> tuple:
+    """(tan_x, tan_y): the half extents of a pinhole view of horizontal field of view
+    ``fov_deg`` and width x height square pixels, on the plane at unit depth."""
+    tan_x = math.tan(math.radians(fov_deg) / 2)
+    return tan_x, tan_x * height / width
+
+
+def confined_field(preset, view, offset=(0.0, 0.0, 0.0)):
+    """The illuminator's [horizontal, vertical] full angles (deg) when its light must be
+    confined to them, None when it lights every pixel of the view anyway: an illuminator
+    at the lens (``offset`` zero) whose rectangle of directions holds the pinhole
+    ``view`` ((tan_x, tan_y), :func:`view_tangents`) through an undistorted lens. An
+    auto-exposed preset's light is no illuminator: None."""
+    if not preset.absolute or preset.illuminator is None:
+        return None
+    h, v = (float(a) for a in preset.illuminator["fov_deg"])
+    covers = (math.tan(math.radians(h) / 2) >= view[0]
+              and math.tan(math.radians(v) / 2) >= view[1]
+              and not any(offset) and not any(preset.distortion))
+    return None if covers else [h, v]
+
+
+def light_xml(intensity: float, field_deg, placement: str, ident: str | None = None) -> str:
+    """A light of radiant intensity ``intensity`` (W/sr) riding with the camera
+    (``placement``: its to_world transform element, the camera's axes): a point light
+    when ``field_deg`` is None; else lighting only the directions inside the rectangular
+    pyramid of full angles ``field_deg`` = [h, v] about the camera's axis (x
+    horizontal), as uniformly.
+
+    The pyramid is a Mitsuba spot light whose beam holds the pyramid's corners (every
+    direction inside at full intensity) times a texture that is 1 inside the rectangle
+    and 0 outside. The spot evaluates its texture at u = 1/2 + x / (2 z T), v likewise
+    with y, T = tan(cutoff). A checkerboard is color0 where frac(a) > 1/2 equals
+    frac(b) > 1/2, (a, b) = to_uv (u, v); with a = u/2 + (1 - r)/4 and b = -u/2 +
+    (3 - r)/4, r = tan(h/2) / T, both fractions stay at or under 1/2 exactly for
+    |x/z| <= tan(h/2) and one of them passes 1/2 outside (a, b in [0, 1) over the
+    beam): color0 is the interval of x. The same in v, nested as its color0, gives the
+    rectangle."""
+    name = f' id="{ident}"' if ident else ""
+    if field_deg is None:
+        return (f'<emitter type="point"{name}><rgb name="intensity" value="{intensity!r}"/>'
+                f'{placement}<animation name="to_world" follow="sensor"/></emitter>')
+    tan_h, tan_v = (math.tan(math.radians(a) / 2) for a in field_deg)
+    corner = math.degrees(math.atan(math.hypot(tan_h, tan_v)))
+    margin = min(1.0, (90.0 - corner) / 2)
+    beam, cutoff = corner + margin / 2, corner + margin
+    scale = math.tan(math.radians(cutoff))
+
+    def interval(role: str, axis: int, ratio: float, inside: str) -> str:
+        rows = [[0.0] * 4 for _ in range(4)]
+        rows[0][axis], rows[0][3] = 0.5, 0.25 - 0.25 * ratio
+        rows[1][axis], rows[1][3] = -0.5, 0.75 - 0.25 * ratio
+        rows[2][2] = rows[3][3] = 1.0
+        matrix = " ".join(repr(v) for row in rows for v in row)
+        return (f'<texture type="checkerboard" name="{role}">{inside}'
+                '<float name="color1" value="0"/><transform name="to_uv">'
+                f'<matrix value="{matrix}"/></transform></texture>')
+
+    vertical = interval("color0", 1, tan_v / scale, '<float name="color0" value="1"/>')
+    texture = interval("texture", 0, tan_h / scale, vertical)
+    return (f'<emitter type="spot"{name}><rgb name="intensity" value="{intensity!r}"/>'
+            f'<float name="cutoff_angle" value="{cutoff!r}"/>'
+            f'<float name="beam_width" value="{beam!r}"/>{texture}{placement}'
+            '<animation name="to_world" follow="sensor"/></emitter>')

@@ -153,7 +153,10 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
                                   mixed=mixed)
     # nearer than the operating range by more than three predicted standard deviations
     nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
-    result.out_of_range = (depth < nearest) | beyond  # (NaN compares False)
+    # a depth that no other mask explains is NaN where no wrap count lies within the range
+    # searched (every candidate beyond it): outside the range too
+    unexplained = ~np.isfinite(depth) & ~result.masked
+    result.out_of_range = (depth < nearest) | beyond | unexplained  # (NaN compares False)
     result.edge = edge_filter(np.where(result.masked, np.nan, depth),
                               preset.reconstruction["edge_range_m"])
     masked = result.masked

@@ -80,6 +80,7 @@ def draw_scene(config: DatasetConfig, index: int, preset, draw: int = 0) -> dict
     """The description of sample ``index`` (its ``draw``-th drawing): times, camera,
     light, backdrop, objects."""
     from ..cameras.capture import sequence_window
+    from ..cameras.radiometry import confined_field
 
     rng = sample_rng(config, index, draw)
     first, last = sequence_window(preset)
@@ -91,10 +92,17 @@ def draw_scene(config: DatasetConfig, index: int, preset, draw: int = 0) -> dict
     count = int(rng.integers(config["objects"]["count"][0], config["objects"]["count"][1] + 1))
     objects = [_draw_object(config, rng, k, camera["rest"], (tan_x, tan_y))
                for k in range(count)]
+    light = {"placement": config["light"]["placement"],
+             "offset_m": list(config["light"]["offset"]),
+             "intensity": _uniform(rng, config["render"]["light_intensity"])}
+    # an absolute preset's illuminator lights only its field: where that leaves part of
+    # the view dark, the light is confined to it (cameras/radiometry.py, light_xml)
+    offset = light["offset_m"] if light["placement"] == "offset" else (0.0, 0.0, 0.0)
+    field_deg = confined_field(preset, (tan_x, tan_y), offset)
+    if field_deg is not None:
+        light["field_deg"] = field_deg
     return {"index": int(index), "draw": int(draw), "times_s": times, "camera": camera,
-            "light": {"placement": config["light"]["placement"],
-                      "offset_m": list(config["light"]["offset"]),
-                      "intensity": _uniform(rng, config["render"]["light_intensity"])},
+            "light": light,
             "backdrop": {"kind": config["backdrop"]["kind"],
                          "size_m": list(config["backdrop"]["size"]),
                          "albedo": _uniform(rng, config["backdrop"]["albedo"])},

@@ -84,16 +84,17 @@ def _sensor(description: dict, spp: int) -> str:
 
 def _light(description: dict) -> str:
     """A point light riding with the camera: at its centre, or at the offset (camera
-    frame, m) from it."""
+    frame, m) from it; confined to the illuminator's field where the description gives
+    one (``field_deg``)."""
+    from ..cameras.radiometry import light_xml
+
     light, camera = description["light"], description["camera"]
     offset = np.eye(4)
     if light["placement"] == "offset":
         offset[:3, 3] = light["offset_m"]
     first = description["times_s"]["start"] - description["times_s"]["mid"]
     placed = camera_pose(camera, first if camera["moving"] else 0.0) @ offset
-    return (f'<emitter type="point"><rgb name="intensity" value="{light["intensity"]!r}"/>'
-            f'{_matrix_transform(placed)}<animation name="to_world" follow="sensor"/>'
-            "</emitter>")
+    return light_xml(light["intensity"], light.get("field_deg"), _matrix_transform(placed))
 
 
 def scene_xml(description: dict, spp: int, max_depth: int) -> str:

@@ -7,6 +7,8 @@ not from the near clip plane where Mitsuba's perspective rays start.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..scene.motion import opaque_tree, transform_point, transform_vector, transformed_ray
@@ -54,6 +56,7 @@ class LensDistortion:
     that images there: :meth:`undistort` inverts the map by fixed-point iteration."""
 
     ITERATIONS = 20  #: fixed-point steps (converged to float32 for |k1 r^2| under 0.3)
+    INVERSE_TOLERANCE_PX = 1e-3  #: the inverse's largest reprojection error over an image
 
     def __init__(self, coefficients, width: int, height: int, fov_x_deg: float):
         self.k1, self.k2, self.p1, self.p2, self.k3 = (float(c) for c in coefficients)
@@ -63,14 +66,59 @@ class LensDistortion:
     def undistort(self, mi, pos):
         """Film positions (normalized, [0, 1]^2) of the distorted image -> those of the
         pinhole whose rays image there."""
-        xd, yd = (pos.x - 0.5) * self.sx, (pos.y - 0.5) * self.sy
+        x, y = self.inverse((pos.x - 0.5) * self.sx, (pos.y - 0.5) * self.sy)
+        return mi.Point2f(x / self.sx + 0.5, y / self.sy + 0.5)
+
+    def inverse(self, xd, yd):
+        """The undistorted normalized coordinates (x, y) that image at (xd, yd) (Dr.Jit
+        or NumPy arrays): :data:`ITERATIONS` fixed-point steps."""
         x, y = xd, yd
         for _ in range(self.ITERATIONS):
             r2 = x * x + y * y
             radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
             x = (xd - (2 * self.p1 * x * y + self.p2 * (r2 + 2 * x * x))) / radial
             y = (yd - (self.p1 * (r2 + 2 * y * y) + 2 * self.p2 * x * y)) / radial
-        return mi.Point2f(x / self.sx + 0.5, y / self.sy + 0.5)
+        return x, y
+
+    def forward(self, x, y):
+        """Where the undistorted normalized coordinates (x, y) image (the model above)."""
+        r2 = x * x + y * y
+        radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        return (x * radial + 2 * self.p1 * x * y + self.p2 * (r2 + 2 * x * x),
+                y * radial + self.p1 * (r2 + 2 * y * y) + 2 * self.p2 * x * y)
+
+    def problem(self, width: int, height: int) -> str | None:
+        """Why the map cannot be inverted over the width x height image, or None: the
+        radial map r_d(r) = r (1 + k1 r^2 + k2 r^4 + k3 r^6) must rise monotonically
+        until it reaches the image's corner radius (else rays fold back and no ray
+        images at the corners), and the fixed-point inverse must reproduce every pixel
+        edge and centre of the image to within :data:`INVERSE_TOLERANCE_PX`."""
+        half_x, half_y = 0.5 * self.sx, 0.5 * self.sy
+        corner = math.hypot(half_x, half_y)
+        # r_d over r in steps of a thousandth of the corner radius, up to 100 times it
+        r = np.arange(1, 100001) * (corner / 1000)
+        r2 = r * r
+        rd = r * (1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
+        reached = np.nonzero(rd >= corner)[0]
+        end = reached[0] if reached.size else r.size
+        if reached.size == 0 or np.any(np.diff(rd[:end + 1]) <= 0):
+            return (f"the radial map r (1 + k1 r^2 + k2 r^4 + k3 r^6) does not rise "
+                    f"monotonically to the image's corner radius {corner:.3g} (normalized "
+                    "coordinates): rays fold back and the image cannot be undistorted")
+        xd = np.linspace(-half_x, half_x, 2 * int(round(width)) + 1)
+        yd = np.linspace(-half_y, half_y, 2 * int(round(height)) + 1)
+        xd, yd = np.meshgrid(xd, yd)
+        with np.errstate(all="ignore"):
+            x, y = self.inverse(xd, yd)
+            bx, by = self.forward(x, y)
+            error = np.hypot(bx - xd, by - yd) * width / self.sx
+        worst = float(np.nanmax(error)) if np.isfinite(error).all() else math.inf
+        if not worst <= self.INVERSE_TOLERANCE_PX:
+            return (f"its inverse does not converge over the image (a pixel's ray "
+                    f"reprojects {worst:.3g} px off, more than "
+                    f"{self.INVERSE_TOLERANCE_PX:g}): the rendered rays would not be the "
+                    "model's")
+        return None
 
     @classmethod
     def of(cls, sensor, coefficients):

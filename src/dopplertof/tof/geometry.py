@@ -94,7 +94,8 @@ def point_cloud(geometry: dict, depth, amplitude, velocity, velocity_gt) -> dict
     """pointcloud.ply's columns, one vertex per pixel in row-major order (vertex k is
     pixel (k mod W, k div W)): x, y, z (world, m, the pose at mid-exposure), nx, ny, nz
     (the normal of the neighbouring points' central differences, turned towards the
-    camera), radial_velocity and radial_velocity_gt (m/s, > 0 receding), amplitude and
+    camera; NaN in an image one pixel wide or high: no neighbours to span a surface),
+    radial_velocity and radial_velocity_gt (m/s, > 0 receding), amplitude and
     valid (1 where the camera reports a depth; x, y, z and the normal NaN elsewhere). A
     ValueError for a sensor without K (not a pinhole)."""
     if geometry.get("K") is None:
@@ -104,7 +105,7 @@ def point_cloud(geometry: dict, depth, amplitude, velocity, velocity_gt) -> dict
     depth = np.asarray(depth, np.float64)
     camera_points = depth[..., None] * pixel_rays(geometry)
     points = camera_points @ pose[:3, :3].T + pose[:3, 3]
-    du, dv = np.gradient(camera_points, axis=1), np.gradient(camera_points, axis=0)
+    du, dv = _differences(camera_points, 1), _differences(camera_points, 0)
     normal = np.cross(du, dv)
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     normal *= np.where(np.sum(normal * camera_points, -1, keepdims=True) > 0, -1.0, 1.0)
@@ -117,6 +118,14 @@ def point_cloud(geometry: dict, depth, amplitude, velocity, velocity_gt) -> dict
     out = {k: np.asarray(v, np.float32).ravel() for k, v in columns.items()}
     out["valid"] = np.isfinite(depth).ravel().astype(np.uint8)
     return out
+
+
+def _differences(points, axis: int) -> np.ndarray:
+    """The central differences of ``points`` along ``axis`` (one-sided at the ends),
+    NaN where the axis has a single pixel."""
+    if points.shape[axis] < 2:
+        return np.full(points.shape, np.nan)
+    return np.gradient(points, axis=axis)
 
 
 def write_camera_files(path, geometry: dict, pointcloud: bool, depth, amplitude, velocity,
