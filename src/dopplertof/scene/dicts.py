@@ -15,7 +15,6 @@ Keyframe transforms may be ``mi.ScalarTransform4f`` or 4x4 arrays.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -235,7 +234,7 @@ def _load(mi, d: dict, what: str):
     """``mi.load_dict``; its error as a one-line SceneError naming ``what``."""
     for key, shape in d.items():  # ---- mesh files, before Mitsuba reads them
         problem = isinstance(shape, dict) and mesh_file_message(
-            shape.get("type"), shape.get("filename"), os.getcwd())
+            shape.get("type"), shape.get("filename"), Resolver.of(mi))
         if problem:
             raise SceneError(f"<dict> {what}: {key!r}: {problem}")
     try:

@@ -243,6 +243,9 @@ class SceneDescription:
     shutter_given: str | None = None
     #: InputFile of every file the description references (inputs.xml_inputs, dict_inputs)
     inputs: list = field(default_factory=list)
+    #: the folders its relative file names are looked up in before Mitsuba's own, first
+    #: first (an XML scene's <path> entries and its folder)
+    folders: tuple = ()
 
 
 def build(mi, description: SceneDescription, load_part) -> DopplerScene:

@@ -395,19 +395,22 @@ def _check_film_size(doc: _Doc, sensor) -> None:
                              f"got {value}{_origin(doc, child)}")
 
 
-def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
-    """Load ``root`` (the document or a body's) with Mitsuba; errors name the user's file
+def _load_string(mi, doc: _Doc, root: ET.Element, folders):
+    """Load ``root`` (the document or a body's) with Mitsuba, relative file names looked
+    up in ``folders`` (first first) before Mitsuba's own; errors name the user's file
     and line."""
+    resolver = mi.file_resolver()
+    before = [resolver[i] for i in range(len(resolver))]
+    mine = Resolver(folders)
     for shape in root.iter("shape"):  # ---- mesh files, before Mitsuba reads them
         filename = next((el.get("value") for el in shape.findall("string")
                          if el.get("name") == "filename"), None)
-        problem = mesh_file_message(shape.get("type"), filename, base_dir)
+        problem = mesh_file_message(shape.get("type"), filename, mine)
         if problem:
             raise SceneError(f"{doc.where(shape)}: {problem}")
     text = ET.tostring(root, encoding="unicode")
-    resolver = mi.file_resolver()
-    folders = [resolver[i] for i in range(len(resolver))]
-    resolver.prepend(base_dir)
+    for folder in reversed(folders):
+        resolver.prepend(folder)
     try:
         return mitsuba_load(mi.load_string, text), text
     except Exception as e:  # Mitsuba reports XML problems as RuntimeError
@@ -415,8 +418,28 @@ def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
     finally:
         # the resolver as it was: no scene's folder serves the next scene's files
         resolver.clear()
-        for folder in folders:
+        for folder in before:
             resolver.append(folder)
+
+
+def _search_folders(doc: _Doc, base_dir: str) -> tuple:
+    """The folders a scene's relative file names are looked up in, first first, as
+    stock Mitsuba does for a scene file: each top-level ``<path value=...>`` (relative to
+    the scene file's folder ``base_dir``; a later one before an earlier one), then
+    ``base_dir``. The ``<path>`` elements leave the document: every part of the scene (a
+    moving body's too) is loaded with these folders."""
+    paths = []
+    for el in doc.root.findall("path"):
+        if "value" not in el.attrib:
+            raise SceneError(f"{doc.where(el)}: <path> needs a 'value' (a folder)")
+        folder = os.path.abspath(os.path.join(base_dir, os.path.expanduser(el.get("value"))))
+        if not os.path.isdir(folder):
+            raise SceneError(f"{doc.where(el)}: <path> folder {el.get('value')!r} not found "
+                             f"(looked for {folder}; a relative one is read from the scene "
+                             f"file's folder){_origin(doc, el)}")
+        paths.insert(0, folder)
+        doc.root.remove(el)
+    return tuple(paths) + (os.path.abspath(base_dir),)
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
@@ -426,14 +449,16 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
 
     mi = require_variant()
     doc = _Doc(text, source)
-    return build(mi, describe(doc, overrides, Resolver.of(mi, base_dir)),
-                 lambda part, what: _load_string(mi, doc, part, base_dir))
+    description = describe(doc, overrides, Resolver.of(mi), base_dir)
+    return build(mi, description,
+                 lambda part, what: _load_string(mi, doc, part, description.folders))
 
 
 def describe(doc: _Doc, overrides: dict | None = None,
-             resolver: Resolver | None = None) -> SceneDescription:
+             resolver: Resolver | None = None, base_dir: str = ".") -> SceneDescription:
     """The SceneDescription of an XML document: ``<default>`` values substituted, the
-    files it references found (with ``resolver``, as Mitsuba will), the integrator's
+    files it references found (in the scene's folders, :func:`_search_folders`, then
+    with ``resolver``, as Mitsuba will), the integrator's
     and the correlated sampler's parameters taken out, the moving bodies split off
     into documents of their own, the camera's and lights' keyframes replaced by their
     rest poses (parts: XML elements)."""
@@ -442,7 +467,9 @@ def describe(doc: _Doc, overrides: dict | None = None,
                          f"got <{doc.root.tag}>")
     _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
-    inputs = xml_inputs(doc.root, resolver or Resolver(()))
+    folders = _search_folders(doc, base_dir)
+    resolver = Resolver(folders + (resolver or Resolver(())).folders)
+    inputs = xml_inputs(doc.root, resolver, folders[-1])
     has_integrator = bool(doc.root.findall("integrator"))
     integrator = _integrator_params(doc)
     sampler, sensor = _sensor(doc)
@@ -459,7 +486,7 @@ def describe(doc: _Doc, overrides: dict | None = None,
     return SceneDescription(doc.source, doc.root, bodies, parameters,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
                             motions=motions, has_integrator=has_integrator,
-                            shutter_given=shutter_given, inputs=inputs)
+                            shutter_given=shutter_given, inputs=inputs, folders=folders)
 
 
 def load_file(path, overrides: dict | None = None):
