@@ -165,12 +165,9 @@ def _integrator_params(doc: _Doc) -> dict:
     if not integrators:
         return {}
     integ = integrators[0]
-    kind = integ.get("type")
-    if kind not in DTOF_INTEGRATORS:
-        raise SceneError(
-            f"{doc.where(integ)}: integrator type {kind!r} is not a D-ToF integrator: "
-            f"use type=\"dopplertof\" (alias \"dopplertofpath\")"
-        )
+    if integ.get("type") not in DTOF_INTEGRATORS:  # a stock scene's: the defaults, a note
+        doc.root.remove(integ)
+        return {}
     values = _properties(doc, integ)
     doc.root.remove(integ)
     return {"__where__": doc.where(integ), **values}
@@ -470,7 +467,10 @@ def describe(doc: _Doc, overrides: dict | None = None,
     folders = _search_folders(doc, base_dir)
     resolver = Resolver(folders + (resolver or Resolver(())).folders)
     inputs = xml_inputs(doc.root, resolver, folders[-1])
-    has_integrator = bool(doc.root.findall("integrator"))
+    other_integrator = next((f"{doc.where(el)}: <integrator type=\"{el.get('type')}\">"
+                             for el in doc.root.findall("integrator")
+                             if el.get("type") not in DTOF_INTEGRATORS), None)
+    has_integrator = bool(doc.root.findall("integrator")) and other_integrator is None
     integrator = _integrator_params(doc)
     sampler, sensor = _sensor(doc)
     _check_film_size(doc, sensor)
@@ -486,7 +486,8 @@ def describe(doc: _Doc, overrides: dict | None = None,
     return SceneDescription(doc.source, doc.root, bodies, parameters,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
                             motions=motions, has_integrator=has_integrator,
-                            shutter_given=shutter_given, inputs=inputs, folders=folders)
+                            shutter_given=shutter_given, inputs=inputs, folders=folders,
+                            other_integrator=other_integrator)
 
 
 def load_file(path, overrides: dict | None = None):
