@@ -91,9 +91,11 @@ def illuminator_xml(preset) -> str:
     camera has +x left and +y up), of intensity I = P / Omega: the scene's only light.
     The transform holds the offset only; :func:`..capture.with_illuminator` appends the
     camera's placement."""
+    from ..scene.scene import CAMERA_ILLUMINATOR_ID
+
     x, y, z = preset.illuminator["offset_m"]  # OpenCV axes: Mitsuba's are (-x, -y, z)
     intensity = radiant_intensity(preset.illuminator)
-    return (f'<emitter type="point" id="camera_illuminator"><rgb name="intensity" '
+    return (f'<emitter type="point" id="{CAMERA_ILLUMINATOR_ID}"><rgb name="intensity" '
             f'value="{intensity!r}"/><transform name="to_world"><translate x="{-x!r}" '
             f'y="{-y!r}" z="{z!r}"/></transform><animation name="to_world" '
             f'follow="sensor"/></emitter>')

@@ -12,6 +12,9 @@ from ..params import CAPTURE_HETERO_FREQUENCY, ParameterError, RenderParams
 DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
 #: the plugin names dopplertof adds to Mitsuba's (for the did-you-mean of a misspelt one)
 DTOF_PLUGINS = DTOF_INTEGRATORS + ("correlated",)
+#: the id of a camera preset's illuminator (cameras.radiometry.illuminator_xml): its
+#: offset from the camera is in metres whatever the scene's unit
+CAMERA_ILLUMINATOR_ID = "camera_illuminator"
 #: the lights that can move (keyframed, or riding on the camera)
 MOVABLE_EMITTERS = ("point", "spot")
 #: the published <sampler type="correlated">'s D-ToF parameters (render parameters)

@@ -29,8 +29,8 @@ from ..hints import did_you_mean, with_plugin_hint
 from .inputs import Resolver, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
-                    MotionClaim, SceneDescription, SceneError, build,
+from .scene import (CAMERA_ILLUMINATOR_ID, CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS,
+                    DTOF_PLUGINS, SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
                     correlated_sampler_params, mitsuba_load)
 from .transforms import TransformError, compose
 
@@ -80,8 +80,9 @@ class _Doc:
         return twin
 
 
-def _substitute(doc: _Doc, overrides: dict) -> None:
-    """Resolve ``$name`` from <default> values and overrides; drop <default>."""
+def _substitute(doc: _Doc, overrides: dict) -> dict:
+    """Resolve ``$name`` from <default> values and overrides; drop <default>; the values
+    (a scene option, SCENE_OPTIONS, may be given without a <default>)."""
     root = doc.root
     values = {}
     for el in root.findall("default"):
@@ -94,7 +95,7 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
         for v in el.attrib.values():
             used.update(re.findall(r"\$(\w+)", v))
     for name, value in overrides.items():
-        if name not in values and name not in used:
+        if name not in values and name not in used and name not in SCENE_OPTIONS:
             declared = ", ".join(sorted(values)) or "none"
             raise SceneError(f"{doc.source}: unknown scene parameter {name!r}"
                              f"{did_you_mean(name, set(values) | used)} "
@@ -116,6 +117,81 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
                 return values[m.group(1)]
 
             el.set(key, re.sub(r"\$(\w+)", repl, v))
+    return values
+
+
+#: the scene's length unit (``-D unit=mm`` or ``<default name="unit" value="mm"/>``): its
+#: name, or a number, to metres per scene unit
+UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "um": 1e-6, "km": 1000.0,
+         "in": 0.0254, "ft": 0.3048}
+#: the names a scene may be given with -D without declaring them (loader options)
+SCENE_OPTIONS = ("unit",)
+#: the sensor's lengths (scene units), scaled to metres with its position
+SENSOR_LENGTHS = ("near_clip", "far_clip", "focus_distance")
+
+
+def unit_metres(text: str, where: str) -> float:
+    """Metres per scene unit of a ``unit`` value: a name of UNITS or a positive number."""
+    if text in UNITS:
+        return UNITS[text]
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise SceneError(f"{where}: unknown unit {text!r}{did_you_mean(text, UNITS)} (known: "
+                         f"{', '.join(UNITS)}; or metres per scene unit, a positive number)")
+    return value
+
+
+def _placements(el):
+    """An element's ``<transform name="to_world">`` and its animation's keyframes."""
+    found = [t for t in el.findall("transform") if t.get("name") == "to_world"]
+    for anim in el.findall("animation"):
+        found += anim.findall("transform")
+    return found
+
+
+def _in_metres(doc: _Doc, metres: float) -> None:
+    """The scene, written in units of ``metres`` m, placed in metres: every top-level
+    shape's to_world (and keyframes) scaled (S M), the sensor's and lights' placements
+    moved, not scaled (S M S^-1: their positions, and the sensor's near and far clip, in
+    metres; orientations kept), a point light's position scaled. Velocities follow
+    from the keyframes. Light intensities are kept as written (radiance, an area light's
+    or a texture's, does not depend on the unit; a point or spot light's W/sr does, see
+    docs/own_scene.md). A preset's illuminator (CAMERA_ILLUMINATOR_ID) keeps its offset
+    from the camera, which is in metres."""
+    if metres == 1.0:
+        return
+    scale = {"value": repr(metres)}
+    inverse = {"value": repr(1.0 / metres)}
+    for el in doc.root:
+        if el.tag == "shape" and el.get("type") != "shapegroup":
+            placements = _placements(el)
+            if not placements:
+                placements = [ET.Element("transform", {"name": "to_world"})]
+                el.insert(0, placements[0])
+            for t in placements:
+                t.append(ET.Element("scale", scale))
+        elif el.tag in ("sensor", "emitter"):
+            after = 1 if el.get("id") == CAMERA_ILLUMINATOR_ID else 0  # (its offset first)
+            for t in _placements(el):
+                t.insert(min(after, len(t)), ET.Element("scale", inverse))
+                t.append(ET.Element("scale", scale))
+            for child in el:
+                if child.tag == "point" and child.get("name") == "position":
+                    _scale_numbers(child, ("x", "y", "z", "value"), metres)
+                elif child.tag == "float" and child.get("name") in SENSOR_LENGTHS \
+                        and el.tag == "sensor":
+                    _scale_numbers(child, ("value",), metres)
+
+
+def _scale_numbers(el, keys, factor: float) -> None:
+    """The numbers of ``el``'s attributes ``keys`` times ``factor``."""
+    for key in keys:
+        if key in el.attrib:
+            el.set(key, ", ".join(repr(float(v) * factor)
+                                  for v in re.split(r"[,\s]+", el.get(key).strip()) if v))
 
 
 NUMERIC_TAGS = ("float", "integer", "rgb", "point", "vector", "matrix", "translate", "scale",
@@ -462,8 +538,10 @@ def describe(doc: _Doc, overrides: dict | None = None,
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
-    _substitute(doc, {k: v for k, v in (overrides or {}).items()})
+    values = _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
+    if "unit" in values:
+        _in_metres(doc, unit_metres(values["unit"], doc.source + ": unit"))
     folders = _search_folders(doc, base_dir)
     resolver = Resolver(folders + (resolver or Resolver(())).folders)
     inputs = xml_inputs(doc.root, resolver, folders[-1])
