@@ -65,9 +65,13 @@ def test_bad_input_one_line_exit_2_output_untouched(tmp_path, args, message):
     assert out.read_bytes() == before
 
 
-def test_debug_shows_traceback():
-    proc = run("--debug", "render", "missing.xml", "-o", "x.npy")
-    assert proc.returncode != 0 and "Traceback" in proc.stderr
+@pytest.mark.parametrize("args", [("--debug", "render", "missing.xml", "-o", "x.npy"),
+                                  ("render", "missing.xml", "-o", "x.npy", "--debug"),
+                                  ("fmcw", "missing.xml", "--debug", "-o", "x")],
+                         ids=["before", "after", "after-fmcw"])
+def test_debug_shows_traceback(args):
+    proc = run(*args)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr, proc.stderr
 
 
 def test_mitsuba_plugin_renders_static_scene():

@@ -149,6 +149,7 @@ def test_flat_export_refuses_another_camera_and_torf_reads_back(tiny, tmp_path, 
                                    sample["camera_depth"][valid], atol=1e-4)
         np.testing.assert_allclose(tof[..., 2][valid], sample["camera_amplitude"][valid],
                                    rtol=1e-6)
+        assert not tof[~valid].any()  # 0 where the camera reports nothing
         np.testing.assert_array_equal(np.load(scan / "depth" / "0000.npy"),
                                       np.nan_to_num(sample["depth"]))
         K = np.load(scan / "cams" / "tof_intrinsics.npy")
@@ -164,3 +165,17 @@ def test_flat_export_refuses_another_camera_and_torf_reads_back(tiny, tmp_path, 
         np.testing.assert_allclose(to_world[:3, 3], sample["pose"][:3, 3], atol=1e-5)
         light = np.linalg.inv(np.load(scan / "cams" / "tof_light_extrinsics.npy")[0])
         np.testing.assert_allclose(light[:3, 3], sample["pose"][:3, 3], atol=1e-5)  # on it
+
+
+def test_torf_amplitude_is_zero_where_the_camera_reports_nothing():
+    """A masked pixel keeps its measured amplitude in the dataset (camera_amplitude > 0,
+    camera_valid false): TöRF's image is 0 there, as the docs say, and (A cos phi,
+    A sin phi, A) elsewhere."""
+    from dopplertof.dataset.export import torf_tof
+
+    phase = np.array([[0.5, 1.0], [np.nan, 2.0]])
+    amplitude = np.array([[3.0, 4.0], [5.0, np.nan]])
+    valid = np.array([[True, False], [False, True]])
+    tof = torf_tof(phase, amplitude, valid)
+    np.testing.assert_array_equal(tof[0, 0], np.float32([3 * np.cos(0.5), 3 * np.sin(0.5), 3]))
+    assert not tof[0, 1].any() and not tof[1, 0].any() and not tof[1, 1].any()

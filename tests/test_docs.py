@@ -222,3 +222,12 @@ def test_a_command_outside_a_fenced_block_is_found():
         (3, ".venv/bin/python benchmarks/film.py"), (8, "dopplertof demo"),
         (11, "$ make quick"),
         (17, "cd benchmarks && PYTHONPATH=../src ../.venv/bin/python spinning_torus.py")]
+
+
+def test_a_doc_that_uses_pytorch_shows_its_cpu_wheel():
+    """A plain ``pip install torch`` pulls the ~5 GB CUDA build: a doc whose code imports
+    torch shows the CPU wheel's index beside it."""
+    for path in DOCS:
+        text = open(path, encoding="utf-8").read()
+        if re.search(r"^import torch\b", text, re.M):
+            assert "--index-url https://download.pytorch.org/whl/cpu" in text, path

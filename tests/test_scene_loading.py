@@ -265,3 +265,63 @@ def test_an_empty_follow_on_the_sensor_keeps_its_keyframes():
     assert dopplertof.scene.load_string(text.format(follow="")).sensor_motion is not None
     with pytest.raises(SceneError, match="'follow' is for lights, not the sensor"):
         dopplertof.scene.load_string(text.format(follow="sensor"))
+
+
+QUAD_OBJ = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n"
+PATH_SCENE = """<scene version="3.0.0">
+  <path value="{path}"/>
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/></film>
+  </sensor>
+  <emitter type="point"><point name="position" x="0" y="0" z="5"/></emitter>
+  <shape type="obj" id="wall"><string name="filename" value="quad.obj"/></shape>
+  <shape type="obj" id="panel"><string name="filename" value="{moving}"/>
+    <animation name="to_world">
+      <transform time="0"><translate z="1"/></transform>
+      <transform time="0.0015"><translate z="1.01"/></transform>
+    </animation></shape>
+</scene>"""
+
+
+def _path_layout(tmp_path, path="../../common", moving="quad.obj"):
+    """scenes/one/scene.xml whose meshes lie in common/, named through <path>; the
+    current folder elsewhere/ (neither)."""
+    (tmp_path / "common").mkdir()
+    (tmp_path / "common" / "quad.obj").write_text(QUAD_OBJ)
+    (tmp_path / "scenes" / "one").mkdir(parents=True)
+    scene = tmp_path / "scenes" / "one" / "scene.xml"
+    scene.write_text(PATH_SCENE.format(path=path, moving=moving))
+    (tmp_path / "elsewhere").mkdir()
+    return scene
+
+
+def test_path_folders_serve_static_and_moving_meshes_from_any_folder(tmp_path, monkeypatch):
+    """<path> is read from the scene file's folder, as stock Mitsuba reads it, and serves
+    the moving bodies' meshes as well as the static ones, whatever the current folder."""
+    scene_file = _path_layout(tmp_path)
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    scene = dopplertof.load_file(str(scene_file))
+    assert [body.names for body in scene.bodies] == [("panel",)]
+    assert [s.id() for s in scene.static.shapes()] == ["wall"]
+    common = str(tmp_path / "common" / "quad.obj")
+    assert {f.path for f in scene.inputs} == {common}
+    # the resolver is left as it was: the next scene does not see these folders
+    import mitsuba as mi
+    resolver = mi.file_resolver()
+    assert not any("common" in str(resolver[i]) for i in range(len(resolver)))
+
+
+def test_a_missing_path_folder_is_one_line_naming_it(tmp_path, monkeypatch):
+    scene_file = _path_layout(tmp_path, path="../nowhere")
+    with pytest.raises(SceneError, match=r"scene\.xml:2: <path> folder '\.\./nowhere' not "
+                                         r"found"):
+        dopplertof.load_file(str(scene_file))
+
+
+def test_a_bad_mesh_found_through_path_is_named(tmp_path, monkeypatch):
+    scene_file = _path_layout(tmp_path, moving="cut.obj")
+    (tmp_path / "common" / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2\n")
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    with pytest.raises(SceneError, match=r"mesh file cut\.obj: line 3: a face with only 2"):
+        dopplertof.load_file(str(scene_file))

@@ -48,6 +48,9 @@ def _parser() -> argparse.ArgumentParser:
     cameras_cli.add_subcommand(sub)  # cameras
     dataset_cli.add_subcommand(sub)  # dataset
     fmcw_cli.add_subcommand(sub)  # fmcw
+    for command in set(sub.choices.values()):  # --debug after the command too
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                             help="show tracebacks on errors")
     return p
 
 

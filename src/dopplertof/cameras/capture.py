@@ -367,9 +367,42 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
     # motion through kinect-v2's 13 ms passed silently): the capture command prints it
     warning = keyframe_coverage_warning(scene.keyframe_span, scene.shutter_open + first,
                                         last - first, "the raw frames")
-    if warning:
-        summary["warnings"] = [warning]
+    warnings = [w for w in (warning, scene_extent_warning(scene, preset)) if w]
+    if warnings:
+        summary["warnings"] = warnings
     return summary
+
+
+#: a scene whose bounding box diagonal is this many times the preset's longest range,
+#: or this many times smaller than its shortest, reads as written in another unit
+EXTENT_RATIO = 100.0
+
+
+def scene_extent(scene) -> float | None:
+    """The diagonal (scene units) of the box around every shape, static and moving (at
+    its first pose); None when the scene has no shape."""
+    boxes = [b for b in [scene.static.bbox()] + [body.scene.bbox() for body in scene.bodies]
+             if b.valid()]
+    if not boxes:
+        return None
+    low = np.min([np.asarray(b.min, np.float64) for b in boxes], axis=0)
+    high = np.max([np.asarray(b.max, np.float64) for b in boxes], axis=0)
+    return float(np.linalg.norm(high - low))
+
+
+def scene_extent_warning(scene, preset: CameraPreset) -> str | None:
+    """A warning when the scene's extent and the preset's range [min_range_m,
+    max_range_m] disagree by orders of magnitude (EXTENT_RATIO): a scene in
+    millimetres read as metres, or the reverse; else None."""
+    extent = scene_extent(scene)
+    low, high = (float(preset.reconstruction[k]) for k in ("min_range_m", "max_range_m"))
+    if extent is None or (extent <= EXTENT_RATIO * high
+                          and (low <= 0 or extent >= low / EXTENT_RATIO)):
+        return None
+    return (f"the scene's extent (its bounding box's diagonal, {extent:.3g} m) and "
+            f"{preset.name}'s range ({low:g} to {high:g} m) differ by more than "
+            f"{EXTENT_RATIO:g} times: is the scene written in another unit than metres? "
+            "(-D unit=mm reads it in millimetres; docs/own_scene.md)")
 
 
 def format_camera_summary(summary: dict, folder: str | None = None) -> str:
@@ -411,8 +444,8 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
 def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
-    reaches past it; default the preset's view) added when it has no light at all (a scene's own point and spot lights stand for it
-    otherwise): at the preset's offset from the lens, riding with the camera. The offset
+    reaches past it; default the preset's view) added when it has no light at all (a
+    scene's own point and spot lights stand for it otherwise): at the preset's offset from the lens, riding with the camera. The offset
     is in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left
     and y up, so the light is translated by (-x, -y, z) in the camera's frame."""
     import xml.etree.ElementTree as ET
@@ -443,20 +476,93 @@ def parse_resolution(text: str) -> tuple:
     return width, height
 
 
-def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=None):
+def scene_view_note(text: str, preset: CameraPreset, source: str) -> str | None:
+    """A note when the preset's field of view replaces the one the scene's sensor gives
+    (its framing is lost), None when they agree or the text has no single sensor."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        sensors = [el for el in ET.fromstring(text) if el.tag == "sensor"]
+    except ET.ParseError:
+        return None  # the loader names the problem
+    if len(sensors) != 1:
+        return None
+    given = {el.get("name"): el.get("value") for el in sensors[0]
+             if el.get("name") in ("fov", "fov_axis", "focal_length")}
+    axis = given.get("fov_axis") or "x"
+    if "fov" in given:
+        try:
+            if axis == "x" and float(given["fov"]) == preset.fov_deg:
+                return None
+        except ValueError:
+            pass  # a $name: say what is written
+        said = f"fov {given['fov']}" + (f", fov_axis {axis}" if axis != "x" else "")
+    else:
+        said = f"focal_length {given.get('focal_length', '50mm')}"
+    return (f"{source}: the camera preset {preset.name}'s {preset.fov_deg:g} degree "
+            f"horizontal field of view replaces the scene's sensor's ({said}): the framing "
+            "differs from the scene's; --keep-view keeps the scene's view with the preset's "
+            "sensor")
+
+
+def _scene_text(path) -> str:
+    with open(path, encoding="utf-8") as f:
+        return f.read()
+
+
+def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
+                           defines=None) -> CameraPreset:
+    """``preset`` with the horizontal field of view that the scene file ``path``'s
+    sensor has on the preset's pixels (or ``resolution``): the scene's framing, the
+    preset's sensor (its pixels, pitch and radiometry; a shorter or longer focal
+    length)."""
+    from dataclasses import replace
+
+    import mitsuba as mi
+
+    from ..scene import load_string
+    from ..scene.xml import set_sensor_properties
+
+    width, height = resolution or preset.resolution
+    text = set_sensor_properties(_scene_text(path),
+                                 [("film", "integer", "width", int(width)),
+                                  ("film", "integer", "height", int(height))],
+                                 os.fspath(path), "a camera preset", CaptureError)
+    if preset.absolute:
+        text = with_illuminator(text, preset)
+    scene = load_string(text, dict(defines or {}), source=os.fspath(path),
+                        base_dir=os.path.dirname(os.path.abspath(path)))
+    fov = mi.traverse(scene.sensor).get("x_fov")
+    if fov is None:
+        raise CaptureError(f"{path}: --keep-view needs a perspective sensor (a field of "
+                           "view), the scene's has none")
+    fov = float(np.asarray(fov).reshape(-1)[0])
+    if not 0.1 <= fov <= 160:
+        raise CaptureError(f"{path}: --keep-view: the scene's horizontal field of view "
+                           f"{fov:g} degrees is outside a preset's 0.1 to 160")
+    return replace(preset, fov_deg=fov)
+
+
+def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=None,
+                          keep_view: bool = False):
     """The scene file ``path`` with the camera's field of view and resolution (or
-    ``resolution`` = (width, height): the same field of view, other pixels)."""
+    ``resolution`` = (width, height): the same field of view, other pixels); a note
+    (``scene.notes``) when that field of view replaces the scene's, unless
+    ``keep_view`` (``preset`` is :func:`preset_with_scene_view`'s: the scene's view)."""
+    from dataclasses import replace
+
     from ..scene import load_string
 
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    text = _scene_text(path)
+    note = None if keep_view else scene_view_note(text, preset, os.fspath(path))
     width, height = resolution or preset.resolution
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
     if preset.absolute:
         text = with_illuminator(text, preset,
                                 radiometry.view_tangents(preset.fov_deg, width, height))
-    return load_string(text, dict(defines or {}), source=os.fspath(path),
-                       base_dir=os.path.dirname(os.path.abspath(path)))
+    scene = load_string(text, dict(defines or {}), source=os.fspath(path),
+                        base_dir=os.path.dirname(os.path.abspath(path)))
+    return replace(scene, notes=scene.notes + (note,)) if note else scene
 
 
 def capture_through(path, cameras, resolution=None, defines=None, **options) -> list:

@@ -47,6 +47,9 @@ def add_capture_options(c) -> None:
                    help="with --camera: other resolution, same field of view")
     g.add_argument("--noiseless", action="store_true",
                    help="with --camera: no shot or read noise (rounding stays)")
+    g.add_argument("--keep-view", action="store_true",
+                   help="with --camera: keep the scene's field of view (its framing) with "
+                   "the preset's sensor, instead of the preset's field of view")
 
 
 def run_cameras(args) -> int:
@@ -130,7 +133,7 @@ def check_capture_options(args) -> None:
     from ..tof.capture import CaptureError
 
     if args.camera is None:
-        for option in ("res", "noiseless", "ambient_irradiance"):
+        for option in ("res", "noiseless", "ambient_irradiance", "keep_view"):
             if getattr(args, option, None) not in (None, False):
                 raise CaptureError(f"--{option.replace('_', '-')} needs --camera")
         return
@@ -148,14 +151,17 @@ def run_camera_capture(args, load_defines) -> int:
     from ..cli_options import parse_pairs, print_warnings
     from ..tof import prepare_folder
     from .capture import (capture_camera, format_camera_summary, load_scene_for_camera,
-                          parse_resolution)
+                          parse_resolution, preset_with_scene_view)
     from .preset import load_preset
 
     preset = load_preset(args.camera)
     resolution = parse_resolution(args.res) if args.res else None
     prepare_folder(args.output)
     dopplertof.set_variant(args.variant)
-    scene = load_scene_for_camera(args.scene, preset, resolution, load_defines)
+    if args.keep_view:
+        preset = preset_with_scene_view(args.scene, preset, resolution, load_defines)
+    scene = load_scene_for_camera(args.scene, preset, resolution, load_defines,
+                                  keep_view=args.keep_view)
     for note in scene.notes:
         print(f"dopplertof: note: {note}", file=sys.stderr)
 

@@ -93,13 +93,15 @@ def illuminator_xml(preset, view=None) -> str:
     (tan_x, tan_y) of the view's half extents (:func:`view_tangents`; default the
     preset's). The transform holds the offset only;
     :func:`..capture.with_illuminator` appends the camera's placement."""
+    from ..scene.scene import CAMERA_ILLUMINATOR_ID
+
     x, y, z = preset.illuminator["offset_m"]  # OpenCV axes: Mitsuba's are (-x, -y, z)
     view = view or view_tangents(preset.fov_deg, *preset.resolution)
     placement = (f'<transform name="to_world"><translate x="{-x!r}" y="{-y!r}" '
                  f'z="{z!r}"/></transform>')
     return light_xml(radiant_intensity(preset.illuminator),
                      confined_field(preset, view, (x, y, z)), placement,
-                     ident="camera_illuminator")
+                     ident=CAMERA_ILLUMINATOR_ID)
 
 
 def view_tangents(fov_deg: float, width: int, height: int) -> tuple:

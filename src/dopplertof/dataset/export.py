@@ -129,9 +129,11 @@ def _export_flat(ds, staging: str) -> dict:
 OPENCV_TO_NERF = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
-def torf_tof(phase: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
-    """TöRF's ToF image (H, W, 3) float32: (A cos phi, A sin phi, A), NaN as 0."""
-    phase, amplitude = np.nan_to_num(phase), np.nan_to_num(amplitude)
+def torf_tof(phase: np.ndarray, amplitude: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """TöRF's ToF image (H, W, 3) float32: (A cos phi, A sin phi, A), 0 where the camera
+    reports nothing (``valid`` false: a masked pixel's amplitude is still measured) and
+    where a value is NaN."""
+    phase, amplitude = np.nan_to_num(phase), np.where(valid, np.nan_to_num(amplitude), 0.0)
     return np.stack([amplitude * np.cos(phase), amplitude * np.sin(phase), amplitude],
                     -1).astype(np.float32)
 
@@ -162,7 +164,8 @@ def _export_torf(ds, staging: str) -> dict:
         for folder in ("tof", "depth", "color", "cams"):
             os.makedirs(os.path.join(scan, folder))
         files = {"tof/0000.npy": torf_tof(sample["camera_phase"][k],
-                                          sample["camera_amplitude"]),
+                                          sample["camera_amplitude"],
+                                          sample["camera_valid"]),
                  "depth/0000.npy": np.nan_to_num(sample["depth"]).astype(np.float32),
                  "color/0000.npy": np.nan_to_num(sample["albedo"]).astype(np.float32),
                  "cams/depth_range.npy": np.float32(SPEED_OF_LIGHT / (frequencies[k] * 1e6))}

@@ -15,7 +15,6 @@ Keyframe transforms may be ``mi.ScalarTransform4f`` or 4x4 arrays.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -116,6 +115,7 @@ def describe(mi, scene: dict) -> SceneDescription:
                             sensor_keyframes=parts.sensor_kf, light_keyframes=parts.light_kfs,
                             motions=parts.motions, has_integrator=parts.has_integrator,
                             shutter_given=parts.shutter_given,
+                            other_integrator=parts.other_integrator,
                             inputs=dict_inputs(scene, Resolver.of(mi)))
 
 
@@ -131,6 +131,7 @@ class _DictParts:
         self.sensor_kf, self.light_kfs = None, []
         self.integrator_values, self.sampler_values = {}, {}
         self.has_integrator = False
+        self.other_integrator = None  #: where and what a stock integrator is
         self.motions = []  #: MotionClaim of every Animation
         self.shutter_given = None  #: the sensor's key when it gives its shutter
 
@@ -142,9 +143,9 @@ class _DictParts:
         kind = value.get("type")
         if kind in SENSOR_TYPES and any(name in value for name in SHUTTER_NAMES):
             self.shutter_given = f"<dict>[{key!r}]"
-        if key == "integrator" and kind not in DTOF_INTEGRATORS:
-            raise SceneError(f"<dict>[{key!r}]: integrator type {kind!r} is not a D-ToF "
-                             "integrator: use \"dopplertof\"")
+        if key == "integrator" and kind not in DTOF_INTEGRATORS:  # the defaults, a note
+            self.other_integrator = f"<dict>[{key!r}]: integrator type {kind!r}"
+            return
         if kind in DTOF_INTEGRATORS:
             self.integrator_values = {k: v for k, v in value.items() if k != "type"}
             self.has_integrator = True
@@ -235,7 +236,7 @@ def _load(mi, d: dict, what: str):
     """``mi.load_dict``; its error as a one-line SceneError naming ``what``."""
     for key, shape in d.items():  # ---- mesh files, before Mitsuba reads them
         problem = isinstance(shape, dict) and mesh_file_message(
-            shape.get("type"), shape.get("filename"), os.getcwd())
+            shape.get("type"), shape.get("filename"), Resolver.of(mi))
         if problem:
             raise SceneError(f"<dict> {what}: {key!r}: {problem}")
     try:

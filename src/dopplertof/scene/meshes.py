@@ -260,16 +260,17 @@ def loaded_meshes_problem(mi, scene) -> str | None:
     return None
 
 
-def mesh_file_message(plugin: str, filename, base_dir: str) -> str | None:
-    """``mesh file NAME: PROBLEM`` for the ``filename`` of a shape of type ``plugin``, or
-    None (not a mesh plugin, nothing wrong, or no such file: Mitsuba says that)."""
+def mesh_file_message(plugin: str, filename, resolver) -> str | None:
+    """``mesh file NAME: PROBLEM`` for the ``filename`` of a shape of type ``plugin``,
+    found with ``resolver`` (inputs.Resolver, as Mitsuba resolves it), or None (not a
+    mesh plugin, nothing wrong, or no such file: Mitsuba says that)."""
     if plugin not in MESH_PLUGINS or not isinstance(filename, str):
         return None
-    for candidate in (os.path.join(base_dir, filename), filename):  # as Mitsuba resolves
-        if os.path.isfile(candidate):
-            try:
-                problem = mesh_file_problem(candidate, plugin)
-            except OSError as e:
-                problem = f"cannot be read: {e.strerror or e}"
-            return f"mesh file {filename}: {problem}" if problem else None
-    return None
+    candidate = resolver.resolve(filename)
+    if not os.path.isfile(candidate):
+        return None
+    try:
+        problem = mesh_file_problem(candidate, plugin)
+    except OSError as e:
+        problem = f"cannot be read: {e.strerror or e}"
+    return f"mesh file {filename}: {problem}" if problem else None

@@ -12,6 +12,9 @@ from ..params import CAPTURE_HETERO_FREQUENCY, ParameterError, RenderParams
 DTOF_INTEGRATORS = ("dopplertof", "dopplertofpath")
 #: the plugin names dopplertof adds to Mitsuba's (for the did-you-mean of a misspelt one)
 DTOF_PLUGINS = DTOF_INTEGRATORS + ("correlated",)
+#: the id of a camera preset's illuminator (cameras.radiometry.illuminator_xml): its
+#: offset from the camera is in metres whatever the scene's unit
+CAMERA_ILLUMINATOR_ID = "camera_illuminator"
 #: the lights that can move (keyframed, or riding on the camera)
 MOVABLE_EMITTERS = ("point", "spot")
 #: the published <sampler type="correlated">'s D-ToF parameters (render parameters)
@@ -206,11 +209,14 @@ def keyframe_coverage_warning(span, start: float, exposure: float,
             "seconds")
 
 
-def default_integrator_note(source: str) -> str:
-    """What a scene without a D-ToF integrator renders with."""
+def default_integrator_note(source: str, other: str | None = None) -> str:
+    """What a scene without a D-ToF integrator renders with; ``other``: where and what
+    its stock integrator is (None: it has none)."""
     p = RenderParams()
     depth = "unbounded" if p.max_depth == -1 else p.max_depth
-    return (f"{source} has no <integrator>: using the D-ToF defaults: w_g {p.w_g:g} MHz, "
+    said = (f"{other} is not a D-ToF integrator" if other
+            else f"{source} has no <integrator>")
+    return (f"{said}: using the D-ToF defaults: w_g {p.w_g:g} MHz, "
             f"{p.wave_function_type} waveform, max_depth {depth}, time sampling "
             f"{p.time_sampling_method}, no hetero_frequency; `render` "
             "renders one homodyne image (sensor offset 0), `capture` its homodyne captures "
@@ -243,6 +249,11 @@ class SceneDescription:
     shutter_given: str | None = None
     #: InputFile of every file the description references (inputs.xml_inputs, dict_inputs)
     inputs: list = field(default_factory=list)
+    #: the folders its relative file names are looked up in before Mitsuba's own, first
+    #: first (an XML scene's <path> entries and its folder)
+    folders: tuple = ()
+    #: where and what its integrator is when it is not a D-ToF one (the defaults render)
+    other_integrator: str | None = None
 
 
 def build(mi, description: SceneDescription, load_part) -> DopplerScene:
@@ -302,7 +313,8 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     # ---- The fingerprint: the description and the files it references ----
     description_text = "\n".join(t for t in texts if t)
     fingerprint = content_digest(description_text, d.inputs) if texts[0] else ""
-    notes = () if d.has_integrator else (default_integrator_note(source),)
+    notes = () if d.has_integrator else (default_integrator_note(source,
+                                                                 d.other_integrator),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
                         sensor_motion, tuple(light_motions), notes, tuple(d.inputs))
 

@@ -29,8 +29,8 @@ from ..hints import did_you_mean, with_plugin_hint
 from .inputs import Resolver, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
-from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
-                    MotionClaim, SceneDescription, SceneError, build,
+from .scene import (CAMERA_ILLUMINATOR_ID, CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS,
+                    DTOF_PLUGINS, SHUTTER_NAMES, MotionClaim, SceneDescription, SceneError, build,
                     correlated_sampler_params, mitsuba_load)
 from .transforms import TransformError, compose
 
@@ -80,8 +80,9 @@ class _Doc:
         return twin
 
 
-def _substitute(doc: _Doc, overrides: dict) -> None:
-    """Resolve ``$name`` from <default> values and overrides; drop <default>."""
+def _substitute(doc: _Doc, overrides: dict) -> dict:
+    """Resolve ``$name`` from <default> values and overrides; drop <default>; the values
+    (a scene option, SCENE_OPTIONS, may be given without a <default>)."""
     root = doc.root
     values = {}
     for el in root.findall("default"):
@@ -94,7 +95,7 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
         for v in el.attrib.values():
             used.update(re.findall(r"\$(\w+)", v))
     for name, value in overrides.items():
-        if name not in values and name not in used:
+        if name not in values and name not in used and name not in SCENE_OPTIONS:
             declared = ", ".join(sorted(values)) or "none"
             raise SceneError(f"{doc.source}: unknown scene parameter {name!r}"
                              f"{did_you_mean(name, set(values) | used)} "
@@ -116,6 +117,81 @@ def _substitute(doc: _Doc, overrides: dict) -> None:
                 return values[m.group(1)]
 
             el.set(key, re.sub(r"\$(\w+)", repl, v))
+    return values
+
+
+#: the scene's length unit (``-D unit=mm`` or ``<default name="unit" value="mm"/>``): its
+#: name, or a number, to metres per scene unit
+UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "um": 1e-6, "km": 1000.0,
+         "in": 0.0254, "ft": 0.3048}
+#: the names a scene may be given with -D without declaring them (loader options)
+SCENE_OPTIONS = ("unit",)
+#: the sensor's lengths (scene units), scaled to metres with its position
+SENSOR_LENGTHS = ("near_clip", "far_clip", "focus_distance")
+
+
+def unit_metres(text: str, where: str) -> float:
+    """Metres per scene unit of a ``unit`` value: a name of UNITS or a positive number."""
+    if text in UNITS:
+        return UNITS[text]
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise SceneError(f"{where}: unknown unit {text!r}{did_you_mean(text, UNITS)} (known: "
+                         f"{', '.join(UNITS)}; or metres per scene unit, a positive number)")
+    return value
+
+
+def _placements(el):
+    """An element's ``<transform name="to_world">`` and its animation's keyframes."""
+    found = [t for t in el.findall("transform") if t.get("name") == "to_world"]
+    for anim in el.findall("animation"):
+        found += anim.findall("transform")
+    return found
+
+
+def _in_metres(doc: _Doc, metres: float) -> None:
+    """The scene, written in units of ``metres`` m, placed in metres: every top-level
+    shape's to_world (and keyframes) scaled (S M), the sensor's and lights' placements
+    moved, not scaled (S M S^-1: their positions, and the sensor's near and far clip, in
+    metres; orientations kept), a point light's position scaled. Velocities follow
+    from the keyframes. Light intensities are kept as written (radiance, an area light's
+    or a texture's, does not depend on the unit; a point or spot light's W/sr does, see
+    docs/own_scene.md). A preset's illuminator (CAMERA_ILLUMINATOR_ID) keeps its offset
+    from the camera, which is in metres."""
+    if metres == 1.0:
+        return
+    scale = {"value": repr(metres)}
+    inverse = {"value": repr(1.0 / metres)}
+    for el in doc.root:
+        if el.tag == "shape" and el.get("type") != "shapegroup":
+            placements = _placements(el)
+            if not placements:
+                placements = [ET.Element("transform", {"name": "to_world"})]
+                el.insert(0, placements[0])
+            for t in placements:
+                t.append(ET.Element("scale", scale))
+        elif el.tag in ("sensor", "emitter"):
+            after = 1 if el.get("id") == CAMERA_ILLUMINATOR_ID else 0  # (its offset first)
+            for t in _placements(el):
+                t.insert(min(after, len(t)), ET.Element("scale", inverse))
+                t.append(ET.Element("scale", scale))
+            for child in el:
+                if child.tag == "point" and child.get("name") == "position":
+                    _scale_numbers(child, ("x", "y", "z", "value"), metres)
+                elif child.tag == "float" and child.get("name") in SENSOR_LENGTHS \
+                        and el.tag == "sensor":
+                    _scale_numbers(child, ("value",), metres)
+
+
+def _scale_numbers(el, keys, factor: float) -> None:
+    """The numbers of ``el``'s attributes ``keys`` times ``factor``."""
+    for key in keys:
+        if key in el.attrib:
+            el.set(key, ", ".join(repr(float(v) * factor)
+                                  for v in re.split(r"[,\s]+", el.get(key).strip()) if v))
 
 
 NUMERIC_TAGS = ("float", "integer", "rgb", "point", "vector", "matrix", "translate", "scale",
@@ -165,12 +241,9 @@ def _integrator_params(doc: _Doc) -> dict:
     if not integrators:
         return {}
     integ = integrators[0]
-    kind = integ.get("type")
-    if kind not in DTOF_INTEGRATORS:
-        raise SceneError(
-            f"{doc.where(integ)}: integrator type {kind!r} is not a D-ToF integrator: "
-            f"use type=\"dopplertof\" (alias \"dopplertofpath\")"
-        )
+    if integ.get("type") not in DTOF_INTEGRATORS:  # a stock scene's: the defaults, a note
+        doc.root.remove(integ)
+        return {}
     values = _properties(doc, integ)
     doc.root.remove(integ)
     return {"__where__": doc.where(integ), **values}
@@ -395,19 +468,22 @@ def _check_film_size(doc: _Doc, sensor) -> None:
                              f"got {value}{_origin(doc, child)}")
 
 
-def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
-    """Load ``root`` (the document or a body's) with Mitsuba; errors name the user's file
+def _load_string(mi, doc: _Doc, root: ET.Element, folders):
+    """Load ``root`` (the document or a body's) with Mitsuba, relative file names looked
+    up in ``folders`` (first first) before Mitsuba's own; errors name the user's file
     and line."""
+    resolver = mi.file_resolver()
+    before = [resolver[i] for i in range(len(resolver))]
+    mine = Resolver(folders)
     for shape in root.iter("shape"):  # ---- mesh files, before Mitsuba reads them
         filename = next((el.get("value") for el in shape.findall("string")
                          if el.get("name") == "filename"), None)
-        problem = mesh_file_message(shape.get("type"), filename, base_dir)
+        problem = mesh_file_message(shape.get("type"), filename, mine)
         if problem:
             raise SceneError(f"{doc.where(shape)}: {problem}")
     text = ET.tostring(root, encoding="unicode")
-    resolver = mi.file_resolver()
-    folders = [resolver[i] for i in range(len(resolver))]
-    resolver.prepend(base_dir)
+    for folder in reversed(folders):
+        resolver.prepend(folder)
     try:
         return mitsuba_load(mi.load_string, text), text
     except Exception as e:  # Mitsuba reports XML problems as RuntimeError
@@ -415,8 +491,28 @@ def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
     finally:
         # the resolver as it was: no scene's folder serves the next scene's files
         resolver.clear()
-        for folder in folders:
+        for folder in before:
             resolver.append(folder)
+
+
+def _search_folders(doc: _Doc, base_dir: str) -> tuple:
+    """The folders a scene's relative file names are looked up in, first first, as
+    stock Mitsuba does for a scene file: each top-level ``<path value=...>`` (relative to
+    the scene file's folder ``base_dir``; a later one before an earlier one), then
+    ``base_dir``. The ``<path>`` elements leave the document: every part of the scene (a
+    moving body's too) is loaded with these folders."""
+    paths = []
+    for el in doc.root.findall("path"):
+        if "value" not in el.attrib:
+            raise SceneError(f"{doc.where(el)}: <path> needs a 'value' (a folder)")
+        folder = os.path.abspath(os.path.join(base_dir, os.path.expanduser(el.get("value"))))
+        if not os.path.isdir(folder):
+            raise SceneError(f"{doc.where(el)}: <path> folder {el.get('value')!r} not found "
+                             f"(looked for {folder}; a relative one is read from the scene "
+                             f"file's folder){_origin(doc, el)}")
+        paths.insert(0, folder)
+        doc.root.remove(el)
+    return tuple(paths) + (os.path.abspath(base_dir),)
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
@@ -426,24 +522,33 @@ def load_string(text: str, overrides: dict | None = None, source: str = "<string
 
     mi = require_variant()
     doc = _Doc(text, source)
-    return build(mi, describe(doc, overrides, Resolver.of(mi, base_dir)),
-                 lambda part, what: _load_string(mi, doc, part, base_dir))
+    description = describe(doc, overrides, Resolver.of(mi), base_dir)
+    return build(mi, description,
+                 lambda part, what: _load_string(mi, doc, part, description.folders))
 
 
 def describe(doc: _Doc, overrides: dict | None = None,
-             resolver: Resolver | None = None) -> SceneDescription:
+             resolver: Resolver | None = None, base_dir: str = ".") -> SceneDescription:
     """The SceneDescription of an XML document: ``<default>`` values substituted, the
-    files it references found (with ``resolver``, as Mitsuba will), the integrator's
+    files it references found (in the scene's folders, :func:`_search_folders`, then
+    with ``resolver``, as Mitsuba will), the integrator's
     and the correlated sampler's parameters taken out, the moving bodies split off
     into documents of their own, the camera's and lights' keyframes replaced by their
     rest poses (parts: XML elements)."""
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
-    _substitute(doc, {k: v for k, v in (overrides or {}).items()})
+    values = _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
-    inputs = xml_inputs(doc.root, resolver or Resolver(()))
-    has_integrator = bool(doc.root.findall("integrator"))
+    if "unit" in values:
+        _in_metres(doc, unit_metres(values["unit"], doc.source + ": unit"))
+    folders = _search_folders(doc, base_dir)
+    resolver = Resolver(folders + (resolver or Resolver(())).folders)
+    inputs = xml_inputs(doc.root, resolver, folders[-1])
+    other_integrator = next((f"{doc.where(el)}: <integrator type=\"{el.get('type')}\">"
+                             for el in doc.root.findall("integrator")
+                             if el.get("type") not in DTOF_INTEGRATORS), None)
+    has_integrator = bool(doc.root.findall("integrator")) and other_integrator is None
     integrator = _integrator_params(doc)
     sampler, sensor = _sensor(doc)
     _check_film_size(doc, sensor)
@@ -459,7 +564,8 @@ def describe(doc: _Doc, overrides: dict | None = None,
     return SceneDescription(doc.source, doc.root, bodies, parameters,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
                             motions=motions, has_integrator=has_integrator,
-                            shutter_given=shutter_given, inputs=inputs)
+                            shutter_given=shutter_given, inputs=inputs, folders=folders,
+                            other_integrator=other_integrator)
 
 
 def load_file(path, overrides: dict | None = None):

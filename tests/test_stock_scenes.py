@@ -1,0 +1,231 @@
+"""Stock Mitsuba 3 scenes through a camera preset: meshes found through ``<path>`` from
+any current folder, a scene in millimetres read with ``-D unit=mm``, a bitmap texture,
+a stock integrator; the preset's field of view said, or kept (``--keep-view``); a scene
+whose extent disagrees with the preset's range warned about. The scenes (tests/data/stock,
+written for these tests) are captured by the CLI from another folder than theirs, and
+their depth checked against the exact truth the capture writes."""
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import dopplertof
+from dopplertof.scene import SceneError
+
+STOCK = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "stock")
+PATHS, MILLIMETRES, TEXTURED = (os.path.join(STOCK, name, "scene.xml")
+                                for name in ("paths", "millimetres", "textured"))
+#: every scene: the camera at z = 3 m looking down -z at a wall at z = 0; what moves
+#: approaches the camera at 1 m/s from t = 0
+CAMERA_Z, SPEED = 3.0, 1.0
+#: float32 depths near 3 m: a few units in the last place (2**-22 m each)
+ULP = 2.0 ** -22
+#: the median |error| / predicted std of a Gaussian (sensor noise, which depth_std
+#: predicts): 0.674; twice that allows for the Monte Carlo noise of 4 spp it leaves out
+MEDIAN_Z = 2 * 0.6745
+
+
+def capture(scene, out, cwd, *args):
+    """``dopplertof capture SCENE --camera azure-kinect`` at 16x16, 4 spp, run in
+    ``cwd``; (summary, camera.json, stderr)."""
+    proc = subprocess.run([sys.executable, "-m", "dopplertof.cli", "capture", scene,
+                           "--camera", "azure-kinect", "--res", "16x16", "--spp", "4",
+                           "-P", "max_depth=2", "-o", str(out), "--quiet", *args],
+                          capture_output=True, text=True, timeout=300, cwd=cwd,
+                          env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert proc.returncode == 0, proc.stderr
+    with open(out / "summary.json") as f:
+        summary = json.load(f)
+    with open(out / "camera.json") as f:
+        camera = json.load(f)
+    return summary, camera, proc.stderr
+
+
+def _cosines(camera):
+    """cos of each pixel centre's ray to the optical axis (no distortion)."""
+    K = np.asarray(camera["K"])
+    width, height = camera["resolution"]
+    u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    return 1.0 / np.sqrt(((u - K[0, 2]) / K[0, 0]) ** 2 + ((v - K[1, 2]) / K[1, 1]) ** 2 + 1)
+
+
+def check_depth(out, summary, camera, moving_depth):
+    """The truth the capture wrote is the scene's geometry in metres (the wall at 3 m,
+    what moves where ``moving_depth(cos, t)`` says, to float32 rounding), and the
+    camera's depth agrees with it within its predicted noise."""
+    truth = np.load(out / "depth_gt.npy").astype(np.float64)
+    truth_z = np.load(out / "depth_gt_z.npy").astype(np.float64)
+    cosines = _cosines(camera)
+    wall = truth_z > 2.5
+    assert wall.sum() > 0.5 * wall.size
+    np.testing.assert_allclose(truth_z[wall], CAMERA_Z, rtol=0, atol=4 * ULP)
+    np.testing.assert_allclose(truth[wall], CAMERA_Z / cosines[wall], rtol=8 * 2.0 ** -24)
+    if moving_depth is not None:
+        expected = moving_depth(cosines[~wall], summary["ground_truth_time_s"])
+        assert (~wall).sum() >= 4
+        np.testing.assert_allclose(truth[~wall], expected, rtol=0, atol=1e-5)
+    depth, std = np.load(out / "depth.npy"), np.load(out / "depth_std.npy")
+    valid = np.isfinite(depth)
+    assert valid.sum() >= 0.1 * valid.size, summary["depth"]["masked_pixels"]
+    z = np.abs(depth[valid] - truth[valid]) / std[valid]
+    assert np.median(z) < MEDIAN_Z, np.median(z)
+
+
+@pytest.fixture()
+def elsewhere(tmp_path):
+    folder = tmp_path / "elsewhere"
+    folder.mkdir()
+    return folder
+
+
+def test_meshes_through_path_captured_from_another_folder(tmp_path, elsewhere):
+    """A 0.6 m OBJ panel at z = 1 m + t (1 m/s) before an OBJ wall, both from
+    ../common through <path>, under a stock path integrator (its defaults, a note)."""
+    out = tmp_path / "out"
+    summary, camera, err = capture(PATHS, out, elsewhere)
+    assert "<integrator type=\"path\"> is not a D-ToF integrator" in err
+    check_depth(out, summary, camera,
+                lambda cos, t: (CAMERA_Z - 1.0 - SPEED * t) / cos)
+    assert "warnings" not in summary
+
+
+def test_a_millimetre_scene_is_one_flag(tmp_path, elsewhere):
+    """mm read as metres: the extent warning; with -D unit=mm the wall is at 3 m and the
+    300 mm ball, centred 1 m + t from the wall, where its geometry puts it."""
+    out = tmp_path / "out"
+    summary, camera, err = capture(MILLIMETRES, out, elsewhere, "-D", "unit=mm")
+    assert "warnings" not in summary
+
+    def on_ball(cos, t):  # a ray at angle theta from the axis meets the ball at
+        centre, radius = CAMERA_Z - 1.0 - SPEED * t, 0.3
+        sin2 = 1 - cos ** 2
+        return centre * cos - np.sqrt(radius ** 2 - centre ** 2 * sin2)
+
+    check_depth(out, summary, camera, on_ball)
+    as_metres, _, err = capture(MILLIMETRES, tmp_path / "metres", elsewhere)
+    warning, = as_metres["warnings"]
+    assert "differ by more than 100 times" in warning and "-D unit=mm" in warning
+    assert "warning" in err and "differ by more than 100 times" in err
+
+
+def test_a_textured_scene(tmp_path, elsewhere):
+    """A bitmap texture beside the scene (20% and 80% squares) found from elsewhere."""
+    out = tmp_path / "out"
+    summary, camera, _ = capture(TEXTURED, out, elsewhere)
+    check_depth(out, summary, camera, None)
+    amplitude = np.load(out / "amplitude.npy")
+    # the two albedos: the brightest pixels about 4 times the darkest (same distances)
+    assert np.nanpercentile(amplitude, 90) > 2.5 * np.nanpercentile(amplitude, 10)
+
+
+# ---- Units, in the loader ---------------------------------------------------------------
+
+def _text(path):
+    with open(path) as f:
+        return f.read()
+
+
+def test_unit_scales_geometry_camera_and_velocity(tmp_path):
+    """-D unit=mm and <default name="unit" value="mm"/> give the same scene: the camera
+    3 m from the wall, the ball's 300 mm radius 0.3 m, its 1000 mm/s 1 m/s; the preset's
+    illuminator (its offset in metres) on the camera."""
+    import mitsuba as mi
+
+    from dopplertof.cameras.capture import load_scene_for_camera
+    from dopplertof.cameras.preset import load_preset
+
+    dopplertof.set_variant()
+    preset = load_preset("azure-kinect")
+    flag = load_scene_for_camera(MILLIMETRES, preset, (4, 4), {"unit": "mm"})
+    declared_file = tmp_path / "declared.xml"
+    declared_file.write_text(_text(MILLIMETRES).replace(
+        '<default name="spp"', '<default name="unit" value="mm"/><default name="spp"'))
+    declared = load_scene_for_camera(str(declared_file), preset, (4, 4))
+    for scene in (flag, declared):
+        to_world = np.asarray(scene.sensor.world_transform().matrix, np.float64).reshape(4, 4)
+        np.testing.assert_allclose(to_world[:3, 3], [0, 0, CAMERA_Z], rtol=1e-6)
+        light, = scene.static.emitters()
+        np.testing.assert_allclose(np.asarray(mi.traverse(light)["position"]).reshape(-1),
+                                   [0, 0, CAMERA_Z], rtol=1e-6)
+        np.testing.assert_allclose(np.abs(np.linalg.det(to_world[:3, :3])), 1.0, rtol=1e-5)
+        box = scene.bodies[0].scene.bbox()
+        np.testing.assert_allclose(np.asarray(box.max) - np.asarray(box.min), 0.6, rtol=1e-5)
+        motion = scene.bodies[0].motion
+        start, end = (np.asarray(motion.times, np.float64)[k] for k in (0, -1))
+        moved = [motion.world_matrix(t)[2, 3] for t in (start, end)]
+        assert (moved[1] - moved[0]) / (end - start) == pytest.approx(SPEED, rel=1e-5)
+        wall = scene.static.bbox()
+        assert float(wall.max[0] - wall.min[0]) == pytest.approx(10.0, rel=1e-6)
+
+
+def test_unit_m_changes_nothing_and_a_bad_unit_is_one_line():
+    from dopplertof.cameras.capture import load_scene_for_camera
+    from dopplertof.cameras.preset import load_preset
+
+    dopplertof.set_variant()
+    preset = load_preset("azure-kinect")
+
+    def load(**defines):
+        return load_scene_for_camera(PATHS, preset, (4, 4), defines)
+
+    plain = load()
+    assert load(unit="m").fingerprint == plain.fingerprint
+    assert load(unit="0.001").fingerprint != plain.fingerprint
+    with pytest.raises(SceneError, match=r"scene\.xml: unit: unknown unit 'mn', did you "
+                                         r"mean 'm.*known: m, dm, cm, mm"):
+        load(unit="mn")
+
+
+def test_a_bad_unit_from_the_cli_is_one_line_exit_2(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "dopplertof.cli", "capture", MILLIMETRES,
+                           "--camera", "azure-kinect", "--res", "4x4", "-D", "unit=-1",
+                           "-o", str(tmp_path / "o")], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "unit: unknown unit '-1'" in proc.stderr
+
+
+# ---- The preset's view ------------------------------------------------------------------
+
+def test_the_presets_view_is_said_and_can_be_kept(tmp_path):
+    """The preset's 75 degrees replace the scene's 50 with a note; keep-view keeps the
+    scene's 50 on the preset's pixels (fov_axis y: the horizontal view its aspect gives)."""
+    from dopplertof.cameras.capture import load_scene_for_camera, preset_with_scene_view
+    from dopplertof.cameras.preset import load_preset
+
+    dopplertof.set_variant()
+    preset = load_preset("azure-kinect")
+    scene = load_scene_for_camera(PATHS, preset, (8, 8))
+    note, = [n for n in scene.notes if "field of view" in n]
+    assert "azure-kinect's 75 degree horizontal field of view replaces the scene's " \
+           "sensor's (fov 50)" in note and "--keep-view" in note
+    kept = preset_with_scene_view(PATHS, preset, (8, 8))
+    assert kept.fov_deg == pytest.approx(50.0, rel=1e-6)
+    assert not [n for n in load_scene_for_camera(PATHS, kept, (8, 8), keep_view=True).notes
+                if "field of view" in n]
+    vertical = tmp_path / "vertical.xml"
+    vertical.write_text(_text(PATHS).replace('<path value="../common"/>',
+                                             f'<path value="{STOCK}/common"/>')
+                        .replace('<float name="fov" value="50"/>',
+                                 '<float name="fov" value="50"/>'
+                                 '<string name="fov_axis" value="y"/>'))
+    width, height = 16, 8
+    expected = 2 * math.degrees(math.atan(math.tan(math.radians(25)) * width / height))
+    assert preset_with_scene_view(str(vertical), preset, (width, height)).fov_deg == \
+        pytest.approx(expected, rel=1e-6)
+    said, = [n for n in load_scene_for_camera(str(vertical), preset, (4, 4)).notes
+             if "field of view" in n]
+    assert "(fov 50, fov_axis y)" in said
+
+
+def test_keep_view_on_the_command_line(tmp_path, elsewhere):
+    out = tmp_path / "out"
+    _, camera, err = capture(TEXTURED, out, elsewhere, "--keep-view")
+    assert camera["fov_x_deg"] == pytest.approx(50.0, rel=1e-6)
+    assert camera["K"][0][0] == pytest.approx(8 / math.tan(math.radians(25)), rel=1e-6)
+    assert "field of view" not in err
