@@ -10,7 +10,9 @@ unchanged (same machine, same Dr.Jit and Mitsuba).
 hashes, which tests/test_film.py compares on the machine that recorded them). The set
 covers every time-sampling method, the waveforms and the full-waveform mode, the variant
 families (RGB, spectral, mono), body, camera and light motion, the three filters,
-adaptive counts, a crop window, the motion mapping and a camera capture. About a minute on 2 cores.
+adaptive counts, a crop window, the motion mapping; and the captures: a D-ToF frame (with error
+bars, through a checkpoint), two camera presets' frames, an FMCW spectrum and two dataset
+samples. About a minute on 2 cores.
 """
 
 from __future__ import annotations
@@ -172,6 +174,29 @@ def capture_hashes(extra_params: dict) -> dict:
                                   {"res": "6", "spp": "8"})
     spectra = fmcw(street, seed=1, params=params)
     out["fmcw"] = _digest(spectra.spectrum, spectra.range, spectra.velocity)
+    out.update(dataset_hashes())
+    return out
+
+
+def dataset_hashes() -> dict:
+    """Two samples of a tiny dataset (12x10, 4 spp, two objects of every shape and
+    material kind), every array each holds (the camera's outputs and the truth)."""
+    import tempfile
+
+    from dopplertof.dataset.config import config_from_mapping
+    from dopplertof.dataset.sample import render_sample
+
+    config = config_from_mapping({
+        "samples": 2, "samples_per_shard": 1, "seed": 7,
+        "render": {"resolution": [12, 10], "spp": 4, "max_depth": 4},
+        "objects": {"count": [2, 2], "shapes": ["sphere", "cube", "rectangle"],
+                    "materials": ["diffuse", "plastic", "conductor"]}}, "<image_hashes>")
+    out = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for index in range(2):
+            arrays, _ = render_sample(config, index, folder)
+            out[f"dataset-sample{index}"] = _digest(*(np.asarray(arrays[k])
+                                                      for k in sorted(arrays)))
     return out
 
 
