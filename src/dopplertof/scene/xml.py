@@ -154,6 +154,10 @@ def _properties(doc: _Doc, elem, allowed_children=()) -> dict:
                              f"<{elem.tag} type=\"{elem.get('type')}\">")
         if "name" not in child.attrib or "value" not in child.attrib:
             raise SceneError(f"{doc.where(child)}: <{child.tag}> needs 'name' and 'value'")
+        if child.attrib["name"] in out:
+            raise SceneError(f"{doc.where(child)}: {child.attrib['name']!r} given twice in "
+                             f"<{elem.tag}> (first {out[child.attrib['name']]!r}, then "
+                             f"{child.attrib['value']!r}): keep one")
         out[child.attrib["name"]] = child.attrib["value"]
     return out
 
