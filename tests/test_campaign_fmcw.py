@@ -6,6 +6,7 @@ anything is written; NumPy numbers are numbers; a frame whose beats can fold say
 
 import hashlib
 import os
+import re
 
 import numpy as np
 import pytest
@@ -127,6 +128,39 @@ def test_a_chirp_shorter_than_the_scene_s_round_trip_is_refused():
     with pytest.raises(FMCWError, match="not longer than the scene's longest round trip"):
         fmcw(scene, Chirp(bandwidth=1e9, chirp_time=10e-9, bins=8), spp=1)
     assert 2 * 3.0 / SPEED_OF_LIGHT > 10e-9
+
+
+# ---- A scene lit by the collimated beam alone ----
+
+def _lightless(tmp_path, integrator_lines="") -> str:
+    """The translating sphere without its point light."""
+    text = re.sub(r"<emitter.*?</emitter>", "", open(SPHERE).read(), flags=re.S)
+    text = text.replace('<integrator type="dopplertof">',
+                        '<integrator type="dopplertof">' + integrator_lines, 1)
+    path = tmp_path / "lightless.xml"
+    path.write_text(text)
+    return str(path)
+
+
+def test_a_scene_without_emitters_is_ranged_by_the_collimated_beam(tmp_path, capsys):
+    """FO31: the beam is the only light; the flood beam and the D-ToF renders still
+    refuse the scene (nothing would light it)."""
+    scene = _lightless(tmp_path)
+    out = tmp_path / "out"
+    code = main(["fmcw", scene, "-o", str(out), "--spp", "1", "-D", "res=4",
+                 "--beam", "collimated", "--bins", "512", "-P", "max_depth=2"])
+    assert code == 0, capsys.readouterr().err
+    assert np.isfinite(np.load(out / "range.npy")).all()
+    capsys.readouterr()
+    code = main(["fmcw", scene, "-o", str(tmp_path / "flood"), "--spp", "1", "-D", "res=4"])
+    _refused(capsys, code, "the scene has no emitter", "--beam collimated")
+    lit = dopplertof.load_file(_lightless(tmp_path, '<string name="fmcw_beam" '
+                                          'value="collimated"/>'), {"res": "4"})
+    assert np.isfinite(fmcw(lit, Chirp(bins=512), spp=1).range).all()
+    for render in (lambda: fmcw(lit, Chirp(bins=512), spp=1, beam="flood"),
+                   lambda: dopplertof.render(lit, spp=2)):
+        with pytest.raises(dopplertof.SceneError, match="the scene has no emitter"):
+            render()
 
 
 # ---- Options and arguments ----

@@ -108,8 +108,12 @@ def run_fmcw(args) -> int:
     from .trace import fmcw_params
 
     io.check_output_set(args.output, "fmcw", OUTPUT_FILES)  # before any work
+    from ..scene.xml import load_file
+
     dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
+    beam = args.beam or parse_pairs(args.params, "-P").get("fmcw_beam")
+    scene = load_file(args.scene, parse_pairs(args.defines, "-D"),  # (a beam lights it)
+                      params={"fmcw_beam": beam} if beam else None)
     params = fmcw_params(scene, parse_pairs(args.params, "-P") or None)
     if args.beam_intensity is not None and (args.beam or params.fmcw_beam) != "collimated":
         raise ValueError("--beam-intensity is a collimated beam's: the flood beam (the "

@@ -424,14 +424,16 @@ def _load_string(mi, doc: _Doc, root: ET.Element, base_dir: str):
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
-                base_dir: str = "."):
+                base_dir: str = ".", params: dict | None = None):
     """Load a scene from XML text (see :func:`load_file`)."""
     from ..backend import require_variant
 
     mi = require_variant()
     doc = _Doc(text, source)
-    return build(mi, describe(doc, overrides, Resolver.of(mi, base_dir)),
-                 lambda part, what: _load_string(mi, doc, part, base_dir))
+    description = describe(doc, overrides, Resolver.of(mi, base_dir))
+    if params:  # (the command's, over the <integrator>'s)
+        description.parameters.append(("parameters given", dict(params)))
+    return build(mi, description, lambda part, what: _load_string(mi, doc, part, base_dir))
 
 
 def describe(doc: _Doc, overrides: dict | None = None,
@@ -466,10 +468,12 @@ def describe(doc: _Doc, overrides: dict | None = None,
                             shutter_given=shutter_given, inputs=inputs)
 
 
-def load_file(path, overrides: dict | None = None):
+def load_file(path, overrides: dict | None = None, params: dict | None = None):
     """Load a Mitsuba 3 XML scene with D-ToF extensions.
 
-    ``overrides`` set ``<default>`` values, like ``mitsuba -D name=value``.
+    ``overrides`` set ``<default>`` values, like ``mitsuba -D name=value``; ``params``
+    integrator parameters over the file's (a command's, e.g. the FMCW beam that lights
+    a scene without emitters).
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -480,7 +484,7 @@ def load_file(path, overrides: dict | None = None):
     except (OSError, UnicodeDecodeError) as e:
         raise SceneError(f"{path}: cannot read the scene file: {e}") from None
     return load_string(text, overrides, source=path,
-                       base_dir=os.path.dirname(os.path.abspath(path)))
+                       base_dir=os.path.dirname(os.path.abspath(path)), params=params)
 
 
 def set_sensor_properties(text: str, values, source: str, needed_by: str,
