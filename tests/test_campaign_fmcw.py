@@ -5,6 +5,8 @@ empty output folder and one that holds another output are refused in one line be
 anything is written; NumPy numbers are numbers; a frame whose beats can fold says so."""
 
 import hashlib
+import json
+import math
 import os
 import re
 
@@ -253,7 +255,7 @@ def test_a_folder_holding_another_output_is_not_overwritten(tmp_path, capsys):
     assert _digests(folder) == before
     own = tmp_path / "fmcw"
     first = result.write(own)
-    assert result.write(own) == first
+    assert result.write(own) == first and (own / "ambiguous.npy").exists()
 
 
 @pytest.mark.parametrize("folder", [None, 42])
@@ -262,3 +264,50 @@ def test_a_folder_that_is_no_path_is_a_type_error_naming_it(folder):
     result = fmcw(_plane(), SMALL, spp=1)
     with pytest.raises(TypeError, match="the output folder must be a path"):
         result.write(folder)
+
+
+# ---- Folded beats ----
+
+def test_a_plane_faster_than_its_range_beat_folds_and_is_flagged():
+    """A plane at 3 m approaching at 2 m/s with B = 1 GHz over 10 us at 1550 nm: its
+    Doppler beat 2 v / lambda = 2.58 MHz exceeds its range beat (B/T) 2 d / c = 2.0 MHz
+    (the unambiguous speed at 3 m is B lambda d / (c T) = 1.55 m/s), so its up beat
+    crosses zero and the pair reads the range c T v / (lambda B) = 3.87 m from the
+    Doppler: the summary counts it folded and ambiguous and warns; a plane receding at
+    0.5 m/s is neither."""
+    velocity, z0 = -2.0, 3.0
+    result = fmcw(_plane(z0, velocity), SMALL, spp=4)
+    d, v = z0 + velocity * 0.5 * EXPOSURE, abs(velocity)
+    assert SMALL.unambiguous_speed(d) == pytest.approx(
+        1e9 / 10e-6 * 1550e-9 * d / SPEED_OF_LIGHT, rel=1e-12)
+    assert SMALL.unambiguous_speed(d) < v
+    swapped = SPEED_OF_LIGHT * SMALL.chirp_time * v / (SMALL.wavelength * SMALL.bandwidth)
+    assert abs(result.range[0, 0] - swapped) < SMALL.record()["range_per_bin_m"]
+    record = result.summary["folding"]
+    assert (record["folded_pixels"], record["ambiguous_pixels"]) == (1, 1)
+    assert result.ambiguous.tolist() == [[True]]
+    assert record["max_speed_m_s"] == pytest.approx(v, rel=1e-3)
+    assert record["unambiguous_beyond_m"] == pytest.approx(
+        v * SPEED_OF_LIGHT / (SMALL.slope * SMALL.wavelength), rel=1e-3)
+    assert "the beats fold: 1 pixel(s)" in result.summary["warnings"][0]
+
+    calm = fmcw(_plane(z0, 0.5), SMALL, spp=4)
+    assert (calm.summary["folding"]["folded_pixels"],
+            calm.summary["folding"]["ambiguous_pixels"]) == (0, 0)
+    assert "warnings" not in calm.summary and not calm.ambiguous.any()
+
+
+def test_the_command_warns_of_folded_beats(tmp_path, capsys):
+    """The translating sphere at -10 m/s with the default chirp (B = 1 GHz over 10 us):
+    unambiguous only beyond 10 m/s x c T / (B lambda) = 19.3 m, farther than the scene:
+    the command warns on stderr and writes the mask."""
+    out = tmp_path / "out"
+    assert main(["fmcw", SPHERE, "-o", str(out), "--spp", "2", "-D", "res=4",
+                 "--bins", "512", "-P", "max_depth=2"]) == 0
+    err = capsys.readouterr().err
+    assert "dopplertof: warning: the beats fold" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["folding"]["folded_pixels"] > 0
+    assert summary["folding"]["unambiguous_beyond_m"] > 19
+    assert np.load(out / "ambiguous.npy").shape == (4, 4)
+    assert math.isfinite(summary["folding"]["max_speed_m_s"])

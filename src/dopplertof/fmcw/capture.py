@@ -28,7 +28,7 @@ from .chirp import Chirp, FMCWError
 #: every file an FMCW frame may write into its folder (the set "fmcw")
 OUTPUT_FILES = tuple(f"{name}.npy" for name in (
     "spectrum", "frequencies", "range", "velocity", "range_gt", "velocity_gt", "points",
-    "returns_range", "returns_velocity", "speckle")) + tuple(
+    "returns_range", "returns_velocity", "speckle", "ambiguous")) + tuple(
     f"{name}.png" for name in ("range", "velocity", "range_gt", "velocity_gt")) + (
     "summary.json",)
 
@@ -54,6 +54,10 @@ class FMCWResult:
     #: (H, W, 2, M) float32 with speckle: each bin's |coherent sum of the paths'
     #: amplitudes at random phases|^2 / spp, whose expectation is ``spectrum``
     speckle: np.ndarray | None = None
+    #: (H, W) bool: pixels whose beats fit the folded reading too (range from
+    #: |f_up - f_down| / 2, speed from (f_up + f_down) / 2) within the scene's speeds
+    #: (:func:`folding`); their range and velocity are one of two readings
+    ambiguous: np.ndarray | None = None
 
     def write(self, folder) -> list:
         """Every file into ``folder`` (created if missing), all or nothing; returns the
@@ -69,6 +73,8 @@ class FMCWResult:
                 io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
             if self.speckle is not None:
                 io.write_npy(path("speckle.npy"), self.speckle)
+            if self.ambiguous is not None:
+                io.write_npy(path("ambiguous.npy"), self.ambiguous)
             self._write_previews(path)
             io.write_json(path("summary.json"), self.summary)
         return staged.written
@@ -135,6 +141,42 @@ def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.n
     directions = np.broadcast_to(truth.direction[:, :, None, :], ranges.shape + (3,))
     points = truth.camera_origin + ranges[found][:, None] * directions[found]
     return np.column_stack([points, velocities[found], heights[found]])
+
+
+def folding(chirp: Chirp, truth, beats: np.ndarray):
+    """Where the beats fold at zero (docs/fmcw.md section 3): a return from distance d
+    moving at radial speed |v| >= B lambda d / (c T) (:meth:`Chirp.unambiguous_speed`)
+    has a lower beat below zero, read as its magnitude, so that its pair gives range and
+    velocity swapped. From the truth (the scene's largest speed V and the distances)
+    and the strongest peaks ``beats`` (H, W, 2: up, down; Hz): (the summary's "folding"
+    record, the (H, W) ambiguous mask, a warning or None). A pixel is ambiguous where
+    both readings fit speeds up to V (within a velocity bin): the unfolded one (speed
+    lambda |f_up - f_down| / 4) and the folded one (speed lambda (f_up + f_down) / 4)."""
+    depth, speed = truth.depth, np.abs(truth.velocity_point)
+    seen = np.isfinite(depth) & np.isfinite(speed)
+    fastest = float(speed[seen].max()) if seen.any() else 0.0
+    with np.errstate(invalid="ignore"):
+        folded = seen & (speed >= chirp.unambiguous_speed(np.where(seen, depth, 0.0)))
+        up, down = beats[..., 0], beats[..., 1]
+        slack = fastest + 0.25 * chirp.wavelength * chirp.bin_width  # (one velocity bin)
+        ambiguous = (np.isfinite(up) & np.isfinite(down)
+                     & (0.25 * chirp.wavelength * np.abs(up - down) <= slack)
+                     & (0.25 * chirp.wavelength * (up + down) <= slack))
+    beyond = fastest / chirp.unambiguous_speed(1.0)
+    record = {"max_speed_m_s": fastest, "unambiguous_beyond_m": beyond,
+              "unambiguous_speed_at_nearest_m_s": (
+                  float(chirp.unambiguous_speed(depth[seen].min())) if seen.any() else None),
+              "folded_pixels": int(folded.sum()), "ambiguous_pixels": int(ambiguous.sum())}
+    warning = None
+    if folded.any() or ambiguous.any():
+        warning = (f"the beats fold: {int(folded.sum())} pixel(s) move faster than B lambda "
+                   f"d / (c T) at their distance d (the Doppler beat exceeds the range beat: "
+                   f"the lower beat crosses zero and range and velocity read swapped); "
+                   f"{int(ambiguous.sum())} pixel(s) ambiguous (the folded reading fits "
+                   f"speeds up to the scene's {fastest:.3g} m/s as well: ambiguous.npy); "
+                   f"this chirp reads {fastest:.3g} m/s unambiguously only beyond "
+                   f"{beyond:.3g} m: raise B / T")
+    return record, ambiguous, warning
 
 
 def check_round_trip(chirp: Chirp, depth: np.ndarray) -> None:
@@ -206,6 +248,7 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
     beats, heights = spectrum_peaks(spectrum, chirp, returns)  # (H, W, 2, N)
     ranges, velocities = chirp.range_and_velocity(beats[:, :, 0], beats[:, :, 1])
     range_, velocity = ranges[..., 0], velocities[..., 0]
+    folding_record, ambiguous, warning = folding(chirp, truth, beats[..., 0])
     spp = scene.spp if spp is None else spp
     summary = {
         "issue": 43, "scene": getattr(scene, "source", None), "spp": int(spp),
@@ -220,13 +263,15 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
         "returns": returns, "points": int(np.isfinite(ranges).sum()),
         "speckle": bool(speckle),
+        "folding": folding_record,
         "beam": {"kind": beam, "intensity_W_sr": beam_intensity if beam == "collimated"
                  else None},
     }
+    warnings += [warning] if warning else []
     if warnings:
         summary["warnings"] = warnings
     return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
                       truth.depth, truth.velocity_point, beats[..., 0], summary,
                       ranges, velocities,
                       point_cloud(truth, ranges, velocities, heights[:, :, 0]),
-                      None if speckled is None else speckled.astype(np.float32))
+                      None if speckled is None else speckled.astype(np.float32), ambiguous)

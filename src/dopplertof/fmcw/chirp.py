@@ -119,6 +119,13 @@ class Chirp:
         """The longest path length (m) whose static beat falls inside the last bin."""
         return (self.bins - 1) * self.bin_width * SPEED_OF_LIGHT / self.slope
 
+    def unambiguous_speed(self, distance):
+        """The radial speed (m/s) at which a direct return from ``distance`` (m, the
+        light at the camera) has a Doppler beat 2 v / lambda as large as its range beat
+        (B / T) 2 d / c: B lambda d / (c T). Faster, its lower beat crosses zero and folds,
+        and the pair reads range and velocity swapped (docs/fmcw.md section 3)."""
+        return self.slope * self.wavelength * distance / SPEED_OF_LIGHT
+
     def frequencies(self):
         """The bins' centre frequencies (Hz), a NumPy array of M."""
         return np.arange(self.bins, dtype=np.float64) * self.bin_width
