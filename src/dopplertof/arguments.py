@@ -23,14 +23,20 @@ def _wrong_type(name: str, expected: str, value) -> TypeError:
     return TypeError(f"{name} must be {expected}, got {type(value).__name__} {value!r}")
 
 
-def _is_integer(value) -> bool:
+def is_integer(value) -> bool:
     """A Python or NumPy integer, not a boolean (True is not seed 1)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
+def is_number(value) -> bool:
+    """A Python or NumPy real number (an integer or a float), not a boolean."""
+    return isinstance(value, (int, float, np.integer, np.floating)) \
+        and not isinstance(value, (bool, np.bool_))
+
+
 def check_seed(value, name: str = "seed", error=ValueError) -> int:
     """A seed: an integer in [0, 2^64) (all 64 bits key the random streams)."""
-    if not _is_integer(value):
+    if not is_integer(value):
         raise _wrong_type(name, "an integer in [0, 2^64)", value)
     if not 0 <= int(value) < SEED_LIMIT:
         raise error(f"{name} must be an integer in [0, 2^64), got {int(value)}")
@@ -41,7 +47,7 @@ def check_spp(value, name: str = "spp", error=ValueError):
     """A sample count per pixel: a positive integer, or None (the scene's)."""
     if value is None:
         return None
-    if not _is_integer(value):
+    if not is_integer(value):
         raise _wrong_type(name, "a positive integer (None: the scene's sample count)", value)
     if value < 1:
         raise error(f"{name} must be >= 1, got {int(value)}")
@@ -111,7 +117,7 @@ def check_flag(value, name: str) -> bool:
 
 def check_index(value, length: int, name: str = "index") -> int:
     """An item of a sequence of ``length``: an integer in [-length, length)."""
-    if not _is_integer(value):
+    if not is_integer(value):
         raise _wrong_type(name, "an integer (one item; a range of items: a loop or a "
                                 "torch Subset)", value)
     if not -length <= int(value) < length:

@@ -82,11 +82,17 @@ def is_disk_full(exc: BaseException) -> bool:
 def check_output_folder(folder) -> str:
     """Before any work: ``folder`` is an existing writable folder, or a missing one that
     can be created (its nearest existing ancestor is a writable folder). Creates
-    nothing; the writers create it. Returns the absolute path. An empty name is no
-    folder (it would be the current one): '.' names that."""
-    if not str(os.fspath(folder)).strip():
+    nothing; the writers create it. Returns the absolute path. An empty name (an
+    unset variable: ``-o "$OUT"``) is refused, not read as the current folder ('.' names
+    that)."""
+    if isinstance(folder, bytes) or not isinstance(folder, (str, os.PathLike)) \
+            or not isinstance(os.fspath(folder), str):
+        raise TypeError(f"the output folder must be a path (str or os.PathLike), got "
+                        f"{type(folder).__name__} {folder!r}")
+    if not os.fspath(folder).strip():
         raise OutputError(f"output folder {os.fspath(folder)!r} is empty: name a folder "
-                          "('.' for the current one)")
+                          "('.' for the current one; an empty name is often an unset "
+                          "variable)")
     folder = os.path.abspath(os.fspath(folder))
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise OutputError(f"output path exists and is not a folder: {folder}")
@@ -301,9 +307,48 @@ def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseExcep
     return exc
 
 
+def other_sets_files(folder, name: str) -> dict:
+    """{file: set} of the files that the other output sets in ``folder`` (their
+    manifests) wrote there and still hold: those ``name``'s set must not replace."""
+    owned = {}
+    with contextlib.suppress(OSError):
+        for entry in sorted(os.listdir(folder)):
+            if not (entry.startswith(".dopplertof-") and entry.endswith(".json")):
+                continue
+            other = entry[len(".dopplertof-"):-len(".json")]
+            if other == name or ".staging-" in other:
+                continue
+            for file in _manifest_files(os.path.join(folder, entry)):
+                if os.path.isfile(os.path.join(folder, file)):
+                    owned.setdefault(file, other)
+    return owned
+
+
+def check_output_set(folder, name: str, files) -> str:
+    """Before any work, and again at the commit: ``folder`` can receive the files
+    ``files`` of output set ``name`` (:func:`check_output_folder`) without replacing a
+    file another set wrote there (a capture's summary.json under an FMCW frame's): an
+    OutputError naming them otherwise, so that one kind of output never overwrites
+    another; the user's consent is to choose another folder or remove those files.
+    Returns the absolute path."""
+    folder = check_output_folder(folder)
+    owned = other_sets_files(folder, name)
+    clash = [f for f in files if f in owned]
+    if clash:
+        kinds = sorted({owned[f] for f in clash})
+        raise OutputError(
+            f"{folder} holds the {' and '.join(kinds)} output that wrote "
+            f"{', '.join(clash)}: the {name} output would overwrite "
+            f"{'it' if len(clash) == 1 else 'them'}; write into another folder (or remove "
+            f"{'that file' if len(clash) == 1 else 'those files'} first)")
+    return folder
+
+
 def _commit(staged: StagedFolder, name: str) -> None:
-    """The commit point (the staging folder's manifest), then the moves."""
+    """The commit point (the staging folder's manifest), then the moves; refused when a
+    file would replace another output set's (:func:`check_output_set`)."""
     files = staged.staged_files()
+    check_output_set(staged.target, name, files)
     write_json(os.path.join(staged.staging, manifest_name(name)), {"files": files})
     _finish_commit(staged.target, staged.staging, name)
     staged.written = [os.path.join(staged.target, n) for n in files]

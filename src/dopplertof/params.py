@@ -11,6 +11,7 @@ error everywhere.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field, fields, replace
 
 from .hints import unknown_name
@@ -288,6 +289,13 @@ class RenderParams:
                            ("fmcw_beam_intensity", "W/sr")):
             if getattr(self, name) <= 0:
                 return f"{name} must be > 0 {unit}, got {getattr(self, name):g}"
+        problem = (fmcw_chirp_problem(
+            self.fmcw_wavelength / 1e9, self.fmcw_bandwidth * 1e9, self.fmcw_chirp_time / 1e6,
+            {"bandwidth": ("fmcw_bandwidth", "GHz", 1e9),
+             "chirp_time": ("fmcw_chirp_time", "us", 1e-6)})
+            or fmcw_beam_intensity_problem(float(self.fmcw_beam_intensity)))
+        if problem:
+            return problem
         if self.fmcw_bins < 2:
             return f"fmcw_bins must be >= 2, got {self.fmcw_bins}"
         if self.fmcw_beam not in FMCW_BEAMS:
@@ -377,6 +385,58 @@ FMCW_PARAMS = ("fmcw_wavelength", "fmcw_bandwidth", "fmcw_chirp_time", "fmcw_bin
 FMCW_WAVELENGTH_RANGE_NM = (200.0, 20000.0)
 #: the FMCW lidar's beams (dopplertof.fmcw.beam)
 FMCW_BEAMS = ("flood", "collimated")
+#: the narrowest chirp sweep B (Hz): 1 MHz, a range bin c/(2B) of 150 m
+FMCW_MIN_BANDWIDTH_HZ = 1e6
+#: the widest chirp sweep, as a fraction of the optical carrier c/lambda it sweeps
+FMCW_MAX_SWEEP_OF_CARRIER = 1e-2
+#: a chirp's duration T (s): from 1 ns (the round trip of 15 cm) to 1 s (the scene is
+#: traced at one instant, as a chirp of microseconds allows)
+FMCW_CHIRP_TIME_RANGE_S = (1e-9, 1.0)
+#: the largest beam intensity (W/sr): float32's largest number, that of the spectra
+FMCW_MAX_BEAM_INTENSITY = 3.4028234663852886e38
+
+
+def fmcw_chirp_problem(wavelength: float, bandwidth: float, chirp_time: float,
+                       names: dict) -> str | None:
+    """What is physically wrong with a chirp's sweep ``bandwidth`` (Hz) and duration
+    ``chirp_time`` (s) at ``wavelength`` (m), all finite and > 0, else None: a sweep
+    over a hundredth of the optical carrier or under 1 MHz, a chirp shorter than 1 ns or
+    longer than 1 s (most likely a unit mistake). ``names``: {"bandwidth" and
+    "chirp_time": (name, unit, SI per unit)}, how the message names the value given."""
+    def given(field, si, si_unit):
+        name, unit, per_unit = names[field]
+        value = f"{si / per_unit:g} {unit}" + ("" if per_unit == 1 else f" = {si:g} {si_unit}")
+        return f"{name} is in {unit}: got {value}"
+
+    carrier = SPEED_OF_LIGHT / wavelength
+    if bandwidth > FMCW_MAX_SWEEP_OF_CARRIER * carrier:
+        return (f"{given('bandwidth', bandwidth, 'Hz')}, "
+                f"{'above' if bandwidth > carrier else 'over 1% of'} the optical carrier "
+                f"c/lambda = {carrier / 1e12:.4g} THz: a sweep must stay far below its "
+                f"carrier (under {FMCW_MAX_SWEEP_OF_CARRIER * carrier / 1e9:.4g} GHz)")
+    if bandwidth < FMCW_MIN_BANDWIDTH_HZ:
+        return (f"{given('bandwidth', bandwidth, 'Hz')}, under the 1 MHz minimum (a range "
+                f"bin c/(2B) of {SPEED_OF_LIGHT / (2 * bandwidth):.3g} m resolves nothing)")
+    lo, hi = FMCW_CHIRP_TIME_RANGE_S
+    if chirp_time < lo:
+        return (f"{given('chirp_time', chirp_time, 's')}, under the 1 ns minimum (a chirp "
+                "shorter than the round trip of 15 cm)")
+    if chirp_time > hi:
+        return (f"{given('chirp_time', chirp_time, 's')}, over the 1 s maximum (the scene "
+                "is traced at one instant: a chirp lasts microseconds)")
+    return None
+
+
+def fmcw_beam_intensity_problem(intensity, name: str = "fmcw_beam_intensity") -> str | None:
+    """What is wrong with a collimated beam's radiant intensity (W/sr), else None: not
+    a finite number > 0, or too large for the float32 spectra."""
+    if isinstance(intensity, bool) or not isinstance(intensity, numbers.Real) \
+            or not math.isfinite(intensity) or intensity <= 0:
+        return f"{name} must be > 0 W/sr, got {intensity!r}"
+    if intensity > FMCW_MAX_BEAM_INTENSITY:
+        return (f"{name} must be at most {FMCW_MAX_BEAM_INTENSITY:.4g} W/sr (float32's "
+                f"largest number: the spectra would overflow), got {intensity:g}")
+    return None
 
 _TYPES = {
     "time": float, "w_g": float, "w_s": float, "g_0": float, "g_1": float,

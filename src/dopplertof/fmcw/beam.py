@@ -22,12 +22,10 @@ cameras, the splat film's uniform film positions.
 
 from __future__ import annotations
 
-import math
-
 import drjit as dr
 
 from .. import sampling
-from ..params import FMCW_BEAMS
+from ..params import FMCW_BEAMS, fmcw_beam_intensity_problem
 from ..scene.bodies import nearest_hit, surface_interaction
 
 BEAMS = FMCW_BEAMS
@@ -44,9 +42,9 @@ class Beam:
 
         if kind not in BEAMS:
             raise ValueError(f"beam must be one of {', '.join(BEAMS)}, got {kind!r}")
-        if isinstance(intensity, bool) or not isinstance(intensity, (int, float)) \
-                or not math.isfinite(intensity) or intensity <= 0:
-            raise ValueError(f"beam intensity must be > 0 W/sr, got {intensity!r}")
+        problem = fmcw_beam_intensity_problem(intensity, "beam intensity")
+        if problem:
+            raise ValueError(problem)
         self.mi = mi
         self.collimated = kind == "collimated"
         self.intensity = float(intensity)

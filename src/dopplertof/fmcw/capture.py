@@ -20,8 +20,17 @@ import numpy as np
 from .. import io
 from ..tof.summary import STATIC_SURFACES, error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
-from ..tof.output import prepare_folder
+from ..arguments import is_integer
+from ..modulation import SPEED_OF_LIGHT
 from .chirp import Chirp, FMCWError
+
+
+#: every file an FMCW frame may write into its folder (the set "fmcw")
+OUTPUT_FILES = tuple(f"{name}.npy" for name in (
+    "spectrum", "frequencies", "range", "velocity", "range_gt", "velocity_gt", "points",
+    "returns_range", "returns_velocity", "speckle", "ambiguous")) + tuple(
+    f"{name}.png" for name in ("range", "velocity", "range_gt", "velocity_gt")) + (
+    "summary.json",)
 
 
 @dataclass
@@ -45,11 +54,16 @@ class FMCWResult:
     #: (H, W, 2, M) float32 with speckle: each bin's |coherent sum of the paths'
     #: amplitudes at random phases|^2 / spp, whose expectation is ``spectrum``
     speckle: np.ndarray | None = None
+    #: (H, W) bool: pixels whose beats fit the folded reading too (range from
+    #: |f_up - f_down| / 2, speed from (f_up + f_down) / 2) within the scene's speeds
+    #: (:func:`folding`); their range and velocity are one of two readings
+    ambiguous: np.ndarray | None = None
 
     def write(self, folder) -> list:
         """Every file into ``folder`` (created if missing), all or nothing; returns the
         paths written."""
-        with io.output_folder(prepare_folder(folder), "fmcw") as staged:
+        with io.output_folder(io.check_output_set(folder, "fmcw", OUTPUT_FILES),
+                              "fmcw") as staged:
             path = staged.path
             for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
                          "velocity_gt", "points"):
@@ -59,6 +73,8 @@ class FMCWResult:
                 io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
             if self.speckle is not None:
                 io.write_npy(path("speckle.npy"), self.speckle)
+            if self.ambiguous is not None:
+                io.write_npy(path("ambiguous.npy"), self.ambiguous)
             self._write_previews(path)
             io.write_json(path("summary.json"), self.summary)
         return staged.written
@@ -127,6 +143,80 @@ def point_cloud(truth, ranges: np.ndarray, velocities: np.ndarray, heights: np.n
     return np.column_stack([points, velocities[found], heights[found]])
 
 
+def folding(chirp: Chirp, truth, beats: np.ndarray):
+    """Where the beats fold at zero (docs/fmcw.md section 3): a return from distance d
+    moving at radial speed |v| >= B lambda d / (c T) (:meth:`Chirp.unambiguous_speed`)
+    has a lower beat below zero, read as its magnitude, so that its pair gives range and
+    velocity swapped. From the truth (the scene's largest speed V and the distances)
+    and the strongest peaks ``beats`` (H, W, 2: up, down; Hz): (the summary's "folding"
+    record, the (H, W) ambiguous mask, a warning or None). A pixel is ambiguous where
+    both readings fit speeds up to V (within a velocity bin): the unfolded one (speed
+    lambda |f_up - f_down| / 4) and the folded one (speed lambda (f_up + f_down) / 4)."""
+    depth, speed = truth.depth, np.abs(truth.velocity_point)
+    seen = np.isfinite(depth) & np.isfinite(speed)
+    fastest = float(speed[seen].max()) if seen.any() else 0.0
+    with np.errstate(invalid="ignore"):
+        folded = seen & (speed >= chirp.unambiguous_speed(np.where(seen, depth, 0.0)))
+        up, down = beats[..., 0], beats[..., 1]
+        slack = fastest + 0.25 * chirp.wavelength * chirp.bin_width  # (one velocity bin)
+        ambiguous = (np.isfinite(up) & np.isfinite(down)
+                     & (0.25 * chirp.wavelength * np.abs(up - down) <= slack)
+                     & (0.25 * chirp.wavelength * (up + down) <= slack))
+    beyond = fastest / chirp.unambiguous_speed(1.0)
+    record = {"max_speed_m_s": fastest, "unambiguous_beyond_m": beyond,
+              "unambiguous_speed_at_nearest_m_s": (
+                  float(chirp.unambiguous_speed(depth[seen].min())) if seen.any() else None),
+              "folded_pixels": int(folded.sum()), "ambiguous_pixels": int(ambiguous.sum())}
+    warning = None
+    if folded.any() or ambiguous.any():
+        warning = (f"the beats fold: {int(folded.sum())} pixel(s) move faster than B lambda "
+                   f"d / (c T) at their distance d (the Doppler beat exceeds the range beat: "
+                   f"the lower beat crosses zero and range and velocity read swapped); "
+                   f"{int(ambiguous.sum())} pixel(s) ambiguous (the folded reading fits "
+                   f"speeds up to the scene's {fastest:.3g} m/s as well: ambiguous.npy); "
+                   f"this chirp reads {fastest:.3g} m/s unambiguously only beyond "
+                   f"{beyond:.3g} m: raise B / T")
+    return record, ambiguous, warning
+
+
+def check_round_trip(chirp: Chirp, depth: np.ndarray) -> None:
+    """An FMCWError unless ``chirp`` lasts longer than the longest round trip of the
+    pixels' direct returns (``depth``: the truth's distances along the pixel-centre rays,
+    NaN where nothing is hit): a chirp must outlast its echoes for them to beat with it."""
+    seen = depth[np.isfinite(depth)]
+    if seen.size and chirp.chirp_time <= 2.0 * float(seen.max()) / SPEED_OF_LIGHT:
+        trip = 2.0 * float(seen.max()) / SPEED_OF_LIGHT
+        raise FMCWError(f"chirp_time T = {chirp.chirp_time:g} s ({chirp.chirp_time * 1e6:g} "
+                        f"us) is not longer than the scene's longest round trip, 2 x "
+                        f"{float(seen.max()):.4g} m / c = {trip:.4g} s: a chirp must "
+                        "outlast its echoes")
+
+
+def _arguments(scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle):
+    """:func:`fmcw`'s arguments checked (a TypeError naming one of the wrong type, an
+    FMCWError out of range) and resolved against the scene's parameters, with the
+    warnings they call for (an intensity the flood beam ignores)."""
+    from ..arguments import check_flag, check_params, check_scene, check_seed, check_spp
+    from .trace import fmcw_params
+
+    scene = check_scene(scene)
+    spp, seed = check_spp(spp, error=FMCWError), check_seed(seed, error=FMCWError)
+    if not is_integer(returns) or returns < 1:
+        raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
+    returns, speckle = int(returns), check_flag(speckle, "speckle")
+    params = fmcw_params(scene, check_params(params))
+    chirp = Chirp.of_params(params) if chirp is None else chirp
+    if not isinstance(chirp, Chirp):
+        raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
+    beam = params.fmcw_beam if beam is None else beam
+    warnings = []
+    if beam_intensity is not None and beam == "flood":  # (the command refuses it)
+        warnings.append(f"beam_intensity {beam_intensity!r} is a collimated beam's: the "
+                        "flood beam (the scene's lights) ignores it")
+    beam_intensity = params.fmcw_beam_intensity if beam_intensity is None else beam_intensity
+    return scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings
+
+
 def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 0,
          params=None, returns: int = 1, beam: str | None = None,
          beam_intensity: float | None = None, speckle: bool = False) -> FMCWResult:
@@ -140,26 +230,25 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
     (:attr:`FMCWResult.speckle`). ``params`` (a mapping or RenderParams) override the
     scene's integrator parameters, the fmcw_* ones included; an argument given here
     overrides both."""
-    from .trace import fmcw_params, render_spectra
+    from .trace import render_spectra
 
-    if isinstance(returns, bool) or not isinstance(returns, int) or returns < 1:
-        raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
-    params = fmcw_params(scene, params)
-    chirp = Chirp.of_params(params) if chirp is None else chirp
-    if not isinstance(chirp, Chirp):
-        raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
-    beam = params.fmcw_beam if beam is None else beam
-    beam_intensity = params.fmcw_beam_intensity if beam_intensity is None else beam_intensity
+    scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings = \
+        _arguments(scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle)
+    truth = ground_truth(scene, params)
+    check_round_trip(chirp, truth.depth)
     started = _time.perf_counter()
     spectrum, t0, speckled = render_spectra(scene, chirp, spp, seed, params, beam,
                                             beam_intensity, speckle)
     seconds = _time.perf_counter() - started
+    if not np.isfinite(spectrum).all() or not np.isfinite(spectrum.astype(np.float32)).all():
+        raise FMCWError(f"the spectra overflow float32 (a beam of {beam_intensity:g} W/sr or "
+                        "an emitter too bright): nothing written")
     # the k-th strongest up peak pairs with the k-th strongest down one (a path has the
     # same power in both chirps)
     beats, heights = spectrum_peaks(spectrum, chirp, returns)  # (H, W, 2, N)
     ranges, velocities = chirp.range_and_velocity(beats[:, :, 0], beats[:, :, 1])
     range_, velocity = ranges[..., 0], velocities[..., 0]
-    truth = ground_truth(scene, params)
+    folding_record, ambiguous, warning = folding(chirp, truth, beats[..., 0])
     spp = scene.spp if spp is None else spp
     summary = {
         "issue": 43, "scene": getattr(scene, "source", None), "spp": int(spp),
@@ -174,11 +263,15 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
         "beyond_max_range_pixels": int((truth.depth > 0.5 * chirp.max_path_length).sum()),
         "returns": returns, "points": int(np.isfinite(ranges).sum()),
         "speckle": bool(speckle),
+        "folding": folding_record,
         "beam": {"kind": beam, "intensity_W_sr": beam_intensity if beam == "collimated"
                  else None},
     }
+    warnings += [warning] if warning else []
+    if warnings:
+        summary["warnings"] = warnings
     return FMCWResult(spectrum.astype(np.float32), chirp.frequencies(), range_, velocity,
                       truth.depth, truth.velocity_point, beats[..., 0], summary,
                       ranges, velocities,
                       point_cloud(truth, ranges, velocities, heights[:, :, 0]),
-                      None if speckled is None else speckled.astype(np.float32))
+                      None if speckled is None else speckled.astype(np.float32), ambiguous)

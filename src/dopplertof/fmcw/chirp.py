@@ -28,8 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arguments import is_integer, is_number
 from ..modulation import SPEED_OF_LIGHT
-from ..params import FMCW_WAVELENGTH_RANGE_NM
+from ..params import FMCW_WAVELENGTH_RANGE_NM, fmcw_chirp_problem
 
 #: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared (the
 #: scene's fmcw_wavelength's range, params.FMCW_WAVELENGTH_RANGE_NM)
@@ -53,14 +54,18 @@ class Chirp:
         problem = self.problem()
         if problem:
             raise FMCWError(problem)
+        for name in ("wavelength", "bandwidth", "chirp_time"):  # (NumPy scalars: Python's)
+            object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "bins", int(self.bins))
 
-    def problem(self) -> str | None:
-        """What is wrong with these parameters, else None."""
+    def problem(self, names: dict | None = None) -> str | None:
+        """What is wrong with these parameters, else None; ``names`` (as
+        :func:`..params.fmcw_chirp_problem`'s) name the bandwidth and the chirp time as
+        they were given (default: these fields, SI)."""
         lo, hi = WAVELENGTH_RANGE
         for name, value in (("wavelength", self.wavelength), ("bandwidth", self.bandwidth),
                             ("chirp_time", self.chirp_time)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value):
+            if not is_number(value) or not math.isfinite(value):
                 return f"{name} must be a finite number, got {value!r}"
         if not lo <= self.wavelength <= hi:
             return (f"wavelength must be within {lo * 1e9:g} nm - {hi * 1e6:g} um, got "
@@ -69,19 +74,34 @@ class Chirp:
             return f"bandwidth B must be > 0 Hz, got {self.bandwidth:g}"
         if self.chirp_time <= 0:
             return f"chirp_time T must be > 0 s, got {self.chirp_time:g}"
-        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or self.bins < 2:
+        problem = fmcw_chirp_problem(
+            float(self.wavelength), float(self.bandwidth), float(self.chirp_time),
+            names or {"bandwidth": ("bandwidth B", "Hz", 1.0),
+                      "chirp_time": ("chirp_time T", "s", 1.0)})
+        if problem:
+            return problem
+        if not is_integer(self.bins) or self.bins < 2:
             return f"bins M must be an integer >= 2, got {self.bins!r}"
         return None
 
     @classmethod
-    def of_params(cls, params, **given) -> "Chirp":
+    def of_params(cls, params, names: dict | None = None, **given) -> "Chirp":
         """The chirp of ``params`` (RenderParams: the scene's fmcw_wavelength (nm),
         fmcw_bandwidth (GHz), fmcw_chirp_time (us) and fmcw_bins, XML or defaults) with
-        the values of ``given`` (SI, as the fields; None: the params') over them."""
+        the values of ``given`` (SI, as the fields; None: the params') over them;
+        ``names`` (:meth:`problem`'s) name a sweep or a duration out of its range as it
+        was given."""
         values = {"wavelength": params.fmcw_wavelength / 1e9,
                   "bandwidth": params.fmcw_bandwidth * 1e9,
                   "chirp_time": params.fmcw_chirp_time / 1e6, "bins": params.fmcw_bins}
         values.update({k: v for k, v in given.items() if v is not None})
+        if names is not None:
+            unchecked = object.__new__(cls)  # (its fields set, not yet validated)
+            for name, value in values.items():
+                object.__setattr__(unchecked, name, value)
+            problem = unchecked.problem(names)
+            if problem:
+                raise FMCWError(problem)
         return cls(**values)
 
     @property
@@ -98,6 +118,13 @@ class Chirp:
     def max_path_length(self) -> float:
         """The longest path length (m) whose static beat falls inside the last bin."""
         return (self.bins - 1) * self.bin_width * SPEED_OF_LIGHT / self.slope
+
+    def unambiguous_speed(self, distance):
+        """The radial speed (m/s) at which a direct return from ``distance`` (m, the
+        light at the camera) has a Doppler beat 2 v / lambda as large as its range beat
+        (B / T) 2 d / c: B lambda d / (c T). Faster, its lower beat crosses zero and folds,
+        and the pair reads range and velocity swapped (docs/fmcw.md section 3)."""
+        return self.slope * self.wavelength * distance / SPEED_OF_LIGHT
 
     def frequencies(self):
         """The bins' centre frequencies (Hz), a NumPy array of M."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
-                           int_at_least, parse_pairs)
+                           int_at_least, parse_pairs, print_warnings)
 
 
 def add_subcommand(sub) -> None:
@@ -85,7 +85,12 @@ def chirp_of(args, params=None):
     given = (args.wavelength, args.bandwidth, args.chirp_time)
     wavelength, bandwidth, chirp_time = (None if v is None else convert(v) for v, convert in zip(
         given, (lambda nm: nm / 1e9, lambda ghz: ghz * 1e9, lambda us: us / 1e6)))
-    return Chirp.of_params(params or RenderParams(), wavelength=wavelength,
+    # a unit mistake named as given: the option (GHz, us), else the scene's key
+    names = {"bandwidth": ("--bandwidth" if args.bandwidth is not None else "fmcw_bandwidth",
+                           "GHz", 1e9),
+             "chirp_time": ("--chirp-time" if args.chirp_time is not None
+                            else "fmcw_chirp_time", "us", 1e-6)}
+    return Chirp.of_params(params or RenderParams(), names=names, wavelength=wavelength,
                            bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins)
 
 
@@ -98,19 +103,27 @@ def run_fmcw(args) -> int:
         raise ValueError(f"scene file not found: {args.scene}")
     import dopplertof
 
-    from ..tof.output import prepare_folder
-    from .capture import fmcw
+    from .. import io
+    from .capture import OUTPUT_FILES, fmcw
     from .trace import fmcw_params
 
-    prepare_folder(args.output)
+    io.check_output_set(args.output, "fmcw", OUTPUT_FILES)  # before any work
+    from ..scene.xml import load_file
+
     dopplertof.set_variant(args.variant)
-    scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
+    beam = args.beam or parse_pairs(args.params, "-P").get("fmcw_beam")
+    scene = load_file(args.scene, parse_pairs(args.defines, "-D"),  # (a beam lights it)
+                      params={"fmcw_beam": beam} if beam else None)
     params = fmcw_params(scene, parse_pairs(args.params, "-P") or None)
+    if args.beam_intensity is not None and (args.beam or params.fmcw_beam) != "collimated":
+        raise ValueError("--beam-intensity is a collimated beam's: the flood beam (the "
+                         "scene's lights) ignores it; add --beam collimated or leave it out")
     result = fmcw(scene, chirp_of(args, params), spp=args.spp, seed=args.seed,
                   params=params, returns=args.returns, beam=args.beam,
                   beam_intensity=args.beam_intensity, speckle=args.speckle)
     result.write(args.output)
     print(format_summary(result.summary, args.output))
+    print_warnings(result.summary)
     return 0
 
 

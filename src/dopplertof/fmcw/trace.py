@@ -255,7 +255,8 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
         raise ValueError(f"{width}x{height} pixels x 2 chirps x {chirp.bins} bins is "
                          f"{width * height * 2 * chirp.bins:,} spectrum values, over the "
                          f"{MAX_SPECTRUM_VALUES:,} a frame may hold: fewer bins or pixels")
-    setup = integrator_class(mi)().prepared(scene, p, spp, int(seed))
+    setup = integrator_class(mi)().prepared(scene, p, spp, int(seed),
+                                            lit_by_beam=beam == "collimated")
     start, t0, end = mid_exposure(scene, p)
     fields = VelocityFields(mi, scene, t0, end - start)
     lidar_beam = Beam(mi, scene, beam, beam_intensity, t0)

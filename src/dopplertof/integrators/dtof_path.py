@@ -25,7 +25,7 @@ from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
 from ..scene.motion import opaque_tree
-from ..scene.scene import DTOF_INTEGRATORS, loaded
+from ..scene.scene import DTOF_INTEGRATORS, loaded, require_light
 from . import pipeline
 from .analytic import trace_analytic_pass
 from .camera import Camera, LensDistortion, PinholeProjection, is_pinhole, rest_forward
@@ -87,10 +87,12 @@ def _define_class(mi):
             """Render a DopplerScene (see :func:`dopplertof.render_result`)."""
             return pipeline.render_result(self, scene, spp, seed, params, **options)
 
-        def prepared(self, scene, params, spp: int, seed: int):
+        def prepared(self, scene, params, spp: int, seed: int, lit_by_beam: bool = False):
             """A copy of this integrator for one render of ``scene`` with ``params``
             (``auto`` resolved), ``spp`` and ``seed``: its attributes are what the
-            kernel reads."""
+            kernel reads. A scene without emitters is refused unless an FMCW frame's
+            collimated beam lights it (``lit_by_beam``)."""
+            require_light(scene.static, scene.source, lit_by_beam)
             integrator = type(self)()
             integrator._prepare(scene, params, spp, seed)
             return integrator

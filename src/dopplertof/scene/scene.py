@@ -295,8 +295,7 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
                 f"{source}: environment emitters are not modulated sources of a ToF camera; "
                 "remove it (ambient light belongs to the sensor noise model)"
             )
-    if not static.emitters():
-        raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light")
+    require_light(static, source, params.fmcw_beam == "collimated")
     _check_sensor(sensors[0], source, d.shutter_given, params)
     spp = int(sensors[0].sampler().sample_count())
     sensor_motion = Motion(d.sensor_keyframes) if d.sensor_keyframes is not None else None
@@ -348,6 +347,15 @@ def mitsuba_load(load, scene):
         return load(scene)
     except Exception:
         return load(scene, parallel=False)
+
+
+def require_light(static, source: str, lit_by_beam: bool = False) -> None:
+    """A SceneError unless the scene (``static``, an mi.Scene) has an emitter, or an
+    FMCW lidar's collimated beam (``lit_by_beam``) is its only light."""
+    if not lit_by_beam and not static.emitters():
+        raise SceneError(f"{source}: the scene has no emitter: a ToF camera needs its light "
+                         "(an FMCW frame lit by its collimated beam needs none: --beam "
+                         "collimated, fmcw_beam=\"collimated\")")
 
 
 def _load_checked(mi, load_part, part, what: str, source: str):

@@ -230,6 +230,10 @@ def _properties(doc: _Doc, elem, allowed_children=()) -> dict:
                              f"<{elem.tag} type=\"{elem.get('type')}\">")
         if "name" not in child.attrib or "value" not in child.attrib:
             raise SceneError(f"{doc.where(child)}: <{child.tag}> needs 'name' and 'value'")
+        if child.attrib["name"] in out:
+            raise SceneError(f"{doc.where(child)}: {child.attrib['name']!r} given twice in "
+                             f"<{elem.tag}> (first {out[child.attrib['name']]!r}, then "
+                             f"{child.attrib['value']!r}): keep one")
         out[child.attrib["name"]] = child.attrib["value"]
     return out
 
@@ -516,13 +520,15 @@ def _search_folders(doc: _Doc, base_dir: str) -> tuple:
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
-                base_dir: str = "."):
+                base_dir: str = ".", params: dict | None = None):
     """Load a scene from XML text (see :func:`load_file`)."""
     from ..backend import require_variant
 
     mi = require_variant()
     doc = _Doc(text, source)
     description = describe(doc, overrides, Resolver.of(mi), base_dir)
+    if params:  # (the command's, over the <integrator>'s)
+        description.parameters.append(("parameters given", dict(params)))
     return build(mi, description,
                  lambda part, what: _load_string(mi, doc, part, description.folders))
 
@@ -568,10 +574,12 @@ def describe(doc: _Doc, overrides: dict | None = None,
                             other_integrator=other_integrator)
 
 
-def load_file(path, overrides: dict | None = None):
+def load_file(path, overrides: dict | None = None, params: dict | None = None):
     """Load a Mitsuba 3 XML scene with D-ToF extensions.
 
-    ``overrides`` set ``<default>`` values, like ``mitsuba -D name=value``.
+    ``overrides`` set ``<default>`` values, like ``mitsuba -D name=value``; ``params``
+    integrator parameters over the file's (a command's, e.g. the FMCW beam that lights
+    a scene without emitters).
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -582,7 +590,7 @@ def load_file(path, overrides: dict | None = None):
     except (OSError, UnicodeDecodeError) as e:
         raise SceneError(f"{path}: cannot read the scene file: {e}") from None
     return load_string(text, overrides, source=path,
-                       base_dir=os.path.dirname(os.path.abspath(path)))
+                       base_dir=os.path.dirname(os.path.abspath(path)), params=params)
 
 
 def set_sensor_properties(text: str, values, source: str, needed_by: str,
