@@ -275,3 +275,140 @@ def test_a_folder_written_meanwhile_is_refused_in_one_line(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["cc05"] and os.listdir(target) == ["theirs"]
     with contextlib.suppress(FileNotFoundError):
         assert not os.listdir(staging)
+
+
+# ---- DK04, DK06, DK06b: a run's tasks on a scheduler that outlives the client -------------
+
+def _one_shard_task(tmp_path, samples=2):
+    from dopplertof.dataset import load_config
+    from dopplertof.dataset.driver import plan_shards
+
+    config = load_config(_write_toml(tmp_path / "two.toml",
+                                     {**TINY, "samples": samples, "samples_per_shard": samples}))
+    os.makedirs(tmp_path / "out")
+    (task,) = plan_shards(config, str(tmp_path / "out"), "llvm_ad_rgb")
+    return task
+
+
+#: what the cancelled task's test and the functions it submits share (module level: a
+#: submitted function is pickled, by reference when it is a module's)
+_SHARED = {}
+
+
+def _held_render(config, index, folder):
+    _SHARED["started"].set()
+    _SHARED["release"].wait(30)
+    return _SHARED["real"](config, index, folder)
+
+
+def _watched(task):
+    from dopplertof.dataset.driver import run_shard_task
+
+    try:
+        return run_shard_task(task)
+    finally:
+        _SHARED["done"].set()
+
+
+def test_a_cancelled_shard_task_writes_nothing(tmp_path, monkeypatch, in_process_client):
+    """DK06: after a Ctrl-C the client cancelled its futures, but a task already running
+    went on and wrote its shard (2 shards at exit, 4 shards 25 s later). Now a task asks
+    before each sample and before the write whether its key was released, and stops."""
+    import threading
+    import time
+
+    from dopplertof.dataset import sample
+
+    task = _one_shard_task(tmp_path)
+    _SHARED.update(started=threading.Event(), release=threading.Event(),
+                   done=threading.Event(), real=sample.render_sample)
+    monkeypatch.setattr(sample, "render_sample", _held_render)
+    future = in_process_client.submit(_watched, task, key="dk06-test", pure=False)
+    assert _SHARED["started"].wait(60)
+    future.cancel()
+    worker = next(iter(in_process_client.cluster.workers.values()))
+    for _ in range(200):  # (until the scheduler has told the worker)
+        state = worker.state.tasks.get("dk06-test")
+        if state is None or state.state != "executing":
+            break
+        time.sleep(0.05)
+    _SHARED["release"].set()
+    assert _SHARED["done"].wait(60)
+    assert os.listdir(tmp_path / "out") == []
+
+
+def test_a_shard_task_whose_folder_was_deleted_does_not_make_it_again(tmp_path,
+                                                                      monkeypatch):
+    """DK06b: Ctrl-C, then rm -rf of the output folder: 30 s later the folder was back,
+    holding a shard the still-running task wrote (atomic_path makes missing folders).
+    Now a task whose output folder is gone writes nothing."""
+    from dopplertof.dataset import sample
+    from dopplertof.dataset.driver import run_shard_task
+
+    task = _one_shard_task(tmp_path)
+    real = sample.render_sample
+
+    def deleting(config, index, folder):
+        result = real(config, index, folder)
+        shutil.rmtree(folder)
+        return result
+
+    monkeypatch.setattr(sample, "render_sample", deleting)
+    assert run_shard_task(task)["given_up"] and not (tmp_path / "out").exists()
+
+
+class _FakeFuture:
+    """A future whose statuses are given in turn, each time as_completed yields it."""
+
+    def __init__(self, statuses, result):
+        self.statuses, self.value, self.key = list(statuses), result, "k"
+
+    @property
+    def status(self):
+        return self.statuses[0]
+
+    def result(self):
+        return self.value
+
+    def exception(self):
+        return None
+
+    def release(self):
+        pass
+
+    def cancel(self):
+        pass
+
+
+class _FakeCompleted:
+    def __init__(self, futures):
+        self.queue = list(futures)
+
+    def next_batch(self, block=False):
+        batch, self.queue = self.queue, []
+        return batch
+
+    def add(self, future):
+        future.statuses.pop(0)  # (computed again: its next status)
+        self.queue.append(future)
+
+
+def test_a_result_lost_with_its_worker_is_waited_for_not_failed(monkeypatch):
+    """DK04: a worker SIGKILLed after it finished a shard (its nanny restarted it):
+    'shard failed: shard_00001: task ended as finished', exit 1, though the scheduler
+    computed the lost result again and every shard was complete. Now a future yielded
+    in another state than finished, error or cancelled is waited for again."""
+    import distributed
+    from types import SimpleNamespace
+
+    from dopplertof.experiments import cluster
+
+    future = _FakeFuture(["lost", "finished"], {"shard": "shard_00001"})
+    client = SimpleNamespace(submit=lambda *a, **k: future,
+                             scheduler_info=lambda: {"workers": {"w": {}}})
+    monkeypatch.setattr(distributed, "as_completed", _FakeCompleted)
+    monkeypatch.setattr(cluster, "_lost", lambda client: False)
+    monkeypatch.setattr(cluster, "_check_scheduler", lambda client, batch: None)
+    outcome = cluster.run_tasks(client, None, [SimpleNamespace(name="shard_00001",
+                                                               hash="h")], run="r")
+    assert outcome.failed == [] and outcome.done == [{"shard": "shard_00001"}]

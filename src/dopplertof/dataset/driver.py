@@ -291,17 +291,32 @@ def verify_dataset(folder) -> list:
             for shard in info["shards"]]
 
 
+def given_up(task: ShardTask) -> bool:
+    """Whether ``task``'s run gave it up: its Dask task was cancelled (the client's Ctrl-C)
+    or its output folder is gone (deleted after the run was stopped): then it writes
+    nothing (a shard written then, or the folder created again, outlived the run)."""
+    from ..experiments.cluster import task_abandoned
+
+    return task_abandoned() or not os.path.isdir(os.path.dirname(task.path))
+
+
 def run_shard_task(task: ShardTask) -> dict:
-    """Render the shard's samples and write the shard (runs on a worker)."""
+    """Render the shard's samples and write the shard (runs on a worker); nothing
+    written where the run gave the task up (:func:`given_up`, asked before each sample
+    and before the write)."""
     from ..experiments.tasks import RENDER_LOCK, package_versions, prepare_worker
     from .sample import UNITS, render_sample
     from .shards import write_shard
 
     started = time.perf_counter()
     samples, failed = [], []
+    abandoned = {"shard": task.name, "rendered": 0, "failed": [], "given_up": True,
+                 "seconds": 0.0}
     with RENDER_LOCK:
         prepare_worker(task.variant, task.threads)
         for index in task.indices:
+            if given_up(task):
+                return abandoned
             error = None
             for _ in range(1 + task.sample_retries):
                 try:
@@ -314,6 +329,8 @@ def run_shard_task(task: ShardTask) -> dict:
             if error is not None:
                 failed.append({"index": index, "error": error})
     versions = package_versions()
+    if given_up(task):
+        return abandoned
     write_shard(task.path, samples, failed,
                 {"config_hash": task.config_hash, "variant": task.variant,
                  "mitsuba": versions["mitsuba"] or "", "dopplertof": versions["dopplertof"]
