@@ -166,7 +166,7 @@ def test_jacobian_is_rendered_per_body_over_its_own_pixels_at_fewer_samples(
     from types import SimpleNamespace
 
     from dopplertof.diff import render
-    from dopplertof.diff.fit import fit
+    from dopplertof.diff.fit import FitError, fit
 
     calls = []
 
@@ -177,19 +177,24 @@ def test_jacobian_is_rendered_per_body_over_its_own_pixels_at_fewer_samples(
                                tangents={n: np.zeros((size, 3)) for n in names})
 
     monkeypatch.setattr(render, "render_derivatives", blank_render)
-    result = fit(capture_dir, spp=16, iterations=2, progress=False)
-    assert result.settings["jacobian_spp"] == 4
-    # (the angular velocities' columns at the end: the unfitted rotation's evidence)
+    # a blank Jacobian sees nothing, so no step lowers the loss: the fit says so instead
+    # of reporting the start as a result (issue 53, FT10)
+    with pytest.raises(FitError, match=r"see none of body 0 \(.*\)'s velocity components "
+                       r"at its start \(.*\) m/s: the fit cannot move it"):
+        fit(capture_dir, spp=16, iterations=2, progress=False)
     jacobian_calls = [c for c in calls if c[0] and ".v" in c[0][0]]
-    assert len([c for c in calls if c[0] and ".w" in c[0][0]]) == 8
-    # two seeds x two captures x two bodies, once: a blank Jacobian sees nothing, so
-    # no step lowers the loss and the start's Jacobian serves the uncertainties
+    # two seeds x two captures x two bodies, once
     assert len(jacobian_calls) == 8
+    pixels_of = {}
     for names, spp, pixels in jacobian_calls:
         body = {n.split(".")[0] for n in names}
         assert spp == 4 and len(body) == 1 and len(names) == 3
-        k = int(body.pop()[len("body"):])
-        assert len(pixels) == result.bodies[k]["interior_pixels"]
+        pixels_of.setdefault(body.pop(), []).append(pixels)
+    # each body's own pixels, the same in every call, none of the other body's
+    (a, *more_a), (b, *more_b) = pixels_of.values()
+    assert all(np.array_equal(a, p) for p in more_a) and all(
+        np.array_equal(b, p) for p in more_b)
+    assert len(a) >= 4 and len(b) >= 4 and not np.intersect1d(a, b).size
     assert all(spp == 16 for names, spp, _ in calls if not names)
 
 
@@ -607,3 +612,77 @@ def test_a_combination_the_captures_do_not_see_is_named_and_has_no_uncertainty()
                                own[1]) is None
     assert _radial_uncertainty(np.array([0, 0, 0, 0, 1e-3, 1.0]), cov, sigma, affected,
                                own[1]) > 0
+
+
+# ---- issue 53 (2026-12-07 campaign): starts and folders the fit cannot use ---------------
+
+@pytest.mark.parametrize("start, words", [
+    ("0=nan,0,0", "must be finite, got [nan, 0.0, 0.0]"),  # FT09
+    ("0=1e30,0,0", "a start velocity of 1e+30 m/s is not below the speed of light"),  # FT10
+    ("1=0,-inf,0", "must be finite"),
+])
+def test_a_start_that_is_no_velocity_is_one_line_naming_start(capture_dir, tmp_path, capsys,
+                                                              start, words):
+    """FT09: --start 0=nan,0,0 ran 22 s, crashed on NoneType.__format__ and left fit.json
+    of NaN; FT10: --start 0=1e30,0,0 printed 0.000 +- 0.000 m/s with exit 0. Now refused
+    before any work, naming --start; nothing written. The API names the body."""
+    from dopplertof.cli import main
+    from dopplertof.diff.fit import FitError
+    from dopplertof.diff.fit_capture import check_start_velocity
+
+    out = tmp_path / "fit"
+    assert main(["fit", capture_dir, "-o", str(out), "--quiet", "--start", start]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--start {start}: " in err and words in err
+    assert not out.exists()
+    with pytest.raises(FitError, match="start of body 0: a start velocity must be finite"):
+        check_start_velocity([0.0, float("nan"), 0.0], "start of body 0")
+    assert check_start_velocity((1, 2, 3), "x") == [1.0, 2.0, 3.0]
+
+
+def _copy_capture(capture_dir, tmp_path):
+    import shutil
+
+    folder = tmp_path / "capture"
+    shutil.copytree(capture_dir, folder)
+    return folder
+
+
+@pytest.mark.parametrize("kind", ["camera", "chirp", "other"])
+def test_a_folder_of_another_command_is_named_as_such(capture_dir, tmp_path, capsys, kind):
+    """FT01-FT03: a `capture --camera` or `fmcw` folder was 'summary.json cannot be read as
+    a capture summary: 'captures'' (a KeyError's text). Now the folder's kind is named,
+    with the command whose folders the fit reads; another missing key is named as a key."""
+    from dopplertof.cli import main
+
+    folder = _copy_capture(capture_dir, tmp_path)
+    summary = json.loads((folder / "summary.json").read_text())
+    del summary["captures"]
+    if kind != "other":
+        summary[kind] = {}
+    (folder / "summary.json").write_text(json.dumps(summary))
+    out = tmp_path / "fit"
+    assert main(["fit", str(folder), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(folder / "summary.json") in err
+    expected = {"camera": "is a camera capture (`dopplertof capture --camera`)",
+                "chirp": "is an FMCW capture (`dopplertof fmcw`)",
+                "other": "key 'captures' is missing"}[kind]
+    assert expected in err and not out.exists()
+
+
+def test_a_capture_of_nan_is_refused_naming_the_file(capture_dir, tmp_path, capsys):
+    """FT08: heterodyne_0.npy all NaN: after 16 s 'unsupported format string passed to
+    NoneType.__format__', fit.json of NaN velocities left behind. Now one line naming the
+    file and how many pixels, nothing written."""
+    from dopplertof.cli import main
+
+    folder = _copy_capture(capture_dir, tmp_path)
+    image = np.load(folder / "heterodyne_0.npy")
+    np.save(folder / "heterodyne_0.npy", np.full_like(image, np.nan))
+    out = tmp_path / "fit"
+    assert main(["fit", str(folder), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"heterodyne_0.npy: {image.size} of {image.size} pixels are NaN or infinite" in err
+    assert not out.exists()

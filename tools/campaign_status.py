@@ -1,11 +1,12 @@
 """Which rows of a fault campaign docs/reliability.md does not cite yet (issue 39, 2026-12-03).
 
 A campaign is a TSV file, one case a line: id, surface, what was done, expected, observed,
-verdict. A row counts as cited when its id appears in a line of docs/reliability.md that
+verdict (campaign-2026-12-03.tsv's header; later campaigns call the columns case and
+category, and a good row's verdict ``clear``: both are read). A row counts as cited when its id appears in a line of docs/reliability.md that
 names the campaign ("2026-12-03 campaign S01-S09, S12"), alone or inside a range (S01-S09,
 "P1-19 to P1-21"), or opens a table row under a heading naming the campaign and its date
-("## Campaign rerun (issue 39, 2026-12-03)"). The rows listed are those whose verdict is neither ``ok`` nor ``clear
-error`` and whose id no such line cites; ``--all`` lists every row that is not ok, cited or
+("## Campaign rerun (issue 39, 2026-12-03)"). The rows listed are those whose verdict is none of ``ok``, ``clear error``
+and ``clear``, and whose id no such line cites; ``--all`` lists every row that is not ok, cited or
 not, with the docs line's first words.
 
     python tools/campaign_status.py ../shared/reliability/campaign-2026-12-03.tsv
@@ -18,16 +19,23 @@ import re
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-GOOD = ("ok", "clear error")
+GOOD = ("ok", "clear error", "clear")
+#: the columns read, each under the names campaigns give it
+COLUMNS = {"verdict": ("verdict", "category"), "what was done": ("what was done", "case")}
 #: an id (S01, P05c, D28bad, P1-19), then maybe a range's end ("-S09", " to P1-21")
 _ID = r"[A-Z]+\d*-\d+|[A-Z]+\d+[a-z]*"
 _CITE = re.compile(rf"\b({_ID})\b(?:\s*(?:-|to)\s*\b({_ID})\b)?")
 
 
 def read_campaign(path: str) -> list:
-    """The campaign's rows as dicts keyed by the header's columns."""
+    """The campaign's rows as dicts keyed by the header's columns, with ``verdict`` and
+    ``what was done`` under those names whatever the header calls them (COLUMNS)."""
     with open(path, encoding="utf-8", newline="") as f:
-        return list(csv.DictReader(f, delimiter="\t"))
+        rows = list(csv.DictReader(f, delimiter="\t"))
+    for row in rows:
+        for key, names in COLUMNS.items():
+            row.setdefault(key, next((row[n] for n in names if row.get(n) is not None), ""))
+    return rows
 
 
 def _split(case_id: str):
@@ -90,7 +98,7 @@ def main(argv=None) -> int:
         where = "cited" if line else "NOT CITED"
         print(f"{case_id}\t{verdict}\t{where}\t{done[:100]}")
     uncited = sum(1 for r in rows if not r[2] and r[1] not in GOOD)
-    print(f"{uncited} row(s) not ok or clear error and not cited in {os.path.relpath(a.doc)}",
+    print(f"{uncited} row(s) not ok or clear and not cited in {os.path.relpath(a.doc)}",
           file=sys.stderr)
     return 1 if uncited else 0
 

@@ -269,19 +269,25 @@ def output_folder(folder, name: str):
 @contextlib.contextmanager
 def new_folder(folder):
     """A folder written whole, subfolders and all (issue 41: dataset exports): yields a
-    staging folder (a hidden sibling of ``folder``) that becomes ``folder`` in one rename
-    when the block ends without an exception; on any failure it is removed and nothing
-    is left. A ``folder`` that exists and is not empty is refused (an OutputError before
-    anything is written: nothing is overwritten)."""
+    staging folder (a hidden sibling of ``folder``, locked by this process) that becomes
+    ``folder`` in one rename when the block ends without an exception; on any failure it
+    is removed and nothing is left (a killed run's staging folder is removed by the next
+    call for ``folder``). A ``folder`` that exists and is not empty is refused (an
+    OutputError before anything is written, or at the rename where another process
+    wrote it meanwhile: nothing is overwritten). A write error names the file in
+    ``folder``."""
     target = check_output_folder(folder)
     if os.path.isdir(target) and os.listdir(target):
-        raise OutputError(f"{target} exists and is not empty: nothing there is overwritten; "
-                          "choose a new folder")
+        raise _not_empty(target)
     parent = os.path.dirname(target)
     created = _missing_folders(parent)
+    prefix = f".{os.path.basename(target)}.staging-"
     try:
         os.makedirs(parent, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.staging-", dir=parent)
+        for dead in _dead_stagings(parent, lambda entry: entry.startswith(prefix)):
+            shutil.rmtree(dead, ignore_errors=True)
+        staging = tempfile.mkdtemp(prefix=prefix, dir=parent)
+        owner = _hold_lock(staging)
     except OSError as exc:
         _remove_created(created)
         raise write_error(target, exc) from exc
@@ -289,13 +295,28 @@ def new_folder(folder):
         yield staging
         if INTERRUPT_SEEN.is_set():
             raise KeyboardInterrupt
-        if os.path.isdir(target):
-            os.rmdir(target)  # (empty)
-        os.rename(staging, target)
-    except BaseException:
+        try:
+            if os.path.isdir(target):
+                os.rmdir(target)  # (empty)
+            os.rename(staging, target)
+        except OSError:
+            if os.path.isdir(target) and os.listdir(target):
+                raise _not_empty(target, " (written meanwhile by another process)") from None
+            raise
+    except BaseException as exc:
         shutil.rmtree(staging, ignore_errors=True)
         _remove_created(created)
-        raise
+        renamed = _named_in_target(exc, staging, target)
+        if renamed is exc:
+            raise
+        raise renamed from exc
+    finally:
+        os.close(owner)
+
+
+def _not_empty(target: str, why: str = "") -> OutputError:
+    return OutputError(f"{target} exists and is not empty{why}: nothing there is "
+                       "overwritten; choose a new folder")
 
 
 def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseException:
@@ -383,11 +404,26 @@ def _manifest_files(path: str) -> list:
 def _recover_leftovers(target: str) -> None:
     """The staging folders of killed runs (their lock is free): a committed one is
     completed, any other removed. Live runs' folders are left alone."""
-    for entry in os.listdir(target):
-        if not (entry.startswith(".dopplertof-") and ".staging-" in entry):
-            continue
-        staging = os.path.join(target, entry)
+    def ours(entry: str) -> bool:
+        return entry.startswith(".dopplertof-") and ".staging-" in entry
+
+    for staging in _dead_stagings(target, ours):
+        entry = os.path.basename(staging)
         name = entry[len(".dopplertof-"):entry.rindex(".staging-")]
+        if os.path.exists(os.path.join(staging, manifest_name(name))):
+            _finish_commit(target, staging, name)
+        else:
+            shutil.rmtree(staging, ignore_errors=True)
+
+
+def _dead_stagings(folder: str, matches):
+    """The staging folders in ``folder`` whose name ``matches`` and whose lock is free
+    (their run was killed), each yielded while this process holds its lock. Live runs'
+    folders (and, where locks are unsupported, every folder) are left alone."""
+    for entry in sorted(os.listdir(folder)):
+        if not matches(entry):
+            continue
+        staging = os.path.join(folder, entry)
         try:
             fd = os.open(staging, os.O_RDONLY | os.O_DIRECTORY)
         except OSError:
@@ -398,10 +434,7 @@ def _recover_leftovers(target: str) -> None:
             os.close(fd)
             continue
         try:
-            if os.path.exists(os.path.join(staging, manifest_name(name))):
-                _finish_commit(target, staging, name)
-            else:
-                shutil.rmtree(staging, ignore_errors=True)
+            yield staging
         finally:
             os.close(fd)
 

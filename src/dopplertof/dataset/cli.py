@@ -3,6 +3,7 @@ sample is present, 1 when some failed (listed in dataset.json), 2 on bad input."
 
 from __future__ import annotations
 
+import os
 import sys
 
 from ..cli_options import FOLDER_HELP
@@ -36,6 +37,9 @@ def add_subcommand(subparsers) -> None:
                    "direct")
     d.add_argument("--format", dest="export_format", metavar="flat|torf",
                    help="with export: FLAT's Kinect layout or TöRF's (docs/dataset.md)")
+    d.add_argument("--skip-missing", action="store_true", help="with export: export the "
+                   "samples present when some failed (listed in export.json's "
+                   "missing_samples); without it such a dataset is refused")
     _cluster_options(d)
     d.set_defaults(func=cmd_dataset)
 
@@ -44,6 +48,12 @@ def cmd_dataset(args) -> int:
     from .config import DatasetError, load_config
     from .driver import run_dataset
 
+    if args.config in ("verify", "show", "export") and args.folder is None \
+            and not os.path.isfile(args.config):
+        raise DatasetError(f"dataset {args.config} needs the dataset FOLDER: `dopplertof "
+                           f"dataset {args.config} FOLDER"
+                           + {"verify": "`", "show": " -o preview.png`",
+                              "export": " --format flat|torf -o OUT`"}[args.config])
     if args.config == "verify" and args.folder is not None:
         return cmd_verify(args.folder)
     if args.config == "show" and args.folder is not None:
@@ -79,10 +89,16 @@ def cmd_dataset(args) -> int:
 def cmd_verify(folder: str) -> int:
     """Check every shard of ``folder`` in full; one line per shard a rerun would render
     again, then the count. Exit 0 when nothing is to redo, 1 otherwise."""
-    from .driver import verify_dataset
+    from .driver import EditedDatasetJson, verify_dataset
     from .shards import index_span
 
-    checked = verify_dataset(folder)
+    try:
+        checked = verify_dataset(folder)
+    except EditedDatasetJson as exc:
+        print(exc)
+        print("verify: dataset.json edited or damaged, its shards not checked; a rerun "
+              "would write dataset.json again and render what is not complete")
+        return 1
     redo, present = [], 0
     for name, planned, state in checked:
         if state.problem is not None:
@@ -124,6 +140,11 @@ def cmd_export(args) -> int:
 
     if args.export_format is None:
         raise DatasetError(f"dataset export needs --format ({', '.join(FORMATS)})")
-    info = export_dataset(args.folder, args.export_format, args.output)
+    info = export_dataset(args.folder, args.export_format, args.output, args.skip_missing)
     print(f"exported {info['samples']} samples as {info['format']} -> {args.output}")
+    if info.get("missing_samples"):
+        from .shards import index_span
+
+        print(f"dopplertof: dataset export: sample(s) {index_span(info['missing_samples'])} "
+              "missing (failed; --skip-missing): not exported", file=sys.stderr)
     return 0

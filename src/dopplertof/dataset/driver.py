@@ -15,6 +15,10 @@ the result is bitwise the same). A shard is complete when it holds every sample 
 for it and every checksum matches (:func:`shards.shard_state`, every sample read): a
 missing, truncated, damaged or misplaced shard, or one with a failed sample, is
 rendered again (issue 39). Another configuration in the same folder is refused.
+dataset.json holds the SHA-256 of the rest of its content (``sha256``); a reader, verify
+and export refuse one that does not match it, or whose shard list or units are not those
+its own samples, samples_per_shard and layout plan (:func:`dataset_json_problem`); a rerun
+writes it again.
 A sample that raises is tried again ``retries`` times within its shard's task, then
 its shard is written without it and dataset.json lists it with its error.
 """
@@ -31,6 +35,8 @@ from .config import DatasetConfig, DatasetError
 from .shards import shard_name, shard_state
 
 DATASET_JSON = "dataset.json"
+#: dataset.json's key holding the SHA-256 of its other keys (:func:`json_digest`)
+JSON_DIGEST = "sha256"
 #: format of the folder (2, 2026-12-03, issue 41: the camera's outputs, incidence,
 #: grazing and truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
 LAYOUT_VERSION = 2
@@ -124,11 +130,9 @@ def plan_shards(config: DatasetConfig, output: str, variant: str,
                 retries: int = DEFAULT_RETRIES) -> list:
     """Every shard of the dataset, in order."""
     digest = config_hash(config, variant)
-    size, total = config.shard_size, config.samples
-    return [ShardTask(n, shard_name(n)[:-3], os.path.join(output, shard_name(n)), config,
-                      tuple(range(start, min(start + size, total))), digest, variant,
-                      retries)
-            for n, start in enumerate(range(0, total, size))]
+    return [ShardTask(n, shard["file"][:-3], os.path.join(output, shard["file"]), config,
+                      tuple(shard["samples"]), digest, variant, retries)
+            for n, shard in enumerate(planned_shards(config.samples, config.shard_size))]
 
 
 def check_variant(variant: str) -> None:
@@ -151,24 +155,110 @@ def check_variant(variant: str) -> None:
 
 
 def check_same_config(output: str, digest: str, source: str) -> None:
-    """Refuse a folder that holds a dataset of another configuration."""
+    """Refuse a folder that holds a dataset of another configuration. A dataset.json
+    edited after it was written (its checksum fails) does not decide: the folder is this
+    configuration's when every shard in it is."""
     path = os.path.join(output, DATASET_JSON)
     if not os.path.isfile(path):
         return
     try:
         with open(path, encoding="utf-8") as f:
-            previous = json.load(f).get("config_hash")
+            info = json.load(f)
+        previous = info.get("config_hash")
     except (OSError, ValueError, AttributeError):
         raise DatasetError(f"{path} is unreadable: not a dopplertof dataset folder "
                            "(choose another -o)") from None
+    if previous != digest and info.get(JSON_DIGEST) not in (None, json_digest(info)):
+        hashes = set(shard_hashes(output).values())
+        if hashes <= {digest}:
+            return  # (this configuration's shards: dataset.json is written again)
+        raise DatasetError(f"{path} was edited after it was written (it does not match its "
+                           "checksum) and the shards in the folder are of another "
+                           f"configuration than {source}: use a new folder")
     if previous != digest:
         raise DatasetError(f"{output} holds a dataset of another configuration than "
                            f"{source} (config hash {str(previous)[:12]} vs {digest[:12]}): "
                            "use a new folder, or the configuration it was made with")
 
 
+class EditedDatasetJson(DatasetError):
+    """A dataset.json that does not match its checksum or its own plan."""
+
+
+def json_digest(info: dict) -> str:
+    """SHA-256 of dataset.json's content but its JSON_DIGEST key, as written (its
+    canonical JSON: sorted keys, no spaces)."""
+    import hashlib
+
+    from .. import io
+
+    content = json.loads(json.dumps(io.json_ready({k: v for k, v in info.items()
+                                                   if k != JSON_DIGEST}),
+                                    default=io._json_default))
+    text = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def planned_shards(samples: int, per_shard: int) -> list:
+    """[{"file", "samples"}] of ``samples`` samples, ``per_shard`` a shard."""
+    return [{"file": shard_name(n), "samples": list(range(start, min(start + per_shard,
+                                                                      samples)))}
+            for n, start in enumerate(range(0, samples, per_shard))]
+
+
+def shard_hashes(folder: str) -> dict:
+    """{shard file: the config_hash it was written with} of the shards in ``folder``
+    (None for one that cannot be read)."""
+    import h5py
+
+    out = {}
+    for name in sorted(os.listdir(folder)):
+        if name.startswith("shard_") and name.endswith(".h5"):
+            try:
+                with h5py.File(os.path.join(folder, name), "r") as f:
+                    out[name] = f.attrs.get("config_hash")
+            except (OSError, ValueError):
+                out[name] = None
+    return out
+
+
+def dataset_json_problem(folder: str, info: dict) -> str | None:
+    """What is wrong with dataset.json's content ``info`` (None: nothing): its checksum
+    fails (named by key where the key can be told: the shard list against the one its
+    samples and samples_per_shard plan, the units against the shards' units, the
+    config_hash against the shards'), or, in a folder written before the checksum, the
+    shard list or the units."""
+    from .sample import UNITS
+
+    try:
+        planned = planned_shards(int(info["samples"]), int(info["samples_per_shard"]))
+        listed = [{"file": s["file"], "samples": list(s["samples"])} for s in info["shards"]]
+        units = dict(info["units"])
+    except (KeyError, TypeError, ValueError) as exc:
+        return f"key {exc} missing or malformed"
+    if listed != planned:
+        names = {s["file"] for s in listed}
+        left_out = [s["file"] for s in planned if s["file"] not in names]
+        return (f"'shards' lists {len(listed)} shard(s) where 'samples' "
+                f"{info['samples']} at 'samples_per_shard' {info['samples_per_shard']} plan "
+                f"{len(planned)}" + (f" ({', '.join(left_out)} left out)" if left_out else
+                                     " (their samples differ)"))
+    for key in sorted(set(units) & set(UNITS)):
+        if units[key] != UNITS[key]:
+            return f"'units.{key}' is {units[key]!r} where the shards store {UNITS[key]!r}"
+    stored = info.get(JSON_DIGEST)
+    if stored is None or stored == json_digest(info):
+        return None
+    others = {h for h in shard_hashes(folder).values() if h is not None}
+    if others and info.get("config_hash") not in others:
+        return (f"'config_hash' {str(info.get('config_hash'))[:12]} is not the one its "
+                f"shards were written with ({', '.join(sorted(h[:12] for h in others))})")
+    return "its content does not match its checksum 'sha256' (edited or damaged)"
+
+
 def load_dataset_json(folder: str) -> dict:
-    """``folder``'s dataset.json, of this layout (a DatasetError naming the file)."""
+    """``folder``'s dataset.json, of this layout and as written (a DatasetError naming
+    the file; EditedDatasetJson where :func:`dataset_json_problem` finds it edited)."""
     path = os.path.join(folder, DATASET_JSON)
     try:
         with open(path, encoding="utf-8") as f:
@@ -179,13 +269,21 @@ def load_dataset_json(folder: str) -> dict:
         version = info.get("layout_version") if isinstance(info, dict) else None
         raise DatasetError(f"{path}: layout version {version!r}, this reader reads "
                            f"{', '.join(map(str, READABLE_LAYOUTS))}")
+    problem = dataset_json_problem(folder, info)
+    if problem is not None:
+        source = info.get("config_file") or "its configuration"
+        raise EditedDatasetJson(f"{path}: {problem}: not read; a rerun of `dopplertof "
+                                f"dataset {source} -o {folder}` writes it again")
     return info
 
 
 def verify_dataset(folder) -> list:
     """Every shard of the dataset in ``folder`` checked in full (every sample read and
-    its checksum compared): [(shard file, planned sample indices, ShardState)]."""
-    folder = os.fspath(folder)
+    its checksum compared): [(shard file, planned sample indices, ShardState)];
+    EditedDatasetJson where dataset.json itself was edited."""
+    from ..arguments import check_path
+
+    folder = check_path(folder, "folder")
     info = load_dataset_json(folder)
     return [(shard["file"], shard["samples"],
              shard_state(os.path.join(folder, shard["file"]), info["config_hash"],
@@ -193,17 +291,32 @@ def verify_dataset(folder) -> list:
             for shard in info["shards"]]
 
 
+def given_up(task: ShardTask) -> bool:
+    """Whether ``task``'s run gave it up: its Dask task was cancelled (the client's Ctrl-C)
+    or its output folder is gone (deleted after the run was stopped): then it writes
+    nothing (a shard written then, or the folder created again, outlived the run)."""
+    from ..experiments.cluster import task_abandoned
+
+    return task_abandoned() or not os.path.isdir(os.path.dirname(task.path))
+
+
 def run_shard_task(task: ShardTask) -> dict:
-    """Render the shard's samples and write the shard (runs on a worker)."""
+    """Render the shard's samples and write the shard (runs on a worker); nothing
+    written where the run gave the task up (:func:`given_up`, asked before each sample
+    and before the write)."""
     from ..experiments.tasks import RENDER_LOCK, package_versions, prepare_worker
     from .sample import UNITS, render_sample
     from .shards import write_shard
 
     started = time.perf_counter()
     samples, failed = [], []
+    abandoned = {"shard": task.name, "rendered": 0, "failed": [], "given_up": True,
+                 "seconds": 0.0}
     with RENDER_LOCK:
         prepare_worker(task.variant, task.threads)
         for index in task.indices:
+            if given_up(task):
+                return abandoned
             error = None
             for _ in range(1 + task.sample_retries):
                 try:
@@ -216,6 +329,8 @@ def run_shard_task(task: ShardTask) -> dict:
             if error is not None:
                 failed.append({"index": index, "error": error})
     versions = package_versions()
+    if given_up(task):
+        return abandoned
     write_shard(task.path, samples, failed,
                 {"config_hash": task.config_hash, "variant": task.variant,
                  "mitsuba": versions["mitsuba"] or "", "dopplertof": versions["dopplertof"]
@@ -288,7 +403,7 @@ def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> No
     from .sample import UNITS
 
     with io.output_folder(output, "dataset") as staged:
-        io.write_json(staged.path(DATASET_JSON), {
+        info = {
             "layout_version": LAYOUT_VERSION, "config_hash": tasks[0].config_hash,
             "config": config.to_json(), "config_file": config.source,
             "samples": config.samples, "samples_per_shard": config.shard_size,
@@ -303,4 +418,5 @@ def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> No
                          "seconds": round(summary.seconds, 3),
                          "samples_per_hour": summary.samples_per_hour},
             "documentation": "docs/dataset.md",
-        })
+        }
+        io.write_json(staged.path(DATASET_JSON), {**info, JSON_DIGEST: json_digest(info)})

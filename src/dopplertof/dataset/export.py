@@ -6,7 +6,9 @@ pipe/kinect_init.py; benattal/torf: datasets/tof_dataset.py, datasets/mitsuba_da
 utils/utils.py, utils/projection_utils.py), no code taken.
 
 OUT is written whole (:func:`dopplertof.io.new_folder`): a folder that exists and is not
-empty is refused, and an export that fails leaves nothing.
+empty is refused, and an export that fails leaves nothing. A dataset with failed samples
+is refused, naming them, unless ``skip_missing`` (``--skip-missing``) exports the others,
+export.json then listing the samples left out.
 """
 
 from __future__ import annotations
@@ -90,6 +92,18 @@ def flat_gt(depth: np.ndarray) -> np.ndarray:
     return np.kron(np.nan_to_num(np.asarray(depth, np.float32), nan=0.0), block)
 
 
+def _write_raw(path: str, array: np.ndarray) -> None:
+    """``array``'s bytes as ``tofile`` writes them, a write error naming ``path`` and the
+    system's reason (tofile's says only how many bytes were written)."""
+    from .. import io
+
+    try:
+        with open(path, "wb") as f:
+            f.write(np.ascontiguousarray(array).data)
+    except OSError as exc:
+        raise io.write_error(path, exc) from exc
+
+
 def flat_name(index: int) -> str:
     """A sample's file name in FLAT's folders (16 characters, as FLAT's scene ids)."""
     return f"dtof{index:012d}"
@@ -113,9 +127,10 @@ def _export_flat(ds, staging: str) -> dict:
                                f"got {sample['depth'].shape[1]} x {sample['depth'].shape[0]}")
         name = flat_name(int(attributes["index"]))
         for folder, split in FLAT_FOLDERS.items():
-            flat_raw(sample[f"raw{'' if split == 'full' else '_' + split}"], order,
-                     preset["sensor"]).tofile(os.path.join(root, folder, name))
-        flat_gt(sample["depth"]).tofile(os.path.join(root, "gt", name))
+            _write_raw(os.path.join(root, folder, name),
+                       flat_raw(sample[f"raw{'' if split == 'full' else '_' + split}"],
+                                order, preset["sensor"]))
+        _write_raw(os.path.join(root, "gt", name), flat_gt(sample["depth"]))
         names.append(name)
     with open(os.path.join(root, "list", "all.txt"), "w", encoding="utf-8") as f:
         f.write("".join(f"{n}\n" for n in names))
@@ -155,6 +170,8 @@ def light_pose(pose: np.ndarray, light: dict) -> np.ndarray:
 def _export_torf(ds, staging: str) -> dict:
     """Every sample of ``ds`` as a TöRF scan (one view each): sample_<index>/{tof, depth,
     color}/0000.npy and cams/."""
+    from .. import io
+
     scans = []
     for item in range(len(ds)):
         sample, attributes = ds[item], ds.attributes(item)
@@ -177,25 +194,35 @@ def _export_torf(ds, staging: str) -> dict:
             files[f"cams/{kind}_extrinsics.npy"] = extrinsics.astype(np.float32)
             files[f"cams/{kind}_light_extrinsics.npy"] = lights.astype(np.float32)
         for name, array in files.items():
-            np.save(os.path.join(scan, name), array)
+            io.write_npy(os.path.join(scan, name), array)
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 
 
-def export_dataset(folder, fmt: str, output) -> dict:
+def export_dataset(folder, fmt: str, output, skip_missing: bool = False) -> dict:
     """Write the dataset in ``folder`` in layout ``fmt`` into the new folder ``output``
-    (with export.json saying what it holds); returns export.json's content."""
+    (with export.json saying what it holds); returns export.json's content. A dataset
+    with failed samples is refused (a DatasetError naming them) unless ``skip_missing``:
+    the present ones are exported, export.json's ``missing_samples`` listing the others."""
     from .. import io
     from .reader import Dataset
+    from .shards import index_span
 
     if fmt not in FORMATS:
         raise DatasetError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     if output is None:
         raise DatasetError("dataset export needs -o OUT (a new folder)")
     ds = Dataset(folder)
+    missing = sorted(int(f["index"]) for f in ds.failed)
+    if missing and not skip_missing:
+        raise DatasetError(
+            f"{os.path.join(ds.folder, 'dataset.json')}: sample(s) {index_span(missing)} of "
+            f"{len(ds) + len(missing)} failed ('failed_samples'): a rerun of the dataset "
+            f"renders them again; --skip-missing exports the {len(ds)} others")
     with io.new_folder(output) as staging:
         written = (_export_flat if fmt == "flat" else _export_torf)(ds, staging)
         info = {"format": fmt, "dataset": os.path.abspath(ds.folder), "samples": len(ds),
+                **({"missing_samples": missing} if missing else {}),
                 "documentation": "docs/dataset.md, Exports (issue 41)", **written}
         with open(os.path.join(staging, "export.json"), "w", encoding="utf-8") as f:
             json.dump(info, f, indent=2)

@@ -41,7 +41,7 @@ def add_subcommand(sub) -> None:
 
 
 def parse_start(items) -> dict:
-    from .fit import FitError
+    from .fit_capture import FitError, check_start_velocity
 
     out = {}
     for item in items or []:
@@ -53,6 +53,7 @@ def parse_start(items) -> dict:
             out[int(k)] = v
         except ValueError:
             raise FitError(f"--start expects K=VX,VY,VZ (body index, m/s), got {item!r}") from None
+        out[int(k)] = check_start_velocity(v, f"--start {item}")
     return out
 
 
@@ -68,8 +69,9 @@ def run(args) -> int:
                  iterations=args.iterations, angular=args.angular,
                  reflectances=args.reflectances, jacobian_spp=args.jacobian_spp,
                  defines=parse_pairs(args.defines, "-D"), progress=False if args.quiet else None)
+    summary = format_fit(result)  # (before the files: a summary that fails writes none)
     paths = write_fit(result, args.output)
-    print(format_fit(result))
+    print(summary)
     print(f"wrote {', '.join(paths)}")
     print_warnings(result.as_json())
     return 0

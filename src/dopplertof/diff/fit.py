@@ -57,7 +57,8 @@ import numpy as np
 
 from ..arguments import check_seed
 from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitError,
-                          _truth, closed_form_velocity, interior, load_capture)
+                          _truth, check_start_velocity, closed_form_velocity, interior,
+                          load_capture)
 from .fit_noise import capture_noise
 from .fit_output import FitResult, format_fit, write_fit
 from .fit_solve import (PLATEAU, _covariance, _fit_progress, _FitProblem, _gauss_newton,
@@ -113,6 +114,7 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     theta, state, history, done, stop = _gauss_newton(
         problem, spp, iterations, tolerance, plateau, _fit_progress(progress, iterations), started)
     loss = history[-1]["loss"]
+    _check_seen(problem, history[0])
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
     cov, sigma, noise, fixed = _uncertainties(data, problem, spp, state, theta)
@@ -133,6 +135,21 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     }
     return FitResult(bodies, done, loss, history, settings,
                      problem.reflectance_entries(theta, sigma), warnings)
+
+
+def _check_seen(problem, first: dict) -> None:
+    """A FitError for a body none of whose linear velocity components the captures see
+    at its start (a start far beyond its speed: the fit cannot move it, and its start
+    would be reported as a result, with no uncertainty or a zero one)."""
+    per = problem.per_body
+    for k, body in enumerate(problem.data.scene.bodies):
+        linear = slice(k * per, k * per + 3)
+        if not problem.seen[linear].any():
+            start = ", ".join(f"{v:.3g}" for v in first["parameters"][linear])
+            raise FitError(f"the captures see none of body {k} ({', '.join(body.names)})'s "
+                           f"velocity components at its start ({start}) m/s: the fit cannot "
+                           "move it; give a start nearer its speed, or none (the closed "
+                           "form); no result")
 
 
 def _uncertainties(data, problem, spp: int, state, theta):
@@ -245,9 +262,12 @@ def _start_motions(motions, start: dict, closed_form, folder) -> None:
         if k in start:
             value = start[k]
             v, w = (value if len(value) == 2 and np.ndim(value[0]) == 1 else (value, None))
-            m.velocity = [float(x) for x in np.asarray(v, float).reshape(3)]
+            m.velocity = check_start_velocity(v, f"start of body {k}")
             if w is not None:
                 m.angular_velocity = [float(x) for x in np.asarray(w, float).reshape(3)]
+                if not all(map(math.isfinite, m.angular_velocity)):
+                    raise FitError(f"start of body {k}: the angular velocity must be "
+                                   f"finite, got {m.angular_velocity}")
         elif closed_form[k] is not None:
             m.velocity = closed_form[k].tolist()
         else:

@@ -66,11 +66,15 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
     try:
         with open(summary_path, encoding="utf-8") as f:
             summary = json.load(f)
+        _check_capture_kind(summary, summary_path)
         scene_path = summary["scene"]
         width, height = summary["resolution"]
         records = {r["name"]: r for r in summary["captures"]}
         params = summary["render_params"]
-    except (ValueError, KeyError, TypeError) as e:
+    except KeyError as e:
+        raise FitError(f"{summary_path} cannot be read as a capture summary: key {e} is "
+                       "missing (write the folder again with `dopplertof capture`)") from None
+    except (ValueError, TypeError) as e:
         raise FitError(f"{summary_path} cannot be read as a capture summary: {e}") from None
     if not os.path.isfile(scene_path):
         raise FitError(f"the capture's scene file is not found: {scene_path}")
@@ -101,11 +105,53 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
         image = np.load(path).astype(np.float64)
         if image.shape != (height, width):
             raise FitError(f"{path} is {image.shape}, not the summary's {height}x{width}")
+        bad = int(np.count_nonzero(~np.isfinite(image)))
+        if bad:
+            raise FitError(f"{path}: {bad} of {image.size} pixels are NaN or infinite: the "
+                           "fit needs finite captures (write the folder again with "
+                           "`dopplertof capture`)")
         captures[name] = image
     vpath = os.path.join(folder, "velocity.npy")
     velocity = np.load(vpath).astype(np.float64) if os.path.isfile(vpath) else None
     return CaptureData(scene, base, summary, captures, records, velocity,
                        load_std_maps(folder, fitted))
+
+
+#: summary.json keys of the folders other commands write, and what each folder is
+OTHER_CAPTURES = {
+    "camera": "a camera capture (`dopplertof capture --camera`): its raw frames are a "
+              "camera's, not the heterodyne captures the fit renders",
+    "chirp": "an FMCW capture (`dopplertof fmcw`)",
+}
+
+
+def _check_capture_kind(summary, summary_path: str) -> None:
+    """A FitError naming the command whose folder ``summary`` is, where it is not one of
+    `dopplertof capture` without --camera (the folders the fit reads)."""
+    if isinstance(summary, dict) and "captures" not in summary:
+        for key, what in OTHER_CAPTURES.items():
+            if key in summary:
+                raise FitError(f"{summary_path} is {what}: the fit reads folders of "
+                               "`dopplertof capture SCENE -o DIR` (without --camera)")
+
+
+def check_start_velocity(velocity, where: str) -> list:
+    """A start velocity (m/s, 3 finite components below the speed of light), as floats;
+    a FitError naming ``where`` (--start's item, start's body) otherwise."""
+    from ..modulation import SPEED_OF_LIGHT
+
+    try:
+        v = [float(x) for x in np.asarray(velocity, float).reshape(3)]
+    except (TypeError, ValueError):
+        raise FitError(f"{where}: a start velocity is 3 numbers (m/s), got "
+                       f"{velocity!r}") from None
+    if not all(map(math.isfinite, v)):
+        raise FitError(f"{where}: a start velocity must be finite, got {v}")
+    if math.hypot(*v) >= SPEED_OF_LIGHT:
+        raise FitError(f"{where}: a start velocity of {math.hypot(*v):.3g} m/s is not below "
+                       f"the speed of light ({SPEED_OF_LIGHT:.6g} m/s): give a start of "
+                       "the bodies' speeds, or none (the closed form)")
+    return v
 
 
 def _capture_params(data: CaptureData, name: str):

@@ -298,6 +298,22 @@ def task_key(task, run: str) -> str:
     return f"dopplertof-{task.name}-{spec_hash([task.hash, run])[:16]}"
 
 
+def task_abandoned() -> bool:
+    """Whether the Dask task this code runs in was given up by its run: the scheduler
+    released its key (the client cancelled it on Ctrl-C, or went away), so its result
+    would be thrown away; a task then stops before it writes. False outside a Dask task
+    (or where this distributed cannot tell)."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+        key = worker.get_current_task()
+        state = worker.state.tasks.get(key)
+    except (ImportError, ValueError, AttributeError, KeyError):  # (not on a worker)
+        return False
+    return state is None or state.state in ("cancelled", "released", "forgotten")
+
+
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
               description: str = "tasks", already_done: int = 0,
               no_worker_timeout: float | None = None, run: str | None = None) -> RunOutcome:
@@ -335,6 +351,12 @@ def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progre
                 time.sleep(POLL_SECONDS)
             _check_scheduler(client, batch)
             for future in batch:
+                if future.status not in DONE:
+                    # (lost: its worker died holding the result after it completed, and
+                    # the scheduler computes it again; a failure "task ended as finished"
+                    # before, its shard rendered and intact)
+                    completed.add(future)
+                    continue
                 _collect(future, futures.pop(future), outcome)
                 bar.update(1)
             if outcome.failed:
@@ -364,6 +386,10 @@ def _check_scheduler(client, batch) -> None:
 
     if any(f.status == "cancelled" for f in batch) or (not batch and scheduler_lost(client)):
         raise ClusterError(lost_scheduler_message(client))
+
+
+#: the statuses of a future that will not change (any other: computed, or again)
+DONE = ("finished", "error", "cancelled")
 
 
 def _collect(future, task, outcome: RunOutcome) -> None:
