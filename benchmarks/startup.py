@@ -24,7 +24,6 @@ the child; on a loaded machine the wall time stretches, the CPU time much less):
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import resource
 import statistics
@@ -61,6 +60,8 @@ def median_run(src: str, argv: list, repeat: int, env_extra=None) -> tuple:
 
 def capture_outside_renders(src: str, repeat: int, cold: bool) -> tuple:
     """Median (wall, CPU, wall outside the renders) of a 16x16, 16-spp capture."""
+    from dopplertof.capture_summary import read_capture
+
     rows = []
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as tmp:
@@ -70,8 +71,7 @@ def capture_outside_renders(src: str, repeat: int, cold: bool) -> tuple:
                                              "--spp", "16", "--quiet"], env)
             if code != 0:
                 raise SystemExit(f"capture failed with exit code {code} ({src})")
-            with open(os.path.join(out, "summary.json")) as f:
-                render = json.load(f)["seconds"]["render"]
+            render = read_capture(out)["seconds"]["render"]
             rows.append((wall, cpu, wall - render))
     return tuple(statistics.median(r[i] for r in rows) for i in range(3))
 

@@ -169,7 +169,7 @@ def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     points = np.load(out / "points.npy")
     assert points.shape[1] == 5 and 64 <= len(points) <= 128
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["issue"] == 43 and summary["chirp"]["bins"] == 512
+    assert "issue" not in summary and summary["chirp"]["bins"] == 512
     errors = summary["errors"]
     assert errors["range_m"]["pixels"] == 64
     assert errors["range_m"]["median_abs"] < 0.02

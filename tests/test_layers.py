@@ -3,6 +3,7 @@ inside a function, points one way; design.md section 7), and no function is long
 MAX_FUNCTION_LINES without a stated reason."""
 
 import ast
+import re
 import os
 
 SRC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
@@ -162,3 +163,29 @@ def test_top_rooms_import_down_and_only_the_command_line_imports_them():
             elif not any(_inside(module, a) for a in allowed):
                 wrong += [f"{module} -> {t}" for t in targets if _inside(t, room)]
     assert not wrong, "imports against the layers: " + "; ".join(sorted(wrong))
+
+
+#: an issue number or a date in src/ (history lives in git); another project's issue
+#: tracker (Mitsuba's, the Azure Kinect SDK's) is a reference a reader can follow
+_HISTORY = re.compile(r"(?<!Mitsuba )(?<!SDK )(?<!SDK's )\b[Ii]ssue \d+|\b20\d\d-[01]\d-[0-3]\d\b")
+
+
+def test_no_issue_numbers_or_dates_in_src_and_no_issue_numbers_in_docs():
+    root = os.path.dirname(SRC)
+    found = []
+    for folder, _, files in os.walk(os.path.join(SRC, "dopplertof")):
+        for name in files:
+            if name.endswith((".py", ".toml", ".xml")):
+                path = os.path.join(folder, name)
+                for number, line in enumerate(open(path, encoding="utf-8"), 1):
+                    if _HISTORY.search(line):
+                        found.append(f"{os.path.relpath(path, root)}:{number}")
+    issue = re.compile(_HISTORY.pattern.split("|")[0])
+    docs = [os.path.join(root, "README.md")] + [
+        os.path.join(root, "docs", n) for n in os.listdir(os.path.join(root, "docs"))
+        if n.endswith(".md")]
+    for path in docs:
+        for number, line in enumerate(open(path, encoding="utf-8"), 1):
+            if issue.search(line):
+                found.append(f"{os.path.relpath(path, root)}:{number}")
+    assert not found, "history outside git: " + ", ".join(found)

@@ -404,8 +404,11 @@ def run_command(command: str, scratch: str):
         os.chdir(here)
     if code != 0:
         raise RuntimeError(f"dopplertof {command} exited with {code}")
-    summary = os.path.join(out, "summary.json")
-    with open(summary if os.path.isfile(summary) else out + ".json", encoding="utf-8") as f:
+    from dopplertof.capture_summary import SUMMARY_JSON, read_capture
+
+    if os.path.isfile(os.path.join(out, SUMMARY_JSON)):  # (a capture's folder)
+        return read_capture(out).data
+    with open(out + ".json", encoding="utf-8") as f:  # (a command writing one file)
         return json.load(f)
 
 

@@ -135,7 +135,7 @@ def check_callable(value, name: str, optional: bool = True):
 def check_camera_capture(scene, camera, spp, seed, params, noise, noise_seed, on_frame,
                          checkpoint, preset_type):
     """The arguments of ``capture_camera`` (cameras/capture.py), each named when wrong
-    (issue 39: ``noise='no'`` turned the noise on, ``noise_seed=1.5`` was seed 1, a path
+    (``noise='no'`` turned the noise on, ``noise_seed=1.5`` was seed 1, a path
     or None for the camera an os.fspath TypeError); returns the scene as a DopplerScene.
     ``preset_type``: the camera preset class (cameras/ is above this module)."""
     if not isinstance(camera, (str, os.PathLike, preset_type)) or isinstance(camera, bytes):

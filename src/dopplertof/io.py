@@ -268,7 +268,7 @@ def output_folder(folder, name: str):
 
 @contextlib.contextmanager
 def new_folder(folder):
-    """A folder written whole, subfolders and all (issue 41: dataset exports): yields a
+    """A folder written whole, subfolders and all (dataset exports): yields a
     staging folder (a hidden sibling of ``folder``, locked by this process) that becomes
     ``folder`` in one rename when the block ends without an exception; on any failure it
     is removed and nothing is left (a killed run's staging folder is removed by the next
@@ -538,7 +538,7 @@ def write_json(path, data: dict) -> None:
 
 
 #: significant digits of a float64 written to JSON: the most that every decimal keeps
-#: through a double, so that sums' rounding (0.009999999999999998) reads 0.01 (issue 42)
+#: through a double, so that sums' rounding (0.009999999999999998) reads 0.01
 JSON_DIGITS = 15
 
 
@@ -858,11 +858,11 @@ def read_toml(path, error=ValueError) -> dict:
         with open(path, "rb") as f:
             data = f.read()
         # a UTF-8 byte-order mark (Windows editors write one) is no TOML statement: read
-        # past it (issue 39, D57: "Invalid statement (at line 1, column 1)")
+        # past it (tomllib says "Invalid statement (at line 1, column 1)")
         return tomllib.loads(data.removeprefix(b"\xef\xbb\xbf").decode("utf-8"))
     except tomllib.TOMLDecodeError as e:
         raise error(f"{path}: malformed TOML: {e}") from None
-    except UnicodeDecodeError as e:  # (issue 39: the file was not named)
+    except UnicodeDecodeError as e:  # (the file was not named)
         raise error(f"{path}: not a UTF-8 text file, as TOML must be (byte {e.start}: "
                     f"{e.reason}): save it as UTF-8") from None
     except OSError as e:

@@ -1,4 +1,4 @@
-"""Parameters of a D-ToF render (and of the FMCW lidar's, issue 43: FMCW_PARAMS): names,
+"""Parameters of a D-ToF render (and of the FMCW lidar's: FMCW_PARAMS): names,
 types, defaults and the derived quantities.
 
 Names and defaults follow the published implementation (design.md section 1). The same
@@ -113,7 +113,7 @@ class RenderParams:
     block_size: int = 0  #: no effect: the published scalar variants' tile size
     samples_per_pass: int = -1  #: samples per pixel per pass (-1: set by memory)
     timeout: float = -1.0  #: seconds; stop after the pass it expires in (< 0: none)
-    # ---- The FMCW lidar (issue 43: the ``fmcw`` command and dopplertof.fmcw only;
+    # ---- The FMCW lidar (the ``fmcw`` command and dopplertof.fmcw only;
     # docs/fmcw.md). Left out of the repr and at their defaults in image_defining(), so
     # that the D-ToF renders' and checkpoints' keys (that repr's digests) ignore them ----
     fmcw_wavelength: float = field(default=1550.0, repr=False)  #: lambda (nm)
@@ -378,7 +378,7 @@ class Modulation:
 
 #: parameters that decide how a render runs, never what it computes
 EXECUTION_PARAMS = ("is_doppler_integrator", "block_size", "samples_per_pass", "timeout")
-#: the FMCW lidar's parameters (issue 43; docs/fmcw.md): the D-ToF renders ignore them
+#: the FMCW lidar's parameters (docs/fmcw.md): the D-ToF renders ignore them
 FMCW_PARAMS = ("fmcw_wavelength", "fmcw_bandwidth", "fmcw_chirp_time", "fmcw_bins",
                "fmcw_beam", "fmcw_beam_intensity")
 #: the wavelengths an FMCW lidar may have (nm): ultraviolet to far infrared

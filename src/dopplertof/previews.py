@@ -2,8 +2,8 @@
 bar, titles and a caption, in a few milliseconds each.
 
 A capture writes a dozen previews, each one image with a colour bar. Drawing them with
-Matplotlib cost about 0.15 s apiece and its import half a second (issue 24, section 7:
-a small capture spent most of its time outside rendering on its pictures); here a
+Matplotlib cost about 0.15 s apiece and its import half a second (a small capture
+spent most of its time outside rendering on its pictures); here a
 preview is a NumPy raster of the data's colours with the texts set by FreeType. Plots
 (curves, legends, axes) stay with Matplotlib.
 

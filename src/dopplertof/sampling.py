@@ -64,7 +64,7 @@ ANTITHETIC_MAPPINGS = ("replay", "motion")
 DIM_TIME = 0  #: the time sample
 DIM_WAVELENGTH = 1  #: the wavelengths of the path (spectral variants)
 # (film positions come from CorrelatedStreams.film_2d; the D-ToF renders leave 2 and 3 free)
-DIM_BEAM_FILM = 2  #: FMCW's collimated beam: its spot's film position (2 numbers; issue 43)
+DIM_BEAM_FILM = 2  #: FMCW's collimated beam: its spot's film position (2 numbers)
 DIM_APERTURE = 4  #: lens position (2 numbers)
 DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here
 DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), spare (2)
@@ -74,7 +74,7 @@ BOUNCE_EMITTER = 0
 BOUNCE_BSDF_LOBE = 2
 BOUNCE_BSDF_DIR = 3
 BOUNCE_RR = 5
-BOUNCE_SPARE = 6  #: the two spare numbers (FMCW's speckle phases; issue 43)
+BOUNCE_SPARE = 6  #: the two spare numbers (FMCW's speckle phases)
 
 # TEA rounds: KEY_ROUNDS (sequences.py) to derive a lane's stream keys (once per path)
 # and 6 for its time numbers; the many numbers along a path use the cheaper integer hash.
@@ -326,7 +326,7 @@ class CorrelatedStreams:
 def index_major(mi, index_in_group, groups_per_pixel: int, group):
     """A sample's index-major index in its pixel's sequence, i * G + g, with the
     render's G (groups per pixel, from its spp) an opaque value: one kernel serves every
-    spp (issue 40)."""
+    spp."""
     import drjit as dr
 
     return index_in_group * dr.opaque(mi.UInt32, groups_per_pixel) + group

@@ -1,4 +1,4 @@
-"""A camera's depth accuracy on a flat diffuse wall, as makers specify it (issue 38).
+"""A camera's depth accuracy on a flat diffuse wall, as makers specify it.
 
 The wall faces the camera at distance d, albedo rho, with no light of its own: the
 preset's illuminator lights it (:func:`.capture.with_illuminator`), with ambient light

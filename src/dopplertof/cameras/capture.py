@@ -363,7 +363,7 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
     }
     if recon.velocity is not None:
         summary["errors"]["velocity_m_s"] = error_stats(recon.velocity, result.velocity_gt)
-    # keyframes shorter than the raw frames' span (issue 42: the starter sphere's 1.5 ms of
+    # keyframes shorter than the raw frames' span (the starter sphere's 1.5 ms of
     # motion through kinect-v2's 13 ms passed silently): the capture command prints it
     warning = keyframe_coverage_warning(scene.keyframe_span, scene.shutter_open + first,
                                         last - first, "the raw frames")
@@ -445,9 +445,10 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
     reaches past it; default the preset's view) added when it has no light at all (a
-    scene's own point and spot lights stand for it otherwise): at the preset's offset from the lens, riding with the camera. The offset
-    is in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left
-    and y up, so the light is translated by (-x, -y, z) in the camera's frame."""
+    scene's own point and spot lights stand for it otherwise): at the preset's offset
+    from the lens, riding with the camera. The offset is in OpenCV's camera axes (x
+    right, y down, z forward); Mitsuba's camera has x left and y up, so the light is
+    translated by (-x, -y, z) in the camera's frame."""
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(text)

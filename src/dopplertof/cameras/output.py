@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import io
+from ..capture_summary import SUMMARY_JSON, write_summary
 from ..tof import figures
 from ..tof.geometry import write_camera_files
 from ..tof.output import prepare_folder
@@ -30,7 +31,7 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
 def write_camera_result(result, folder, pointcloud: bool = False) -> list:
     """Every file of a camera frame into ``folder``, all or nothing (the output set
     "capture" of :func:`dopplertof.io.output_folder`, as a ToF capture's: an interrupted
-    write leaves the earlier capture whole, issue 39); returns the paths in order."""
+    write leaves the earlier capture whole); returns the paths in order."""
     with io.output_folder(prepare_folder(folder), "capture") as staged:
         _write_camera_files(result, staged.path)
         recon = result.reconstruction
@@ -55,12 +56,12 @@ def _write_camera_files(result, path) -> None:
     for name, (attribute, _) in MASKS.items():
         io.write_npy(path(f"{name}.npy"), _mask(result, attribute))
     _write_previews(result, path, camera)
-    io.write_json(path("summary.json"), summary)
+    write_summary(path(SUMMARY_JSON), "camera", summary)
 
 
 def _mask(result, attribute: str) -> np.ndarray:
     """The reconstruction's mask ``attribute``; the mixed footprints from the geometry,
-    whether masked or kept (issue 42: kept, the reconstruction's mask is all False and
+    whether masked or kept (kept, the reconstruction's mask is all False and
     the information was lost)."""
     if attribute == "mixed" and result.mixed_footprints is not None:
         return np.asarray(result.mixed_footprints, bool)

@@ -410,7 +410,7 @@ def _check_sequence(preset: CameraPreset) -> None:
     integer beat counts, unwrapping only with two frequencies or more."""
     path = preset.source_file
     # the beat counts first: a half beat makes its frame heterodyne and takes it from its
-    # frequency's phase steps (issue 39, 2026-12-03 campaign P28)
+    # frequency's phase steps
     for i, fr in enumerate(preset.frames):
         if abs(fr.hetero_frequency - round(fr.hetero_frequency)) > 1e-9:
             raise PresetError(f"{path}: frames[{i}].hetero_frequency must be an integer "

@@ -1,5 +1,5 @@
 """Absolute radiometry of a camera preset: photons at each pixel from the illuminator's
-power, the scene, the lens and the pixel (issue 38).
+power, the scene, the lens and the pixel.
 
 The renderer gives radiance in the units of the scene's light: a point light of
 radiant intensity I_s (W/sr) makes a diffuse wall of albedo rho at distance d facing it

@@ -29,7 +29,7 @@ LIGHT_PLACEMENTS = ("camera", "offset")
 MESH_EXTENSIONS = (".obj", ".ply")
 #: a mesh's largest |vertex coordinate| must lie in [MESH_LEAST_REACH, MESH_MOST_REACH]:
 #: it fits the cube [-1, 1]^3 that objects.size scales (a mesh in centimetres is 100 times
-#: too large, issue 41)
+#: too large)
 MESH_LEAST_REACH, MESH_MOST_REACH = 0.05, 1.01
 #: a shape's bounding radius per unit of size (a mesh fits the cube [-1, 1]^3)
 BOUNDING_RADIUS = {"sphere": 1.0, "cube": math.sqrt(3.0), "rectangle": math.sqrt(2.0),
@@ -211,7 +211,7 @@ def _typed(value, kind, check, where: str, meaning: str):
 
 #: the most samples one dataset folder plans: its dataset.json lists every sample (about
 #: 10 bytes each) and its plan holds a task per shard (samples = 10**12 planned for 50 s
-#: and ended in a MemoryError: issue 39, D34)
+#: and ended in a MemoryError)
 MAX_SAMPLES = 10_000_000
 
 
@@ -253,7 +253,7 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
 #: noiseless readout) and the direct split (dataset.sample)
 RENDERS_PER_FRAME = 2
 #: the longest a sample may take by the estimate `render` gives (budget.py), beyond
-#: which the configuration is refused (spp = 10**9 ran silently for days: issue 39, D49)
+#: which the configuration is refused (spp = 10**9 ran silently for days)
 MAX_SAMPLE_SECONDS = 24 * 3600.0
 
 
@@ -278,7 +278,7 @@ def describe_sample(render: dict, frames: int) -> str:
 
 def _check_size(render: dict, source: str) -> None:
     """A render's pass holds min(spp, 8192) samples of every pixel in one Dr.Jit array
-    (budget.py): past 2^32 entries no machine renders it (issue 39, 2026-12-03: a
+    (budget.py): past 2^32 entries no machine renders it (a
     resolution of [100000, 100000] failed every sample in the workers with Dr.Jit's
     ``jit_var_counter(): tried to create an array with 10000000000 entries``)."""
     from .. import budget
@@ -298,7 +298,7 @@ def _check_time(render: dict, frames: int, source: str) -> None:
     from ..params import RenderParams
 
     group = RenderParams().time_correlate_number  # the dataset's scenes use the integrator's default
-    if render["spp"] % group:  # (issue 39, D14: every sample failed in the workers)
+    if render["spp"] % group:  # (every sample would fail in the workers)
         raise DatasetError(
             f"{source}: render.spp = {render['spp']} is not a multiple of the correlated "
             f"group size {group} (time_correlate_number): use {group * -(-render['spp'] // group)}")
@@ -323,7 +323,7 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
 
     for path in mesh_files(folder):
         # what is wrong with the file first (a cut-off .obj read as NumPy's "inhomogeneous
-        # shape", a NaN vertex as a mesh to rescale: issue 39, 2026-12-03 rerun of D28)
+        # shape", a NaN vertex as a mesh to rescale)
         plugin = "obj" if path.lower().endswith(".obj") else "ply"
         problem = mesh_file_problem(path, plugin)
         if problem:
@@ -345,14 +345,14 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
 
 
 #: farthest a light offset may be from the camera, m (a point light's irradiance falls
-#: as 1/r^2: at 1e9 m every sample failed "nothing in the image is lit", issue 39, D55)
+#: as 1/r^2: at 1e9 m every sample failed "nothing in the image is lit")
 MAX_LIGHT_OFFSET = 1000.0
 
 
 def _check_something_lit(values: dict, source: str) -> None:
     """Every sample has something to see and a light that reaches it (each sample
     failed "nothing in the image is lit ...; give photons_per_unit", a key no dataset
-    has: issue 39, 2026-12-03 campaign D46, D55; D47 is light_intensity's range)."""
+    has, otherwise)."""
     import numpy as np
 
     backdrop, objects, light = values["backdrop"], values["objects"], values["light"]

@@ -14,7 +14,7 @@ the first unfinished one; its samples depend on (configuration, seed, index) onl
 the result is bitwise the same). A shard is complete when it holds every sample planned
 for it and every checksum matches (:func:`shards.shard_state`, every sample read): a
 missing, truncated, damaged or misplaced shard, or one with a failed sample, is
-rendered again (issue 39). Another configuration in the same folder is refused.
+rendered again. Another configuration in the same folder is refused.
 dataset.json holds the SHA-256 of the rest of its content (``sha256``); a reader, verify
 and export refuse one that does not match it, or whose shard list or units are not those
 its own samples, samples_per_shard and layout plan (:func:`dataset_json_problem`); a rerun
@@ -37,8 +37,8 @@ from .shards import shard_name, shard_state
 DATASET_JSON = "dataset.json"
 #: dataset.json's key holding the SHA-256 of its other keys (:func:`json_digest`)
 JSON_DIGEST = "sha256"
-#: format of the folder (2, 2026-12-03, issue 41: the camera's outputs, incidence,
-#: grazing and truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
+#: format of the folder (2: with the camera's outputs, incidence, grazing and
+#: truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
 LAYOUT_VERSION = 2
 READABLE_LAYOUTS = (1, 2)
 #: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
@@ -138,7 +138,7 @@ def plan_shards(config: DatasetConfig, output: str, variant: str,
 def check_variant(variant: str) -> None:
     """Refuse a Mitsuba variant the workers cannot render in, before dataset.json names
     it (a typo claimed the folder: the corrected rerun was refused as "another
-    configuration", issue 39, O04), or that this machine cannot run (a CUDA variant
+    configuration"), or that this machine cannot run (a CUDA variant
     without a GPU, O09)."""
     import mitsuba
 
@@ -148,7 +148,7 @@ def check_variant(variant: str) -> None:
     if problem is None and variant not in mitsuba.variants():
         problem = (f"unknown variant {variant!r}: this Mitsuba has "
                    f"{', '.join(v for v in mitsuba.variants() if variant_problem(v) is None)}")
-    if problem is None:  # (issue 39, O09: a CUDA variant without a GPU failed every shard)
+    if problem is None:  # (a CUDA variant without a GPU would fail every shard)
         problem = cuda_problem(mitsuba, variant)
     if problem:
         raise DatasetError(f"--variant: {problem}")
@@ -381,7 +381,7 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
 
 def announce_time(config: DatasetConfig, samples: int) -> None:
     """Say on stderr what the samples to render take when it is long, as `render` does
-    (a dataset with spp = 10**9 ran without a word: issue 39, 2026-12-03 campaign D49)."""
+    (a dataset with spp = 10**9 ran without a word)."""
     import sys
 
     from .. import budget

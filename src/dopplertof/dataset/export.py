@@ -1,4 +1,4 @@
-"""``dopplertof dataset export DIR --format flat|torf -o OUT`` (issue 41, 2026-12-03): a
+"""``dopplertof dataset export DIR --format flat|torf -o OUT``: a
 dataset in the layouts networks were trained on. Every field, its source and what of
 ours fills it are in docs/dataset.md (*Exports*); the sources were read for their layouts
 only (NVlabs/FLAT: README.md, sim/kinect_prepare.py, sim/kinect_spec.py, sim/tof_class.py,
@@ -223,7 +223,7 @@ def export_dataset(folder, fmt: str, output, skip_missing: bool = False) -> dict
         written = (_export_flat if fmt == "flat" else _export_torf)(ds, staging)
         info = {"format": fmt, "dataset": os.path.abspath(ds.folder), "samples": len(ds),
                 **({"missing_samples": missing} if missing else {}),
-                "documentation": "docs/dataset.md, Exports (issue 41)", **written}
+                "documentation": "docs/dataset.md, Exports", **written}
         with open(os.path.join(staging, "export.json"), "w", encoding="utf-8") as f:
             json.dump(info, f, indent=2)
     return info

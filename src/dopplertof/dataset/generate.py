@@ -32,7 +32,7 @@ OPENCV_TO_MITSUBA = np.diag([-1.0, -1.0, 1.0, 1.0])
 
 
 #: how many times a sample is drawn again (an object enclosing or touching the camera,
-#: nothing visible: issue 41) before it fails
+#: nothing visible) before it fails
 MAX_DRAWS = 16
 def sample_rng(config: DatasetConfig, index: int, draw: int = 0) -> np.random.Generator:
     """The random stream of sample ``index``'s ``draw``-th drawing (depends on the seed,
@@ -154,7 +154,7 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
     kind = str(rng.choice(objects["materials"]))
     material = {"kind": kind, "colour": [_uniform(rng, objects["albedo"]) for _ in range(3)]}
     roughness = _uniform(rng, objects["roughness"])  # drawn for every kind: same seed, same scene
-    if kind != "diffuse":  # a diffuse BSDF has no roughness (issue 42)
+    if kind != "diffuse":  # a diffuse BSDF has no roughness
         material["roughness"] = roughness
     return {"id": f"object_{k}", "shape": shape, "mesh": mesh, "size_m": size,
             "material": material,

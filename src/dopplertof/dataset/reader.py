@@ -32,7 +32,7 @@ class Dataset:
     ``ds.scene(i)`` the loaded scene. Files are opened per
     item, so that the object can be handed to forked loader processes.
 
-    Integrity (issue 39): a shard that is missing, truncated, damaged, of another
+    Integrity: a shard that is missing, truncated, damaged, of another
     configuration or holds other samples than planned is named when the folder is
     opened (a DatasetError; ``on_damage="skip"``: a warning, its samples left out and
     the shard listed in ``missing_shards``); every sample read is checked against its

@@ -24,7 +24,7 @@ from .scene_text import scene_xml
 #: the key suffix of each split's camera outputs (``camera_depth`` is the full split's,
 #: ``camera_depth_ideal`` the ideal one's...; the reader's split picks them as it picks raw)
 CAMERA_SPLITS = {"full": "", "ideal": "_ideal", "direct": "_direct"}
-#: what the camera reports from one split's raw frames (issue 41): name -> unit, stored as
+#: what the camera reports from one split's raw frames: name -> unit, stored as
 #: ``camera_<name><suffix>``; the masks are :data:`dopplertof.cameras.output.MASKS`'
 CAMERA_OUTPUTS = {"depth": "m", "depth_z": "m", "amplitude": "DN", "confidence": "m",
                   "phase": "rad", "radial_velocity": "m/s", "valid": "1",
@@ -72,8 +72,7 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
 def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tuple:
     """(description, scene XML, loaded scene, truth) of sample ``index``: its first
     drawing in which no object encloses the camera and something is visible (an object,
-    when it has any); drawn again up to MAX_DRAWS times, then a DatasetError saying why
-    (issue 41)."""
+    when it has any); drawn again up to MAX_DRAWS times, then a DatasetError saying why."""
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera

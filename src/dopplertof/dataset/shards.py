@@ -8,7 +8,7 @@ fletcher32 checksum, with their unit as the ``units`` attribute; nothing in the 
 records when it was written (h5py's groups and these datasets track no times), so that
 the same samples give the same bytes.
 
-Integrity (issue 39): every sample group holds ``sha256``, the SHA-256 of its arrays
+Integrity: every sample group holds ``sha256``, the SHA-256 of its arrays
 (dtype, shape, bytes), their units and its attributes, and the file holds ``sha256`` of
 its own attributes and its samples' digests. :func:`shard_state` checks a shard against
 what the dataset planned for it (present, readable, this configuration, the planned

@@ -1,4 +1,4 @@
-"""``dopplertof dataset show DIR [--samples 0,1,2] -o preview.png`` (issue 41): a row
+"""``dopplertof dataset show DIR [--samples 0,1,2] -o preview.png``: a row
 per sample of what a network sees and learns: the first raw frame, the camera's depth
 beside the truth and their error, the radial velocity truth and the camera's, the optical
 flow's magnitude and the instances, each with its colour bar; masked pixels hatched as

@@ -1,6 +1,5 @@
 """Every shape type and BSDF kind a dataset may draw, kept alive beside its samples, so
-that samples of other shapes and materials share their Dr.Jit kernels (issue 40,
-2026-12-03).
+that samples of other shapes and materials share their Dr.Jit kernels.
 
 The values of a sample (windows, motions, boxes, seeds, colours) enter the kernels as
 opaque values; what else a sample's scene decided was code:
@@ -59,7 +58,7 @@ def release_kinds() -> int:
     many sets were dropped. A process that goes on to render other scenes after a dataset
     calls it: Dr.Jit traces a call over Mitsuba's shapes and BSDFs once per instance
     alive, so the kept sets slow every later trace (a fit after six datasets' sets in one
-    process traced 7x slower, 2026-12-04). The next :func:`kinds_alive` makes them again."""
+    process traced 7x slower). The next :func:`kinds_alive` makes them again."""
     count = len(_ALIVE)
     _ALIVE.clear()
     return count

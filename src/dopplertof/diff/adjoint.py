@@ -111,7 +111,7 @@ def gradient(dscene, loss, names=None, spp: int | None = 64, seed: int = 0, para
 
 
 def _request(dscene, loss, names, spp, seed, params):
-    """:func:`gradient`'s arguments checked (issue 39: each wrong one named):
+    """:func:`gradient`'s arguments checked (each wrong one named):
     (DifferentiableScene, names, spp, seed, render parameters)."""
     from ..arguments import check_callable, check_params, check_seed, check_spp
 
@@ -127,7 +127,7 @@ def _request(dscene, loss, names, spp, seed, params):
 def as_differentiable(dscene):
     """``dscene`` as a DifferentiableScene: one as is, a DopplerScene (or a plain
     ``mi.Scene``) made one at its own velocities; anything else a TypeError saying what
-    to pass (a DopplerScene raised AttributeError 'no attribute mi': issue 39, A61)."""
+    to pass (a DopplerScene raised AttributeError 'no attribute mi')."""
     from ..arguments import check_scene
 
     if isinstance(dscene, DifferentiableScene):

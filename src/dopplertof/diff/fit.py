@@ -34,8 +34,8 @@ residuals' samples (:data:`JACOBIAN_SHARE`), each body's columns over its own pi
 The iterations stop on a plateau (a step lowering the loss by less than :data:`PLATEAU`
 of itself) or a step below ``tolerance``.
 
-The uncertainties are the sandwich covariance of the fit's estimate (issue 42,
-2026-12-04; :mod:`.fit_noise`): cov = G^+ (sum over blocks of J_i^T S_i J_i) G^+, S_i each
+The uncertainties are the sandwich covariance of the fit's estimate
+(:mod:`.fit_noise`): cov = G^+ (sum over blocks of J_i^T S_i J_i) G^+, S_i each
 block's noise across the capture kinds, the renders' from the two seeds' per-pixel
 difference, the capture's from its std maps, its samples or the residuals, scaled by the
 Birge ratio only where the residuals exceed what that noise predicts significantly
@@ -84,14 +84,13 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     the capture's + 1, independent of its noise); ``block``: the residuals are sums over
     blocks of block x block interior pixels of one body (the module docstring says why);
     the iterations stop at a step below ``tolerance`` of the velocities, or on a
-    plateau: a step that lowers the loss by less than ``plateau`` of itself; ``jacobian_spp``: samples per pixel of the
-    Jacobian's renders (default :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
+    plateau: a step that lowers the loss by less than ``plateau`` of itself;
+    ``jacobian_spp``: samples per pixel of the Jacobian's renders (default
+    :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
     (True; None: when stderr is a terminal), else (None) one line per iteration on
     stderr, or nothing (False). ``reflectances``: fit :func:`reflectance_keys` too, on
     :data:`REFLECTANCE_CAPTURES`."""
     data = load_capture(folder, defines, FIT_CAPTURES + REFLECTANCE_CAPTURES * reflectances)
-    if not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise FitError(f"spp must be a positive integer, got {spp!r}")
     jacobian_spp = _jacobian_samples(spp, jacobian_spp, data.base)
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
     seed = check_seed(seed, "seed", FitError)  # (renders of seed and seed + 1: < 2^64)
@@ -190,8 +189,12 @@ def _unconstrained(names, theta, first: dict, sigma, directions) -> dict:
 def _jacobian_samples(spp: int, jacobian_spp, base) -> int:
     """The Jacobian's samples per pixel: ``jacobian_spp`` (checked against the
     capture's sample groups), else the largest divisor of ``spp`` at most
-    :data:`JACOBIAN_SHARE` of it that the sample groups allow, else ``spp``."""
+    :data:`JACOBIAN_SHARE` of it that the sample groups allow, else ``spp`` (a
+    FitError where ``spp`` is no positive integer)."""
     from ..sampling import check_sample_count
+
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise FitError(f"spp must be a positive integer, got {spp!r}")
 
     def usable(n) -> bool:
         try:

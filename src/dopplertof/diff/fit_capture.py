@@ -4,7 +4,6 @@ See :mod:`dopplertof.diff.fit`."""
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -53,29 +52,32 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
     res, resx/resy, width/height), the capture's -D values (summary.json's
     ``scene_defines``, written by ``dopplertof capture``) and ``defines`` (-D values of
     the fit, which take precedence)."""
-    import dopplertof
+    from ..capture_summary import CaptureFolderError, read_capture
     from ..params import RenderParams
 
-    folder = os.fspath(folder)
-    summary_path = os.path.join(folder, "summary.json")
-    if not os.path.isdir(folder):
-        raise FitError(f"capture folder not found: {folder}")
-    if not os.path.isfile(summary_path):
-        raise FitError(f"{folder} has no summary.json: not a folder written by "
-                       "`dopplertof capture`")
     try:
-        with open(summary_path, encoding="utf-8") as f:
-            summary = json.load(f)
-        _check_capture_kind(summary, summary_path)
-        scene_path = summary["scene"]
-        width, height = summary["resolution"]
-        records = {r["name"]: r for r in summary["captures"]}
+        summary = read_capture(folder, kind="dtof")
+        records, width_height = summary.records, summary.resolution
+        scene = _scene_at(summary, width_height, defines)
         params = summary["render_params"]
-    except KeyError as e:
-        raise FitError(f"{summary_path} cannot be read as a capture summary: key {e} is "
-                       "missing (write the folder again with `dopplertof capture`)") from None
-    except (ValueError, TypeError) as e:
-        raise FitError(f"{summary_path} cannot be read as a capture summary: {e}") from None
+    except CaptureFolderError as e:
+        raise FitError(str(e)) from None
+    base = RenderParams.from_mapping({k: v for k, v in params.items() if v is not None},
+                                     where=f"{summary.path} render_params")
+    captures = {name: _capture_image(summary, records, name, width_height)
+                for name in fitted}
+    vpath = summary.file("velocity.npy")
+    velocity = np.load(vpath).astype(np.float64) if os.path.isfile(vpath) else None
+    return CaptureData(scene, base, summary.data, captures, records, velocity,
+                       load_std_maps(summary.folder, fitted))
+
+
+def _scene_at(summary, width_height, defines):
+    """The capture's scene at the captures' resolution with its -D values and the fit's."""
+    import dopplertof
+
+    width, height = width_height
+    scene_path = summary["scene"]
     if not os.path.isfile(scene_path):
         raise FitError(f"the capture's scene file is not found: {scene_path}")
     declared = _declared_defaults(scene_path)
@@ -84,7 +86,7 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
                         ("resy", height), ("height", height)):
         if name in declared and (name != "res" or width == height):
             overrides[name] = str(value)
-    # the capture's own -D values (summary.json's scene_defines, issue 42), then the fit's
+    # the capture's own -D values (summary.json's scene_defines), then the fit's
     overrides.update({str(k): str(v) for k, v in (summary.get("scene_defines") or {}).items()})
     overrides.update(defines or {})
     scene = dopplertof.load_file(scene_path, overrides)
@@ -94,45 +96,25 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
                        f"{width}x{height}: pass the capture's -D values")
     if not scene.bodies:
         raise FitError(f"{scene_path} has no moving body: nothing to fit")
-    base = RenderParams.from_mapping({k: v for k, v in params.items() if v is not None},
-                                     where=f"{summary_path} render_params")
-    captures = {}
-    for name in fitted:
-        path = os.path.join(folder, f"{name}.npy")
-        if name not in records or not os.path.isfile(path):
-            raise FitError(f"{folder} has no {name}.npy: the fit needs the "
-                           f"{name.split('_')[0]} captures")
-        image = np.load(path).astype(np.float64)
-        if image.shape != (height, width):
-            raise FitError(f"{path} is {image.shape}, not the summary's {height}x{width}")
-        bad = int(np.count_nonzero(~np.isfinite(image)))
-        if bad:
-            raise FitError(f"{path}: {bad} of {image.size} pixels are NaN or infinite: the "
-                           "fit needs finite captures (write the folder again with "
-                           "`dopplertof capture`)")
-        captures[name] = image
-    vpath = os.path.join(folder, "velocity.npy")
-    velocity = np.load(vpath).astype(np.float64) if os.path.isfile(vpath) else None
-    return CaptureData(scene, base, summary, captures, records, velocity,
-                       load_std_maps(folder, fitted))
+    return scene
 
 
-#: summary.json keys of the folders other commands write, and what each folder is
-OTHER_CAPTURES = {
-    "camera": "a camera capture (`dopplertof capture --camera`): its raw frames are a "
-              "camera's, not the heterodyne captures the fit renders",
-    "chirp": "an FMCW capture (`dopplertof fmcw`)",
-}
-
-
-def _check_capture_kind(summary, summary_path: str) -> None:
-    """A FitError naming the command whose folder ``summary`` is, where it is not one of
-    `dopplertof capture` without --camera (the folders the fit reads)."""
-    if isinstance(summary, dict) and "captures" not in summary:
-        for key, what in OTHER_CAPTURES.items():
-            if key in summary:
-                raise FitError(f"{summary_path} is {what}: the fit reads folders of "
-                               "`dopplertof capture SCENE -o DIR` (without --camera)")
+def _capture_image(summary, records, name: str, width_height):
+    """The capture ``name`` of the folder (float64), checked against its summary."""
+    width, height = width_height
+    path = summary.file(f"{name}.npy")
+    if name not in records or not os.path.isfile(path):
+        raise FitError(f"{summary.folder} has no {name}.npy: the fit needs the "
+                       f"{name.split('_')[0]} captures")
+    image = np.load(path).astype(np.float64)
+    if image.shape != (height, width):
+        raise FitError(f"{path} is {image.shape}, not the summary's {height}x{width}")
+    bad = int(np.count_nonzero(~np.isfinite(image)))
+    if bad:
+        raise FitError(f"{path}: {bad} of {image.size} pixels are NaN or infinite: the "
+                       "fit needs finite captures (write the folder again with "
+                       "`dopplertof capture`)")
+    return image
 
 
 def check_start_velocity(velocity, where: str) -> list:

@@ -1,5 +1,5 @@
 """The fit's noise: each residual's variance, estimated from what the fit already has,
-and the sandwich covariance of the fitted parameters (issue 42, 2026-12-04).
+and the sandwich covariance of the fitted parameters.
 
 The fit's residuals are block sums of render - capture. Their noise is not the same
 everywhere (the Monte Carlo noise of a block depends on its brightness, its pixel count

@@ -44,7 +44,7 @@ def write_fit(result: FitResult, folder) -> list:
 def _vector(values, uncertainties, unit: str, statuses=None) -> str:
     """(x +- sx, y +- sy, z +- sz) unit; a component without an uncertainty says what
     happened to it (its status in fit.json: kept at its start, or moved and unconstrained
-    at the end; issue 42: every such component read "kept at its start")."""
+    at the end), not "kept at its start" for every one."""
     parts = []
     for value, sigma, status in zip(values, uncertainties or [None] * 3,
                                     statuses or ["no uncertainty"] * 3):

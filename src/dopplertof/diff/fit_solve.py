@@ -289,7 +289,7 @@ PARTLY_FIXED = "in a combination the captures do not see, kept at its start: no 
 def _statuses(values, start, sigma, partly_fixed=(False, False, False)) -> list:
     """Per component: :data:`FITTED` (a finite uncertainty), else :data:`PARTLY_FIXED`
     where it weighs on a combination the captures do not constrain, else :data:`KEPT`
-    where the value is its start's, else :data:`MOVED_UNCONSTRAINED` (issue 42: a
+    where the value is its start's, else :data:`MOVED_UNCONSTRAINED` (a
     component the start's Jacobian saw and the fit moved, 0 to 20.4 rad/s, but the final
     Jacobian did not constrain, was labelled as kept at its start)."""
     return [FITTED if np.isfinite(s) else PARTLY_FIXED if fixed else KEPT if v == s0
@@ -441,8 +441,8 @@ def _residual_variance(residuals, parameters: int, explained: float = 0.0) -> fl
 
 
 #: a standard deviation above this many times the fitted parameters' norm (at least 1)
-#: is no result: the captures do not determine the parameter (issue 39, 2026-12-03
-#: campaign F00: a velocity of -19.87 +- 1.17e9 m/s was reported)
+#: is no result: the captures do not determine the parameter (a velocity of -19.87 +-
+#: 1.17e9 m/s is not one)
 UNDETERMINED = 1e3
 
 
@@ -487,7 +487,7 @@ def _covariance(state, seen, theta=None, noise=None, report=None):
 
 
 #: a parameter whose unit direction (columns scaled) weighs at least this on a combination
-#: the captures do not constrain is not determined by them (issue 42, 2026-12-04: the
+#: the captures do not constrain is not determined by them (the
 #: cameras_moving box's front face sees only the velocity along its normal; v_x and v_z
 #: each passed the column test, the pseudo-inverse dropped their in-plane combination and
 #: gave it no variance: errors of -588 reported standard deviations)
@@ -495,7 +495,7 @@ FIXED_WEIGHT = 0.1
 
 #: a radial velocity whose gradient weighs this fraction of its norm on a parameter without
 #: an uncertainty has none either: its error along it is the prior's, not the noise's
-#: (issue 42, 2026-12-04: the street's pedestrian, its uncertainty leaving out its unseen
+#: (the street's pedestrian, its uncertainty leaving out its unseen
 #: components, read -184.7 sd; that box's, its body in a fixed combination, +16.8 sd)
 RADIAL_BLIND = 0.01
 
@@ -536,7 +536,7 @@ def _radial_uncertainty(g, cov, sigma, partly, own):
 
 
 def _old_covariance(state, seen):
-    """The uncertainties before 2026-12-04 (issue 42), for comparison only
+    """The plain uncertainties s^2 (J^T J)^+ (one variance for every residual), for comparison only
     (benchmarks/fit_uncertainty.py): cov = s^2 (J^T J)^+, s^2 the squared residual of
     the two renders' mean over its degrees of freedom (one variance for every residual)."""
     residuals, jacobians = state
@@ -608,9 +608,8 @@ def _blocks(masks, block: int) -> np.ndarray:
 
 
 #: a Jacobian column whose energy is below this fraction of the largest column's is
-#: rounding, not signal (issue 39, 2026-12-03 campaign F00: the tall box's vertical
-#: velocity, 4e-24 beside 5e-7, the same in both seeds' renders, passed the signal test;
-#: the fit moved it and reported -19.87 +- 1.17e9 m/s)
+#: rounding, not signal (the demo's tall box's vertical velocity: 4e-24 beside 5e-7, the
+#: same in both seeds' renders; fitted, it gave -19.87 +- 1.17e9 m/s)
 NEGLIGIBLE_COLUMN = 1e-12
 
 

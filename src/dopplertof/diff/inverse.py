@@ -51,7 +51,7 @@ class InverseResult:
 
     def __repr__(self) -> str:
         """One line: the values (an array by its shape and mean), the iterations and the
-        last loss; not the history (issue 42: print() showed all of it)."""
+        last loss; not the history (print() showed all of it)."""
         values = ", ".join(f"{n}: {_short(v)}" for n, v in self.values.items())
         last = self.history[-1] if self.history else {}
         loss = f", loss {last['loss']:.4g}" if "loss" in last else ""

@@ -5,9 +5,9 @@ The plain squared loss of one render R against a target C,
     |R - C|^2 = |E R - C|^2 + |R - E R|^2 + (a zero-mean term),
 
 adds the render's variance, which depends on the parameters (a faster body spreads its
-samples' Doppler phases wider): its minimum is away from the truth by O(1/spp) (issue 42:
-on the demo the loss was lower at vz = 1.5 than at the true 3.0). The cross-seed loss of
-two renders of independent seeds A and B,
+samples' Doppler phases wider): its minimum is away from the truth by O(1/spp) (on the
+demo the loss was lower at vz = 1.5 than at the true 3.0). The cross-seed loss of two
+renders of independent seeds A and B,
 
     L = (R_A - C) . (R_B - C),
 

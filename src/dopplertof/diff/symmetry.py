@@ -1,5 +1,4 @@
-"""Axes about which a body's surface maps onto itself: spins a D-ToF capture cannot see
-(issue 42, 2026-12-03).
+"""Axes about which a body's surface maps onto itself: spins a D-ToF capture cannot see.
 
 A capture measures how each path's length changes. A body turning about an axis of
 rotational symmetry through its pivot (a torus about its axis, a sphere about any)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..capture_summary import SUMMARY_JSON, write_summary
 from .cluster import DEFAULT_RETRIES, run_in_folder
 from .config import ConfigError, check_render_settings, load_scene_facts
 from .tasks import (PARAMS_JSON, begin_task, check_unchanged, finish_task, is_complete,
@@ -35,7 +36,7 @@ VELOCITY_GIF = "velocity.gif"
 
 #: arrays every frame folder holds (the captures' own .npy files come with them)
 FRAME_ARRAYS = ("velocity.npy", "velocity_gt.npy", "depth.npy", "depth_gt.npy", "radiance.npy")
-FRAME_FILES = FRAME_ARRAYS + ("velocity.exr", "summary.json", PARAMS_JSON)
+FRAME_FILES = FRAME_ARRAYS + ("velocity.exr", SUMMARY_JSON, PARAMS_JSON)
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ def run_frame_task(task: FrameTask) -> dict:
             io.write_npy(os.path.join(task.folder, f"{name}.npy"),
                          np.asarray(array, dtype=np.float32))
         io.write_npy(os.path.join(task.folder, "radiance.npy"), result.radiance)
-        io.write_json(os.path.join(task.folder, "summary.json"), result.summary)
+        write_summary(os.path.join(task.folder, SUMMARY_JSON), "dtof", result.summary)
     io.write_exr(os.path.join(task.folder, "velocity.exr"),
                  np.asarray(result.velocity, dtype=np.float32),
                  {"quantity": "radial velocity, m/s, > 0 receding",

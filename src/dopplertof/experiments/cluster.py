@@ -97,8 +97,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
 
 def _check_workers(client, scheduler: str) -> None:
     """:func:`cluster_checks.check_workers` with its error a ClusterError (a worker
-    without dopplertof read as a broken local install, or hung the run: issue 39,
-    2026-12-03 campaign P1-14 to P1-16)."""
+    without dopplertof read as a broken local install, or hung the run)."""
     from .cluster_checks import WorkerCheckError, check_workers
 
     try:
@@ -109,7 +108,7 @@ def _check_workers(client, scheduler: str) -> None:
 
 def _close_quietly(client) -> None:
     """Close ``client`` without Dask's log records: a client that lost its scheduler
-    logs its reconnection's CancelledError traceback as it closes (issue 39, P1-09)."""
+    logs its reconnection's CancelledError traceback as it closes."""
     names = ["distributed"] + [n for n in logging.root.manager.loggerDict
                                if n.startswith("distributed.")]
     loggers = [(logging.getLogger(n), logging.getLogger(n).disabled) for n in names]
@@ -127,7 +126,7 @@ def _dask_logs_to(client, log_file: str | None, release: bool = False):
     """Send the workers' stderr (present and restarted ones) and this process's Dask
     log records to ``log_file`` (appended) while the block runs. ``release``: the
     workers outlive the run (an external scheduler's): their stderr is their own again
-    once it ends (issue 39, 2026-12-03 campaign P1-17)."""
+    once it ends."""
     if log_file is None:
         yield
         return
@@ -201,7 +200,7 @@ def _spawned_stderr_to(log_file: str | None):
     ``log_file`` (appended) as their stderr, and so has this process meanwhile. A worker
     whose driver was killed before it wrote the worker's start-up data into its pipe
     printed multiprocessing's `EOFError: Ran out of input` traceback on the user's
-    terminal after the driver died (issue 39, 2026-12-03 campaign G16); it goes to the
+    terminal after the driver died; it goes to the
     run's log now. The worker plugin sends a worker's stderr there once it runs."""
     if log_file is None:
         yield
@@ -228,7 +227,7 @@ def _workers_ignore_ctrl_c():
     runs: the threads started meanwhile (the cluster's) and the processes they spawn
     inherit the blocked signal, across exec too. A Ctrl-C meanwhile is held, not lost:
     yields a list that holds it once the block ends (it was ignored, SIG_IGN, and the run
-    went on to exit 0: issue 39, 2026-12-03 campaign G11, G18-G21); the caller stops
+    went on to exit 0); the caller stops
     what it started, then :func:`_deliver_ctrl_c`."""
     import signal
     import threading
@@ -292,7 +291,7 @@ def task_key(task, run: str) -> str:
     and a digest of its spec hash and the run, so that two runs of the same
     configuration on one scheduler (into two folders, or one after the other) never
     share a task (a shared key attaches the second run's futures to the first run's
-    results, rendered into the first run's folder: issue 39, P1-19 to P1-21)."""
+    results, rendered into the first run's folder)."""
     from .tasks import spec_hash
 
     return f"dopplertof-{task.name}-{spec_hash([task.hash, run])[:16]}"
@@ -378,8 +377,8 @@ def _lost(client) -> bool:
 
 def _check_scheduler(client, batch) -> None:
     """Raise ClusterError when ``client`` lost its scheduler: its futures end as
-    cancelled, each without a word of the cause (issue 39, 2026-12-03 campaign P1-07,
-    P1-09: "task ended as cancelled" lines and a Dask traceback). A future of this run
+    cancelled, each without a word of the cause ("task ended as cancelled" lines and a
+    Dask traceback). A future of this run
     ends as cancelled only so (no one else knows its key), the client reconnected to a
     scheduler restarted at once or not."""
     from .cluster_checks import lost_scheduler_message, scheduler_lost
@@ -426,7 +425,7 @@ class _WorkerWatch:
         return self.alone_since is not None and now - self.alone_since >= self.timeout
 
     def error(self) -> str:
-        if not self.seen:  # (not "killed": there never was one, issue 39, P1-15)
+        if not self.seen:  # (not "killed": there never was one)
             return (f"the Dask scheduler has had no worker for {self.timeout:g} s; not "
                     "run")
         return (f"no Dask worker left for {self.timeout:g} s (workers killed or out of "

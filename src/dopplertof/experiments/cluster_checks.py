@@ -1,6 +1,5 @@
 """Checks of an external Dask scheduler's workers before a run submits anything to them,
-and the words for a scheduler lost in the middle of a run (issue 39, 2026-12-03
-campaign P1-07, P1-09, P1-14 to P1-16)."""
+and the words for a scheduler lost in the middle of a run."""
 
 from __future__ import annotations
 

@@ -20,8 +20,7 @@ class WorkerStderrToFile(WorkerPlugin):
     task's traceback go) appends to ``path``; a worker that restarts runs it again.
 
     Not idempotent: each run's registration replaces the one before (the first run's
-    path stuck on an external scheduler, every later run's log stayed empty: issue 39,
-    2026-12-03 campaign P1-17)."""
+    path stuck on an external scheduler, every later run's log stayed empty)."""
 
     idempotent = False
 
@@ -44,7 +43,7 @@ class WorkerStderrToFile(WorkerPlugin):
 
     def teardown(self, worker) -> None:
         """The worker is closing (its first step, before its connections close): what it
-        says from here on is its shutdown's noise (issue 42: a CommClosedError traceback
+        says from here on is its shutdown's noise (a CommClosedError traceback
         in workers.log after a successful run, from a heartbeat racing the scheduler's
         close), so its stderr goes to /dev/null. The plugin removed from a running
         worker (the run is over): its own stderr again."""

@@ -1,4 +1,4 @@
-"""FMCW lidar on the D-ToF scenes (issue 43): the up and down chirps' beat spectra of
+"""FMCW lidar on the D-ToF scenes: the up and down chirps' beat spectra of
 every pixel, range and radial velocity from their peaks, against the exact truth.
 
     import dopplertof

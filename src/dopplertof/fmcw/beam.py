@@ -1,4 +1,4 @@
-"""The lidar's beam (docs/fmcw.md section 2; issue 43): "flood", the scene's emitters
+"""The lidar's beam (docs/fmcw.md section 2): "flood", the scene's emitters
 light the whole view (the D-ToF captures' light); or "collimated", each pixel its own beam
 from the camera centre along its rays, of radiant intensity I (W/sr) within the pixel's
 cone, and no other light.

@@ -1,5 +1,5 @@
 """One FMCW frame of a scene: its spectra, range and radial velocity per pixel from
-the up and down peaks, the exact truth and the errors (docs/fmcw.md; issue 43).
+the up and down peaks, the exact truth and the errors (docs/fmcw.md).
 
 The output folder (the set "fmcw" of :func:`dopplertof.io.output_folder`, all or
 nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import io
+from ..capture_summary import SUMMARY_JSON, write_summary
 from ..tof.summary import STATIC_SURFACES, error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
 from ..arguments import is_integer
@@ -76,7 +77,7 @@ class FMCWResult:
             if self.ambiguous is not None:
                 io.write_npy(path("ambiguous.npy"), self.ambiguous)
             self._write_previews(path)
-            io.write_json(path("summary.json"), self.summary)
+            write_summary(path(SUMMARY_JSON), "fmcw", self.summary)
         return staged.written
 
 
@@ -251,7 +252,7 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
     folding_record, ambiguous, warning = folding(chirp, truth, beats[..., 0])
     spp = scene.spp if spp is None else spp
     summary = {
-        "issue": 43, "scene": getattr(scene, "source", None), "spp": int(spp),
+        "scene": getattr(scene, "source", None), "spp": int(spp),
         "seed": int(seed), "resolution": [spectrum.shape[1], spectrum.shape[0]],
         "time_s": t0, "chirp": chirp.record(), "render_seconds": seconds,
         "light_at_camera": light_colocation(scene).get("colocated"),

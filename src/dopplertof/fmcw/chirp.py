@@ -1,4 +1,4 @@
-"""An FMCW lidar's chirp pair and its beat frequencies (docs/fmcw.md; issue 43).
+"""An FMCW lidar's chirp pair and its beat frequencies (docs/fmcw.md).
 
 A laser at wavelength ``wavelength`` sweeps its optical frequency linearly by
 ``bandwidth`` over ``chirp_time`` (the up chirp), then back (the down chirp). A path of

@@ -1,4 +1,4 @@
-"""``dopplertof fmcw SCENE.xml -o DIR``: one FMCW lidar frame (issue 43; docs/fmcw.md).
+"""``dopplertof fmcw SCENE.xml -o DIR``: one FMCW lidar frame (docs/fmcw.md).
 
 Imports nothing heavy at module level: the command line's parser builds this command
 without NumPy or Mitsuba.

@@ -1,5 +1,5 @@
 """The FMCW spectra: the D-ToF path tracer's steps, each contribution splatted at its
-beat frequencies (docs/fmcw.md; issue 43).
+beat frequencies (docs/fmcw.md).
 
 A chirp lasts microseconds: the scene is traced at one instant t0 (mid-exposure, the
 time of the ground truth). Each lane starts as the D-ToF integrator's (film position,

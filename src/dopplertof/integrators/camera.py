@@ -43,7 +43,7 @@ def pinhole_intrinsics(width: int, height: int, fov_x_deg: float) -> np.ndarray:
 
 
 class LensDistortion:
-    """Brown-Conrady distortion of a pinhole's rays, OpenCV's model (issue 38).
+    """Brown-Conrady distortion of a pinhole's rays, OpenCV's model.
 
     In normalized image coordinates (x, y) = ((u - c_x) / f, (v - c_y) / f) of pixel
     coordinates (u, v) (x right, y down; K of focal length f = W / (2 tan(fov_x / 2))
@@ -192,7 +192,7 @@ class PinholeProjection:
         if not np.allclose(a * slope[:, 3] + b, film[:, 3], atol=1e-4):
             raise ValueError("the sensor's rays do not follow a pinhole film map")
         f = to_world[:3, 2] / np.linalg.norm(to_world[:3, 2])
-        # opaque values: one kernel for every camera pose and film map (issue 40)
+        # opaque values: one kernel for every camera pose and film map
         self.a, self.b, self.to_camera, self.center, self.forward = opaque_tree(
             mi.Float, [a.tolist(), b.tolist(), [to_camera[i].tolist() for i in range(3)],
                        to_world[:3, 3].tolist(), f.tolist()])

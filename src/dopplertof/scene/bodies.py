@@ -80,7 +80,7 @@ class BodyFrames:
 def opaque_box(mi, box):
     """A ScalarBoundingBox3f as a Dr.Jit BoundingBox3f of opaque corners: the kernels
     that test rays against it read its corners as parameters, so that a new window or
-    motion (a new swept box) compiles no new kernel (issue 40)."""
+    motion (a new swept box) compiles no new kernel."""
     def corner(p):
         return mi.Point3f(*opaque_tree(mi.Float, [float(p[i]) for i in range(3)]))
 

@@ -219,7 +219,7 @@ class Motion:
         """:meth:`_plain_numbers` as the evaluation at times ``t`` reads them: Python
         floats for NumPy times, and for Dr.Jit times opaque scalars of their type (made
         once per motion), so that a kernel does not depend on the keyframes' values
-        (issue 40: one compiled kernel for every window and motion of a scene's shape)."""
+        (one compiled kernel for every window and motion of a scene's shape)."""
         if _is_numpy(t):
             return self._numbers
         kind = type(t)
@@ -322,7 +322,7 @@ class Motion:
 def opaque_tree(kind, tree):
     """``tree`` (nested lists and dicts of floats, and None) with each float an opaque
     Dr.Jit scalar of type ``kind``: a kernel reads it as a parameter, not a literal of
-    its code (issue 40: values that vary per capture compile no new kernel)."""
+    its code (values that vary per capture compile no new kernel)."""
     import drjit as dr
 
     if isinstance(tree, dict):
@@ -334,7 +334,7 @@ def opaque_tree(kind, tree):
 
 def lane_times(mi, time, width: int):
     """``width`` lanes of Dr.Jit Float at the one time ``time`` (s; a float, or an opaque
-    scalar), which the kernel reads as a parameter, not a literal (issue 40)."""
+    scalar), which the kernel reads as a parameter, not a literal."""
     import drjit as dr
 
     if not isinstance(time, mi.Float):

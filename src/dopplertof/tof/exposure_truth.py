@@ -1,4 +1,4 @@
-"""The truth over the exposure, not only at its middle (issue 42 item 12, 2026-12-03).
+"""The truth over the exposure, not only at its middle.
 
 ``velocity_gt.npy`` is the radial velocity at mid-exposure along each pixel-centre ray
 (:mod:`.ground_truth`). A sinusoidal heterodyne capture with h beat periods per exposure

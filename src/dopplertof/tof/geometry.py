@@ -1,4 +1,4 @@
-"""A capture's camera geometry (issue 41, 2026-12-03): ``camera.json`` (intrinsics, lens
+"""A capture's camera geometry: ``camera.json`` (intrinsics, lens
 distortion, pose, resolution, units) and ``pointcloud.ply`` (the camera's depth
 unprojected into the world).
 
@@ -138,4 +138,4 @@ def write_camera_files(path, geometry: dict, pointcloud: bool, depth, amplitude,
     if pointcloud:
         io.write_ply(path("pointcloud.ply"),
                      point_cloud(geometry, depth, amplitude, velocity, velocity_gt),
-                     comment="dopplertof capture: one vertex per pixel, row-major (issue 41)")
+                     comment="dopplertof capture: one vertex per pixel, row-major")

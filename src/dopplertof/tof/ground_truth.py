@@ -118,7 +118,7 @@ def _as_numpy(v) -> np.ndarray:
 
 
 #: film offsets (pixels) of the rays tried again where the pixel-centre ray hits nothing:
-#: a centre ray can pass exactly through the crease of two meshes (issue 42: the demo's
+#: a centre ray can pass exactly through the crease of two meshes (the demo's
 #: truth had a NaN at pixel (2, 125), on the closed box's edge where the ceiling meets a
 #: wall); a ten-thousandth of a pixel to each side finds the surface there
 CRACK_NUDGES = ((0.0, 0.0), (1e-4, 0.0), (-1e-4, 0.0), (0.0, 1e-4), (0.0, -1e-4))

@@ -12,6 +12,7 @@ import os
 import numpy as np
 
 from .. import io, previews
+from ..capture_summary import SUMMARY_JSON, write_summary
 from . import figures
 from . import reconstruct as rec
 from .geometry import write_camera_files
@@ -32,7 +33,7 @@ def write_result(result, folder, pointcloud: bool = False) -> list:
     """Every file of a capture (see the module docstring) into ``folder`` (created if
     missing), all or nothing (:func:`dopplertof.io.output_folder`: the files of an
     earlier capture there are replaced together, those it wrote and this one does not
-    are removed); camera.json, and pointcloud.ply with ``pointcloud`` (issue 41);
+    are removed); camera.json, and pointcloud.ply with ``pointcloud``;
     returns the paths in the order written."""
     summary = result.summary
     noisy = " (with sensor noise)" if summary.get("noise") else ""
@@ -50,7 +51,7 @@ def write_result(result, folder, pointcloud: bool = False) -> list:
             # NaN where the noise-free reconstruction is
             write_uncertainty(result.uncertainty, path, result.noise_free or recon, truth)
         _write_geometry(result, path, pointcloud)
-        io.write_json(path("summary.json"), summary)
+        write_summary(path(SUMMARY_JSON), "dtof", summary)
     return staged.written
 
 

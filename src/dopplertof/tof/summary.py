@@ -265,7 +265,7 @@ def body_lines(summary: dict) -> list:
                      f" m/s over {err['pixels']} of {body['pixels']} pixels; {truth}")
     max_depth = summary.get("render_params", {}).get("max_depth", -1)
     # with sensor noise, the noise-free reconstruction says what multipath alone does
-    # (issue 42: a noisy capture's static error was blamed on multipath)
+    # (a noisy capture's static error was blamed on multipath)
     clean = summary.get("static_surfaces_without_noise", static)
     multipath = (static and bodies and (max_depth == -1 or max_depth > 2)
                  and _static_p95(clean) > MULTIPATH_P95_M_S)
