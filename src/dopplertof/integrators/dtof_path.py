@@ -30,10 +30,10 @@ from . import pipeline
 from .analytic import trace_analytic_pass
 from .camera import Camera, LensDistortion, PinholeProjection, is_pinhole, rest_forward
 from .film import FilmSampler, SplatFilter
+from .path_loop import Modality, trace_path_loop
 from .path_steps import (VISIBILITY_BITS_MAX_DEPTH, CameraSample, ModulationWeight, PassLayout,
-                         _as_colour, _camera_rays, _intersect, advance, contributions,
-                         film_position, lane_streams, length_derivatives, lit_bits,
-                         loop_settings, shade, survive, vertex_numbers)
+                         _as_colour, _camera_rays, _intersect, contributions, film_position,
+                         lane_streams, length_derivatives, lit_bits)
 
 _classes: dict = {}  # variant name -> its DopplerToFPath class
 
@@ -235,70 +235,51 @@ def _define_class(mi):
     return DopplerToFPath
 
 
-# The loop state holds no Bool besides the loop's condition: the loop's reverse-mode
-# replay stores its state, and Dr.Jit 1.5 stores a Bool as i8 and reads it back as i1
-# (an LLVM IR type error that aborted every dr.backward through the loop).
-@dr.syntax
 def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,
                  length_derivative: bool = False):
-    """The path loop: from each lane's camera ray to its measurement (and, with
+    """The path loop (:func:`.path_loop.trace_path_loop`) measuring the D-ToF camera's
+    correlations: from each lane's camera ray to its measurement (and, with
     ``length_derivative``, the sum of d contribution / d its path length)."""
-    static = setup.scene.static
-    modulation = setup.modulation_weight  # w(L, t) of a contribution
-    t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
-    first_hit = start.first_hit
-
-    # The first hit's light and BSDF samples from the pixel's low-discrepancy set
-    u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
-    u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
-    wavelengths = ray.wavelengths  # of the camera ray, for the colour conversion
-
-    # ---- Loop state ----
-    measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
-    measured_dl, lit = _adjoint_records(mi, setup, length_derivative)  # (_adjoint_records)
-    beta = mi.Spectrum(start.ray_weight)  # path throughput
-    length = modulation.F(start.camera_offset)  # path length, camera to ray origin (m)
-    depth = mi.UInt32(0)  # surface hits so far
-    going = mi.UInt32(dr.select(start.active, 1, 0))  # whether the path goes on (1) or not
-    prev_si = dr.zeros(mi.Interaction3f)  # previous vertex, for emitter MIS
-    prev_bsdf_pdf = mi.Float(1.0)  # solid-angle pdf of the last BSDF sample
-    prev_bsdf_delta = mi.UInt32(1)  # whether that sample was a delta lobe (1) or not (0)
-    eta = mi.Float(1.0)  # relative index of refraction along the path
-    iteration = mi.UInt32(0)  # loop iterations so far (0: the camera ray's hit may be known)
-    bsdf_ctx = mi.BSDFContext()
-
-    ray, attached = AttachedOrigin.split(mi, ray)  # (an attached origin: not loop state)
-
-    # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof"):
-        active, fresh = going != 0, iteration == 0
-        if attached is not None:
-            ray.o = dr.select(fresh, attached.origin, ray.o)
-        si = _intersect(mi, static, frames, ray, active, depth, first_hit, fresh)
-        numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
-        v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                  prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, modulation.F, bsdf_ctx)
-
-        # ---- Modulated contributions: the emitter hit and the light sample ----
-        hit_contribution, light_contribution = contributions(modulation, v, t_rel)
-        measured += hit_contribution
-        measured += light_contribution
-        if dr.hint(length_derivative, mode="scalar"):  # (the plain render has none of it)
-            measured_dl, lit = _recorded(mi, modulation, v, t_rel, depth, measured_dl, lit)
-
-        # ---- Continue the path ----
-        length = v.length_hit
-        ray, beta, eta, prev_si, prev_bsdf_pdf, delta, depth = advance(
-            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
-        prev_bsdf_delta = mi.UInt32(dr.select(delta, 1, 0))
-        iteration += 1
-        beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])  # (roulette)
-
+    measured, measured_dl, lit = trace_path_loop(
+        mi, setup, layout, streams, start, Correlation(mi, setup, start, length_derivative))
+    wavelengths = start.ray.wavelengths  # of the camera ray, for the colour conversion
     value = _as_colour(mi, measured, wavelengths)
     return ((value, start.film_offset, _as_colour(mi, measured_dl, wavelengths), lit)
             if length_derivative else (value, start.film_offset))
+
+
+class Correlation(Modality):
+    """The D-ToF camera's modality: each contribution weighted by the modulation of its
+    own full path length at its lane's time, summed (the time-averaged correlation);
+    with ``length_derivative`` also what the path-replay adjoint needs (the sum of d
+    contribution / d its path length, and which light samples reached their lights)."""
+
+    label = "dopplertof"
+
+    def __init__(self, mi, setup, start: CameraSample, length_derivative: bool):
+        self.mi, self.modulation = mi, setup.modulation_weight  # w(L, t) of a contribution
+        self.F = self.modulation.F
+        self.t_rel, self.first_hit = start.t_rel, start.first_hit
+        self.length_derivative = length_derivative
+        self.records = _adjoint_records(mi, setup, length_derivative)
+
+    def state(self) -> tuple:
+        measured_dl, lit = self.records
+        return self.mi.Spectrum(0.0), measured_dl, lit  # (the measurement so far)
+
+    def hit(self, mi, static, frames, ray, active, depth, fresh):
+        return _intersect(mi, static, frames, ray, active, depth, self.first_hit, fresh), None
+
+    def vertex(self, state, si, hit, ray, v, beta, depth, numbers):
+        measured, measured_dl, lit = state
+        # ---- Modulated contributions: the emitter hit and the light sample ----
+        hit_contribution, light_contribution = contributions(self.modulation, v, self.t_rel)
+        measured += hit_contribution
+        measured += light_contribution
+        if self.length_derivative:  # (the plain render has none of it)
+            measured_dl, lit = _recorded(self.mi, self.modulation, v, self.t_rel, depth,
+                                         measured_dl, lit)
+        return measured, measured_dl, lit
 
 
 def _adjoint_records(mi, setup, length_derivative: bool):
@@ -316,31 +297,6 @@ def _recorded(mi, modulation, v, t_rel, depth, measured_dl, lit):
     """_adjoint_records' values after vertex ``v``."""
     lit = None if lit is None else lit | lit_bits(mi, v, depth)
     return measured_dl + length_derivatives(modulation, v, t_rel), lit
-
-
-class AttachedOrigin:
-    """The camera rays' origins while they are attached to AD, held outside the path
-    loop's state. Every Dr.Jit array the loop body reads directly (not through a plain
-    object such as this one) is loop state, and Dr.Jit 1.5's reverse-mode replay of a
-    loop runs once per attached state variable: the three components of an attached
-    origin cost three replays (measured: 3 kernels of the replay's size), where inputs
-    read through plain objects (the bodies' per-lane transforms, the modulation's
-    variables) share one. The first iteration reads the origin from here."""
-
-    def __init__(self, origin):
-        self.origin = origin  #: the attached origins (Point3f)
-
-    @classmethod
-    def split(cls, mi, ray):
-        """(ray, holder): where ``ray``'s origin is attached to AD, a copy of the ray with
-        its origin detached (the loop's state) and the holder of the attached origin;
-        else the ray and None."""
-        if not dr.grad_enabled(ray.o):
-            return ray, None
-        holder = cls(ray.o)
-        ray = mi.Ray3f(ray)
-        ray.o = dr.detach(ray.o)
-        return ray, holder
 
 
 # ---- Registration: <integrator type="dopplertof"> (alias "dopplertofpath") ----
