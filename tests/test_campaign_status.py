@@ -41,3 +41,12 @@ def test_the_old_header_is_still_read(tmp_path):
                      "the 2026-12-03 campaign S02 is fixed\n")
     assert tool.status(tsv, md) == []
     assert tool.main([tsv, "--doc", md]) == 0
+
+
+def test_a_table_row_citing_several_ids_and_a_range_cites_each(tmp_path):
+    tool = load_script("tools/campaign_status.py")
+    rows = [(f"B0{k}", "s", f"did {k}", "cmd", "e", "o", "unclear") for k in range(1, 7)]
+    doc = ("# R\n\n## Campaign 2026-12-07\n\n| ID | what | now |\n|---|---|---|\n"
+           "| B01, B02 | x | y |\n| B04-B05 | x | y |\n")
+    tsv, md = _write(tmp_path, "campaign-2026-12-07.tsv", NEW_HEADER, rows, doc)
+    assert [r[0] for r in tool.status(tsv, md)] == ["B03", "B06"]

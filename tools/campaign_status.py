@@ -46,27 +46,31 @@ def _split(case_id: str):
 
 def cited_ids(doc_text: str, ids: list, campaign: str) -> dict:
     """{id: the docs line citing it} for the ids of ``ids`` that a line naming
-    ``campaign`` (its date) cites, ranges expanded over ``ids``."""
+    ``campaign`` (its date) cites, or that the first cell of a table row under a
+    heading naming the campaign lists ("| PR30, PR31 |"), ranges expanded over ``ids``."""
     known, out, rerun = set(ids), {}, False
     for line in doc_text.splitlines():
         if line.startswith("#"):  # a rerun's section: its table's rows cite their ids
             rerun = campaign in line and "campaign" in line.lower()
-        first = line.split("|")[1].strip() if rerun and line.startswith("|") else ""
-        if first in known:
-            out.setdefault(first, line)
-        if f"{campaign} campaign" not in line:
-            continue
-        for first, last in _CITE.findall(line):
-            if first not in known:
-                continue
-            hits = [first]
-            if last in known:
-                (p, lo, _), (q, hi, _) = _split(first), _split(last)
-                hits = [i for i in ids if p == q and _split(i)[0] == p
-                        and lo <= _split(i)[1] <= hi] if p == q else [first, last]
-            for i in hits:
-                out.setdefault(i, line)
+        cells = (line.split("|")[1] if rerun and line.startswith("|") else "",
+                 line if f"{campaign} campaign" in line else "")
+        for text in cells:
+            for first, last in _CITE.findall(text):
+                for i in _expanded(first, last, ids, known):
+                    out.setdefault(i, line)
     return out
+
+
+def _expanded(first: str, last: str, ids: list, known: set) -> list:
+    """The ids a citation names: ``first``, or the range ``first`` to ``last``."""
+    if first not in known:
+        return []
+    if last not in known:
+        return [first]
+    (p, lo, _), (q, hi, _) = _split(first), _split(last)
+    if p != q:
+        return [first, last]
+    return [i for i in ids if _split(i)[0] == p and lo <= _split(i)[1] <= hi]
 
 
 def status(tsv: str, doc: str, every: bool = False) -> list:
