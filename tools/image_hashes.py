@@ -174,6 +174,9 @@ def capture_hashes(extra_params: dict) -> dict:
                                   {"res": "6", "spp": "8"})
     spectra = fmcw(street, seed=1, params=params)
     out["fmcw"] = _digest(spectra.spectrum, spectra.range, spectra.velocity)
+    spectra = fmcw(street, seed=1, params=params, beam="collimated", beam_intensity=2.0,
+                   speckle=True)
+    out["fmcw-collimated-speckle"] = _digest(spectra.spectrum, spectra.speckle)
     out.update(dataset_hashes())
     return out
 

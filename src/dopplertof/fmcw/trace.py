@@ -30,9 +30,9 @@ import drjit as dr
 import numpy as np
 
 from .. import sampling
-from ..integrators.path_steps import (PassLayout, _as_colour, advance, film_position,
-                                      lane_streams, loop_settings, shade, survive,
-                                      vertex_numbers)
+from ..integrators.path_loop import Modality, trace_path_loop
+from ..integrators.path_steps import (CameraSample, PassLayout, _as_colour, film_position,
+                                      lane_streams)
 from ..modulation import SPEED_OF_LIGHT
 from ..params import RenderParams
 from ..scene import lights
@@ -175,57 +175,61 @@ def lane_start(mi, setup, layout: PassLayout, streams, t0: float):
     return ray, weight, offset, frames, light_frames
 
 
-@dr.syntax
 def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: SpectrumSplat,
                   t0: float, beam: Beam):
-    """One pass: every lane's path, its contributions splatted into ``splat``."""
-    static = setup.scene.static
+    """One pass: every lane's path (the path loop, :func:`trace_path_loop`), its
+    contributions splatted into ``splat``."""
     streams = lane_streams(mi, setup, layout)
     ray, ray_weight, offset, frames, light_frames = lane_start(mi, setup, layout, streams, t0)
-    u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
-    u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
-    wavelengths, pixel = ray.wavelengths, layout.pixel
-
+    start = CameraSample(ray=ray, ray_weight=ray_weight, camera_offset=offset, active=True,
+                         frames=frames, light_frames=light_frames)
     spot = beam.start(mi, setup, layout, streams, ray.time, frames, fields)  # (collimated)
+    trace_path_loop(mi, setup, layout, streams, start,
+                    Spectra(mi, setup.scene.static, splat, fields, beam, spot, streams,
+                            layout.pixel, ray.wavelengths))
 
-    # ---- Loop state: the D-ToF loop's, with the path's rate and its last vertex's velocity
-    beta, length, rate = mi.Spectrum(ray_weight), mi.Float(offset), mi.Float(0.0)
-    u_prev = mi.Vector3f(fields.camera)  # velocity of the path's last vertex (m/s)
-    depth, going = mi.UInt32(0), mi.UInt32(1)
-    prev_si = dr.zeros(mi.Interaction3f)
-    prev_bsdf_pdf, prev_bsdf_delta, eta = mi.Float(1.0), mi.UInt32(1), mi.Float(1.0)
-    bsdf_ctx = mi.BSDFContext()
-    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof_fmcw"):
-        active = going != 0
+
+class Spectra(Modality):
+    """The FMCW lidar's modality: each contribution added to its pixel's spectra at its
+    beats, from its path length and rate of change (dL/dt, accumulated vertex by vertex
+    from the velocity fields: the loop state with the last vertex's velocity)."""
+
+    label = "dopplertof_fmcw"
+
+    def __init__(self, mi, static, splat, fields, beam, spot, streams, pixel, wavelengths):
+        self.mi, self.static, self.splat, self.fields = mi, static, splat, fields
+        self.beam, self.spot = beam, spot
+        self.streams, self.pixel, self.wavelengths = streams, pixel, wavelengths
+        self.bsdf_ctx = mi.BSDFContext()
+
+    def state(self) -> tuple:
+        # the path's rate dL/dt so far, the velocity of its last vertex (m/s)
+        return self.mi.Float(0.0), self.mi.Vector3f(self.fields.camera)
+
+    def hit(self, mi, static, frames, ray, active, depth, fresh):
         pi, winner = nearest_hit(mi, static, frames, ray, active, coherent=depth == 0)
-        si = surface_interaction(mi, static, frames, ray, pi, winner, active)
-        numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
-        v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                  prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, mi.Float, bsdf_ctx,
-                  light=beam.spot_light(spot, depth, max_depth, bsdf_ctx))
+        return surface_interaction(mi, static, frames, ray, pi, winner, active), winner
 
+    def light(self, depth, max_depth, bsdf_ctx):
+        return self.beam.spot_light(self.spot, depth, max_depth, bsdf_ctx)
+
+    def vertex(self, state, si, winner, ray, v, beta, depth, numbers):
+        mi, splat, beam, pixel = self.mi, self.splat, self.beam, self.pixel
+        rate, u_prev = state
         # ---- The contributions at their beats ----
-        u_here = fields.at_surface(si.p, winner)
+        u_here = self.fields.at_surface(si.p, winner)
         rate_hit = rate + dr.dot(ray.d, u_here - u_prev)
-        phases = path_phases(streams, depth)  # (speckle only)
-        if dr.hint(beam.collimated, mode="scalar"):  # the direct return, the lane's spot
+        phases = path_phases(self.streams, depth)  # (speckle only)
+        if beam.collimated:  # the direct return, the lane's spot
             for (value, beat_length, beat_rate, lit), phase in zip((
-                    beam.direct(si, ray, v, beta, depth, rate_hit, bsdf_ctx),
-                    beam.from_spot(v, spot, rate_hit, u_here)), phases):
-                splat.add(pixel, _grey(mi, value, wavelengths), beat_length, beat_rate, lit,
-                          phase)
+                    beam.direct(si, ray, v, beta, depth, rate_hit, self.bsdf_ctx),
+                    beam.from_spot(v, self.spot, rate_hit, u_here)), phases):
+                splat.add(pixel, _grey(mi, value, self.wavelengths), beat_length, beat_rate,
+                          lit, phase)
         else:  # the emitter hit and the light sample
-            _add_flood(mi, splat, fields, static, v, numbers, rate_hit, u_here, pixel,
-                       wavelengths, phases)
-
-        # ---- Continue the path ----
-        length, rate, u_prev = v.length_hit, rate_hit, u_here
-        ray, beta, eta, prev_si, prev_bsdf_pdf, delta, depth = advance(
-            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
-        prev_bsdf_delta = mi.UInt32(dr.select(delta, 1, 0))
-        beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
+            _add_flood(mi, splat, self.fields, self.static, v, numbers, rate_hit,
+                       u_here, pixel, self.wavelengths, phases)
+        return rate_hit, u_here
 
 
 def fmcw_params(scene, params=None) -> RenderParams:
