@@ -200,13 +200,13 @@ def test_the_comparison_captions_each_panel_with_its_masked_pixels(tmp_path, mon
     from dopplertof.cameras import figures
 
     texts = []
-    save = figures.io.save_figure
+    save = figures.image_files.save_figure
 
     def keep_texts(fig, path, *rest):
         texts.extend(t.get_text() for t in fig.findobj(matplotlib.text.Text))
         return save(fig, path, *rest)
 
-    monkeypatch.setattr(figures.io, "save_figure", keep_texts)
+    monkeypatch.setattr(figures.image_files, "save_figure", keep_texts)
     error = np.zeros((12, 16))
     error[:, :8] = np.nan
     velocity = np.where(np.isnan(error), np.nan, 1.0)

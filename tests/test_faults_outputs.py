@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import dopplertof
-from dopplertof import io
+from dopplertof import image_files, io
 from dopplertof.cli import main
 from dopplertof.demo import demo_scene_path
 
@@ -51,7 +51,7 @@ def cheap_previews(monkeypatch):
 
     for name in ("write_map", "write_log_map", "write_comparison", "write_radiance"):
         monkeypatch.setattr(output.figures, name, preview)
-    monkeypatch.setattr(io, "write_png", preview)
+    monkeypatch.setattr(image_files, "write_png", preview)
 
 
 def _snapshot(folder) -> dict:
@@ -409,20 +409,20 @@ def test_a_failed_write_names_the_file_and_the_reason(tmp_path, ext):
     path = tmp_path / f"depth{ext}"
     image = np.random.default_rng(0).random((64, 64, 3)).astype(np.float32)
     with file_size_limit(4096), pytest.raises(io.OutputError) as failure:
-        io.write_image(path, image)
+        image_files.write_image(path, image)
     assert str(failure.value) == f"{path}: file too large (the file size limit)"
     assert os.listdir(tmp_path) == []
 
 
 def test_the_cli_says_it_in_one_line_with_exit_2(tmp_path, monkeypatch, capsys):
     out = tmp_path / "out" / "depth.npy"
-    original = io.write_image
+    original = image_files.write_image
 
     def limited(*args, **kwargs):
         with file_size_limit(256):
             return original(*args, **kwargs)
 
-    monkeypatch.setattr(io, "write_image", limited)
+    monkeypatch.setattr(image_files, "write_image", limited)
     code = main(["render", SCENE, "-D", "res=8", "--spp", "2", "--quiet", "-o", str(out)])
     err = capsys.readouterr().err
     assert code == 2

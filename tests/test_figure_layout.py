@@ -13,7 +13,7 @@ import pytest
 
 matplotlib.use("Agg")
 
-from dopplertof import io, previews  # noqa: E402
+from dopplertof import image_files, io, previews  # noqa: E402
 from dopplertof.tof import figures  # noqa: E402
 
 SIZES = (16, 128)
@@ -77,21 +77,21 @@ def assert_laid_out(found):
 
 
 #: the resolution the previews' texts are set for (pixels per inch)
-PREVIEW_DPI = io.PREVIEW_DPI
+PREVIEW_DPI = image_files.PREVIEW_DPI
 
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """The previews saved through io.save_png (dopplertof.previews, no Matplotlib): a
+    """The previews saved through image_files.save_png (dopplertof.previews, no Matplotlib): a
     list of (file name, Drawing)."""
     found = []
-    original = io.save_png
+    original = image_files.save_png
 
     def record_then_save(path, drawing, metadata=None):
         found.append((os.path.basename(str(path)), drawing))
         return original(path, drawing, metadata)
 
-    monkeypatch.setattr(io, "save_png", record_then_save)
+    monkeypatch.setattr(image_files, "save_png", record_then_save)
     return found
 
 
@@ -131,7 +131,7 @@ def speckled(size, seed=0, spread=1.0):
 def test_render_preview_shows_its_title_without_margins(tmp_path, drawn, size):
     """`render -o x.png`: e6dc814 cut the title's start off and left about an inch empty
     above and below a square image."""
-    io.write_png(tmp_path / "r.png", speckled(size), title=LONG_TITLE)
+    image_files.write_png(tmp_path / "r.png", speckled(size), title=LONG_TITLE)
     assert_previews_laid_out(drawn)
 
 

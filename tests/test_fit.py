@@ -476,7 +476,7 @@ def test_fit_summary_prints_what_was_fitted_and_relative_errors_only_off_zero():
 
 def test_convergence_plot_draws_no_negative_loss_on_its_log_axis(tmp_path, monkeypatch):
     """afb2c4e drew max(loss, 1e-300): a negative cross loss fell to 1e-300."""
-    from dopplertof import io
+    from dopplertof import image_files
     from dopplertof.diff.fit_output import FitResult
     from dopplertof.diff.fit_plots import write_convergence_plot
 
@@ -484,7 +484,7 @@ def test_convergence_plot_draws_no_negative_loss_on_its_log_axis(tmp_path, monke
                for i, loss in enumerate([4e-7, 3e-8, -2e-9, 1e-9])]
     result = FitResult([{"name": "box"}], 3, 1e-9, history, {})
     drawn = {}
-    monkeypatch.setattr(io, "save_figure", lambda fig, path: drawn.setdefault("fig", fig))
+    monkeypatch.setattr(image_files, "save_figure", lambda fig, path: drawn.setdefault("fig", fig))
     write_convergence_plot(result, str(tmp_path / "c.png"))
     ys = np.concatenate([line.get_ydata() for line in drawn["fig"].axes[0].get_lines()])
     assert ys.min() >= 1e-9 and ys.max() <= 4e-7

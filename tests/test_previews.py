@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from dopplertof import io, previews
+from dopplertof import image_files, io, previews
+
 from dopplertof.tof import figures
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -65,8 +66,8 @@ def test_render_png_title_says_h_offset_and_frequency(tmp_path, monkeypatch, cap
     from dopplertof.cli import main
 
     titles = []
-    original = io.write_png
-    monkeypatch.setattr(io, "write_png", lambda path, image, **kw: (
+    original = image_files.write_png
+    monkeypatch.setattr(image_files, "write_png", lambda path, image, **kw: (
         titles.append(kw.get("title")), original(path, image, **kw)))
     out = tmp_path / "r.png"
     assert main(["render", SPHERE, "-D", "res=8", "--spp", "4", "--quiet", "-P",
@@ -129,8 +130,8 @@ def _preview_specs(size):
     data[1:4, 2:6] = np.nan
     data[0, 0] = 900.0
     return [
-        ("capture.png", lambda p, k: io.write_png(p, data * (k + 1), title=f"capture {k}")),
-        ("counts.png", lambda p, k: io.write_png(p, np.abs(data) + k, title="counts",
+        ("capture.png", lambda p, k: image_files.write_png(p, data * (k + 1), title=f"capture {k}")),
+        ("counts.png", lambda p, k: image_files.write_png(p, np.abs(data) + k, title="counts",
                                                  signed=False)),
         ("error.png", lambda p, k: figures.write_map(
             p, data + k, f"error {k}", "m/s", cmap="PuOr_r", symmetric=True, vmax=33.0,

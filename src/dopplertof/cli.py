@@ -252,6 +252,7 @@ def _check_before_loading(args, where: str) -> None:
 def _cmd_render(args) -> int:
     import dopplertof
     from . import io
+    from . import image_files
 
     _check_before_loading(args, "render parameters")
     io.check_output_path(args.output)
@@ -271,11 +272,11 @@ def _cmd_render(args) -> int:
                                       params=params,
                                       progress=False if args.quiet else None,
                                       checkpoint=args.checkpoint)
-    io.write_image(args.output, result.image, result.metadata,
-                   **({"title": io.render_title(result.metadata)}
+    image_files.write_image(args.output, result.image, result.metadata,
+                   **({"title": image_files.render_title(result.metadata)}
                       if args.output.lower().endswith(".png") else {}))
     if args.sample_counts:
-        io.write_image(args.sample_counts, result.sample_counts.astype("float32"),
+        image_files.write_image(args.sample_counts, result.sample_counts.astype("float32"),
                        title="samples per pixel (adaptive)", label="samples",
                        cmap="viridis", signed=False)
     print_warnings(result.metadata)

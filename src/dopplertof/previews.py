@@ -21,7 +21,7 @@ What a preview shows, as the Matplotlib previews before it did:
   content does.
 
 :func:`draw` returns the picture and where it put each part (:class:`Drawing`);
-:func:`dopplertof.io.save_png` writes it. Nothing here imports Matplotlib: the colour
+:func:`dopplertof.image_files.save_png` writes it. Nothing here imports Matplotlib: the colour
 tables are data of the package (``data/colormaps.npz``, Matplotlib's tables at 256
 entries, checked against it by the tests); another map is read from Matplotlib.
 """

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import modulation
-from ..io import atomic_path, check_output_folder, fit_figure, output_folder
+from ..io import atomic_path, check_output_folder, output_folder
+from ..image_files import fit_figure
 from . import antithetic, doppler, mis, waveforms
 from .signals import PeriodicWaveform, Sinusoid, TruncatedAttenuatedSinusoid
 
@@ -116,7 +117,7 @@ def _write_atomically(path: pathlib.Path, write):
 
 
 def _save_figure(figure, path: pathlib.Path, dpi: int):
-    """``figure`` fitted to what it draws (:func:`dopplertof.io.fit_figure`: no title,
+    """``figure`` fitted to what it draws (:func:`dopplertof.image_files.fit_figure`: no title,
     label or legend past an edge), saved atomically as PNG."""
     figure.set_dpi(dpi)  # (measured at the resolution it is saved at: text sizes round)
     fit_figure(figure)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import io, previews
+
+from .. import image_files
 from .demodulate import calibration_tables, wiggling_curves
 
 
@@ -14,7 +16,7 @@ def write_wiggling(path, preset) -> dict:
     modulation's correlation) as a PNG, and beside it (.json) the curves and the
     calibration tables; returns the numbers."""
     distances, per_frequency, raw, reported = wiggling_curves(preset)
-    plt = io.pyplot()
+    plt = image_files.pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 3.8), dpi=120)
     for f, error in per_frequency.items():
         ax.plot(distances, error * 1e3, lw=0.8, alpha=0.6, label=f"{f:g} MHz alone, uncalibrated")
@@ -29,7 +31,7 @@ def write_wiggling(path, preset) -> dict:
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    io.save_figure(fig, path)
+    image_files.save_figure(fig, path)
     numbers = {"camera": preset.name, "waveform": preset.waveform,
                "calibration_applied": calibrated,
                "max_abs_error_uncalibrated_m": float(np.max(np.abs(raw))),
@@ -46,7 +48,7 @@ def write_camera_comparison(path, results, title: str) -> dict:
     pixels (NaN) hatched on magenta as in every preview (white would read as zero error);
     beside it (FIG.json) each camera's numbers: its error statistics and masked pixels.
     Returns the numbers."""
-    plt = io.pyplot()
+    plt = image_files.pyplot()
     rows = len(results)
     fig, axes = plt.subplots(rows, 3, figsize=(10.5, 2.9 * rows), dpi=100, squeeze=False)
     errors = [r.depth - r.depth_gt for r in results]
@@ -54,8 +56,8 @@ def write_camera_comparison(path, results, title: str) -> dict:
                 for e in errors) or 0.01
 
     def show(ax, data, cmap, **scale):
-        io.show_no_signal(ax, data.shape)
-        return ax.imshow(np.ma.masked_invalid(data), cmap=io.no_signal_colours(cmap),
+        image_files.show_no_signal(ax, data.shape)
+        return ax.imshow(np.ma.masked_invalid(data), cmap=image_files.no_signal_colours(cmap),
                          interpolation="nearest", zorder=1, **scale)
 
     for row, result, error in zip(axes, results, errors):
@@ -86,7 +88,7 @@ def write_camera_comparison(path, results, title: str) -> dict:
     fig.suptitle(title, fontsize=10)
     fig.text(0.5, 0.005, previews.NO_SIGNAL_NOTE, ha="center", va="bottom", fontsize=7)
     fig.tight_layout(rect=(0, 0.02, 1, 1 - 0.3 / fig.get_figheight()))  # (the suptitle's)
-    io.save_figure(fig, path)
+    image_files.save_figure(fig, path)
     numbers = {"title": title, "cameras": [_comparison_numbers(r, e)
                                            for r, e in zip(results, errors)]}
     io.write_json(str(path)[:-4] + ".json", numbers)

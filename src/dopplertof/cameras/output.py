@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import io
+
+from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
 from ..tof import figures
 from ..tof.geometry import write_camera_files
@@ -77,13 +79,13 @@ def masked_caption(recon, truth=None) -> str:
     if truth is not None:
         # (the depth is NaN where a mask is: those are counted by their masks)
         counts["nothing hit"] = int(np.sum(~np.isfinite(truth) & np.isfinite(recon.depth)))
-    return io.masked_note(counts)
+    return image_files.masked_note(counts)
 
 
 def _write_previews(result, path, camera: str) -> None:
     """depth, truth, error, amplitude (and velocity) maps and the raw frames' grid."""
     recon = result.reconstruction
-    nothing = io.masked_note({"nothing hit": int(np.sum(~np.isfinite(result.depth_gt)))})
+    nothing = image_files.masked_note({"nothing hit": int(np.sum(~np.isfinite(result.depth_gt)))})
     finite = np.concatenate([a[np.isfinite(a)] for a in (recon.depth, result.depth_gt)])
     lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
               if finite.size else (None, None))
@@ -119,7 +121,7 @@ def _write_raw_grid(path, raw, records, camera: str) -> None:
     scale = ColourScale(lo, max(hi, lo + 1))
     panels = [Panel(np.asarray(frame, np.float64), f"{r['w_g_MHz']:g} MHz, {r['phase_deg']:g} deg",
                     "DN", "gray", scale) for frame, r in zip(raw, records)]
-    io.save_png(path, draw(panels, RAW_FRAME_FIT, title=f"{camera}: raw frames (DN)",
+    image_files.save_png(path, draw(panels, RAW_FRAME_FIT, title=f"{camera}: raw frames (DN)",
                            columns=min(columns, 6), shared_bar=True))
 
 

@@ -194,7 +194,7 @@ def json_digest(info: dict) -> str:
 
     content = json.loads(json.dumps(io.json_ready({k: v for k, v in info.items()
                                                    if k != JSON_DIGEST}),
-                                    default=io._json_default))
+                                    default=io.json_default))
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 

@@ -76,6 +76,7 @@ def show_dataset(folder, samples, output: str, split: str = "full",
     the PNG ``output`` (written atomically); ``statistics``: the one-page statistics of
     those samples (None: every sample) instead; returns its path."""
     from .. import io
+    from .. import image_files
     from ..previews import NO_SIGNAL_NOTE, draw
     from .reader import Dataset
 
@@ -98,7 +99,7 @@ def show_dataset(folder, samples, output: str, split: str = "full",
     drawing = draw(panels, FIT, title=f"{ds.info['config'].get('dataset', {}).get('name', '')}"
                    f" ({folder}), split {split}: items {', '.join(map(str, indices))}",
                    caption=caption, columns=columns)
-    io.save_png(output, drawing)
+    image_files.save_png(output, drawing)
     return output
 
 
@@ -141,7 +142,7 @@ def write_statistics(ds, indices, output: str, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .. import io
+    from .. import image_files
 
     stats = dataset_statistics(ds, indices)
     fig = Figure(figsize=(12.0, 6.4), dpi=100, layout="constrained")
@@ -171,4 +172,4 @@ def write_statistics(ds, indices, output: str, title: str) -> None:
     axes[1, 2].set_ylabel("camera depth, median over valid pixels (m)")
     axes[1, 2].legend(fontsize=8)
     fig.suptitle(title)
-    io.save_figure(fig, output)
+    image_files.save_figure(fig, output)

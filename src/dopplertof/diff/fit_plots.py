@@ -6,9 +6,9 @@ import numpy as np
 
 
 def write_convergence_plot(result, path) -> None:
-    from .. import io
+    from .. import image_files
 
-    plt = io.pyplot()
+    plt = image_files.pyplot()
     its = [h["iteration"] for h in result.history]
     loss = np.array([h["loss"] for h in result.history])
     angular = bool(result.settings.get("angular"))
@@ -41,7 +41,7 @@ def write_convergence_plot(result, path) -> None:
     if angular:
         _plot_angular_velocity(axes[2], result, its)
     fig.tight_layout()
-    io.save_figure(fig, path)
+    image_files.save_figure(fig, path)
     plt.close(fig)
 
 

@@ -115,6 +115,7 @@ def load_frame_scene(path: str, defines: dict, shutter_open: float, shutter_clos
 def run_frame_task(task: FrameTask) -> dict:
     """Render and reconstruct one frame into its folder (runs on a worker)."""
     from .. import io
+    from .. import image_files
     from ..tof import capture
 
     started = time.perf_counter()
@@ -138,7 +139,7 @@ def run_frame_task(task: FrameTask) -> dict:
                          np.asarray(array, dtype=np.float32))
         io.write_npy(os.path.join(task.folder, "radiance.npy"), result.radiance)
         write_summary(os.path.join(task.folder, SUMMARY_JSON), "dtof", result.summary)
-    io.write_exr(os.path.join(task.folder, "velocity.exr"),
+    image_files.write_exr(os.path.join(task.folder, "velocity.exr"),
                  np.asarray(result.velocity, dtype=np.float32),
                  {"quantity": "radial velocity, m/s, > 0 receding",
                   "exposure_start_s": task.shutter_open})
@@ -299,7 +300,7 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     from matplotlib.figure import Figure
     from PIL import Image
 
-    from .. import io, previews
+    from .. import image_files, io, previews
     from ..tof.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
 
     load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
@@ -320,8 +321,8 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
         axes[0].set_title(f"radiance ({RADIANCE_GAMMA_LABEL})", fontsize=9)
         for ax, data, title in ((axes[1], vel, "reconstructed radial velocity"),
                                 (axes[2], gt, "true radial velocity")):
-            io.show_no_signal(ax, data.shape)
-            shown = ax.imshow(np.ma.masked_invalid(data), cmap=io.no_signal_colours("RdBu_r"),
+            image_files.show_no_signal(ax, data.shape)
+            shown = ax.imshow(np.ma.masked_invalid(data), cmap=image_files.no_signal_colours("RdBu_r"),
                               vmin=-vlim, vmax=vlim, interpolation="nearest", zorder=1)
             ax.set_title(title, fontsize=9)
         for ax in axes:
@@ -330,7 +331,7 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
         bar.set_label("m/s (+ receding, − approaching;\nhatched magenta: NaN)", fontsize=8)
         fig.suptitle(f"frame {task.index}: exposure {task.shutter_open * 1e3:.4g}–"
                      f"{task.shutter_close * 1e3:.4g} ms", fontsize=10)
-        io.wrap_texts(fig)  # (the label fits the frame's height, whatever its size)
+        image_files.wrap_texts(fig)  # (the label fits the frame's height, whatever its size)
         fig.canvas.draw()
         rgba = np.asarray(fig.canvas.buffer_rgba())
         images.append(Image.fromarray(rgba[..., :3].copy()))

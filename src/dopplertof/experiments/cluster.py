@@ -11,8 +11,8 @@ import sys
 import time
 from dataclasses import dataclass, field, replace
 
-#: fewest Dr.Jit threads a worker is given (its EXR writes need two, and io.write_exr
-#: raises the count for the write in any case: io.MIN_EXR_THREADS)
+#: fewest Dr.Jit threads a worker is given (its EXR writes need two, and image_files.write_exr
+#: raises the count for the write in any case: image_files.MIN_EXR_THREADS)
 MIN_DRJIT_THREADS = 2
 
 #: retries of a task that raised, before it is reported as failed

@@ -192,7 +192,7 @@ def check_unchanged(path: str, scene, sha256: str, what: str) -> None:
 def run_render_task(task: RenderTask) -> dict:
     """Render one sweep point into its folder (runs on a worker)."""
     import dopplertof
-    from .. import io
+    from .. import image_files, io
 
     started = time.perf_counter()
     begin_task(task.folder)
@@ -203,7 +203,7 @@ def run_render_task(task: RenderTask) -> dict:
                                           params=dict(task.params), progress=False)
     image = result.image
     io.write_npy(os.path.join(task.folder, IMAGE_NPY), image)
-    io.write_exr(os.path.join(task.folder, IMAGE_EXR), image, result.metadata)
+    image_files.write_exr(os.path.join(task.folder, IMAGE_EXR), image, result.metadata)
     seconds = time.perf_counter() - started
     record = {
         "task": task.name,

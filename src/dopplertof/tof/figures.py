@@ -1,7 +1,7 @@
 """PNG previews of capture products: one map per array, and the side-by-side figure,
 drawn by :mod:`dopplertof.previews` (no Matplotlib).
 
-Every file is written atomically (:func:`dopplertof.io.save_png`). NaN pixels (nothing
+Every file is written atomically (:func:`dopplertof.image_files.save_png`). NaN pixels (nothing
 seen, a signal too weak, a mixed footprint: each captioned by its reason) are hatched on
 a magenta outside every colour map (:data:`dopplertof.previews.NO_SIGNAL_COLOUR`).
 Radiance is shown with one display gamma everywhere (:data:`RADIANCE_GAMMA`).
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import io
+from .. import image_files
 from ..previews import NO_SIGNAL_NOTE, ColourScale, Panel, draw
 
 #: display gamma of every radiance preview: shown value = (radiance / top) ** (1 / gamma)
@@ -86,7 +86,7 @@ def write_map(path, data, title: str, label: str, cmap: str = "viridis", vmin=No
         vmin = float(np.percentile(finite, 0.5)) if vmin is None and finite.size else vmin
         vmax = float(np.percentile(finite, 99.5)) if vmax is None and finite.size else vmax
     panel = Panel(data, title, label, cmap, ColourScale.fitted(data, vmin, vmax), marked)
-    io.save_png(path, draw([panel], PREVIEW_FIT, caption=note or ""), metadata)
+    image_files.save_png(path, draw([panel], PREVIEW_FIT, caption=note or ""), metadata)
 
 
 def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
@@ -102,14 +102,14 @@ def write_log_map(path, data, title: str, label: str, cmap: str = "magma",
     hi = hi if hi > lo else lo * 10
     shown = np.where(np.isposinf(data), hi, shown)
     panel = Panel(shown, title, label, cmap, ColourScale(lo, hi, "log"))
-    io.save_png(path, draw([panel], PREVIEW_FIT, caption=note or ""), metadata)
+    image_files.save_png(path, draw([panel], PREVIEW_FIT, caption=note or ""), metadata)
 
 
 def write_radiance(path, radiance, title: str, metadata: dict | None = None) -> None:
     data = radiance_scalar(radiance)
     panel = Panel(data, title, f"radiance (scene units, mean of RGB; {RADIANCE_GAMMA_LABEL})",
                   "gray", radiance_scale(radiance_top(data)))
-    io.save_png(path, draw([panel], PREVIEW_FIT), metadata)
+    image_files.save_png(path, draw([panel], PREVIEW_FIT), metadata)
 
 
 #: the comparison figure's panels, left to right: (title, colour bar label, colour map)
@@ -135,4 +135,4 @@ def write_comparison(path, radiance, velocity, velocity_gt, title: str,
              (error, ColourScale(-err_limit, err_limit))]
     panels = [Panel(data, panel_title, label, cmap, scale) for (data, scale),
               (panel_title, label, cmap) in zip(shown, COMPARISON_PANELS)]
-    io.save_png(path, draw(panels, COMPARISON_FIT, title=f"{title}   ({note})"), metadata)
+    image_files.save_png(path, draw(panels, COMPARISON_FIT, title=f"{title}   ({note})"), metadata)

@@ -12,6 +12,8 @@ import os
 import numpy as np
 
 from .. import io, previews
+
+from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
 from . import figures
 from . import reconstruct as rec
@@ -77,12 +79,12 @@ def masked_caption(reasons, truth, with_truth: bool = False) -> str:
     counts.update(rec.reason_counts(np.where(weak_nothing, rec.VALID, reasons)))
     if with_truth:
         counts[f"{NOTHING_HIT} at the pixel centre"] = int(np.sum(nothing & (reasons == rec.VALID)))
-    return io.masked_note(counts)
+    return image_files.masked_note(counts)
 
 
 def truth_caption(truth) -> str:
     """The caption of a truth map's NaN pixels (their rays hit nothing)."""
-    return io.masked_note({NOTHING_HIT: int(np.sum(truth.body == -2))})
+    return image_files.masked_note({NOTHING_HIT: int(np.sum(truth.body == -2))})
 
 
 def _write_captures(result, path, noisy: str) -> None:
@@ -95,9 +97,9 @@ def _write_captures(result, path, noisy: str) -> None:
             continue
         image = result.captures[name]
         io.write_npy(path(f"{name}.npy"), image)
-        title = io.measurement_title(record["kind"], record["hetero_frequency"],
+        title = image_files.measurement_title(record["kind"], record["hetero_frequency"],
                                      record["hetero_offset"], record["w_g_MHz"], noisy)
-        io.write_png(path(f"{name}.png"), image, title=title,
+        image_files.write_png(path(f"{name}.png"), image, title=title,
                      label="time-averaged correlation (scene units)", metadata=record)
     io.write_npy(path("radiance.npy"), result.radiance)
     figures.write_radiance(path("radiance.png"), result.radiance,

@@ -269,7 +269,7 @@ def write_map(path, study: StudyResult, title: str) -> None:
     0.1 m/s, the paper's setting marked), atomically."""
     import matplotlib.colors as colors
 
-    from ..io import pyplot, save_figure
+    from ..image_files import pyplot, save_figure
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 5.2), dpi=100)
