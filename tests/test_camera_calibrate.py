@@ -141,3 +141,18 @@ def test_cli_calibrates_and_captures(table, tmp_path):
     assert figure.stat().st_size > 0
     assert cameras.load_preset(out).name == "mine"
     assert run("cameras", str(out)).returncode == 0
+
+
+def test_capture_summaries_carry_the_label():
+    from dopplertof.cameras.accuracy import render_wall, wall_scene_xml
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.scene import load_string
+
+    summary = render_wall(cameras.load_preset("azure-kinect"), 2.0, 0.5, crop=4, spp=2).summary
+    assert summary["camera"]["noise_calibrated"] is True
+    lit = wall_scene_xml(2.0, 0.5, 5.0, 4, 2).replace(
+        "</scene>", '<emitter type="point"><point name="position" x="0" y="0" z="0"/>'
+        '<rgb name="intensity" value="1"/></emitter></scene>')
+    summary = capture_camera(load_string(lit, {}), "kinect-v2", 2, progress=False).summary
+    assert summary["camera"]["noise_calibrated"] is False
+    assert "relative, not the camera's" in summary["camera"]["noise_source"]
