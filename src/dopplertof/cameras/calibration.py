@@ -392,7 +392,7 @@ def write_calibration_figure(path, calibration: Calibration) -> None:
             f", ambient {ambient:g}" if ambient is not None else "")
         colour = f"C{i % 10}"
         ax.plot(d, meas, "o", color=colour, label=f"{label}: measured")
-        ax.plot(d, sim, "-", color=colour, label=f"{label}: simulated")
+        ax.plot(d, sim, "x-", color=colour, label=f"{label}: simulated")
     ax.set_xlabel("distance (m)")
     ax.set_ylabel("random error (mm, temporal std)")
     ax.set_title(f"{calibration.preset.name}: {calibration.table}, rms log residual "
