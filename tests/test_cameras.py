@@ -92,7 +92,7 @@ def test_every_packaged_preset_loads_with_its_sources():
         # every number line carries a comment: its source or "inferred"
         for line in text.splitlines():
             if "=" in line and not line.startswith(("#", "[", "name", "description",
-                                                    "sources", '"')) and \
+                                                    "sources", "noise_calibration", '"')) and \
                     not line.startswith(("frequency_mhz", "phase_deg", "integration_s",
                                          "start_s", "hetero_frequency")):
                 assert "#" in line, f"{name}: no source comment: {line}"

@@ -6,6 +6,8 @@
     result = cameras.capture_camera("scene.xml", preset, spp=64)
     result.raw, result.depth, result.summary
     result.write("out/")
+    mine = cameras.calibrate("azure-kinect", "walls.csv")  # fitted to measured wall noise
+    cameras.write_preset(mine, "mine.toml")
 
 Each raw frame is rendered in its own time window (real cameras read their frames one
 after the other, so a moving object is elsewhere in each), then the camera's sensor
@@ -18,6 +20,7 @@ from ..lazy import lazy_exports
 # imported on first use: `dopplertof --help` builds this package's command cheaply
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     ".preset": ("CameraPreset", "PresetError", "RawFrame", "format_preset", "load_preset",
-                "preset_names"),
+                "preset_names", "write_preset"),
+    ".calibration": ("calibrate", "fit_table", "CalibrationError"),
     ".capture": ("capture_camera", "load_scene_for_camera"),
 })

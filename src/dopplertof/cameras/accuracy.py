@@ -38,10 +38,16 @@ class WallAccuracy:
 
 
 def wall_scene_xml(distance: float, albedo: float, fov_deg: float, crop: int,
-                   spp: int) -> str:
+                   spp: int, angle_deg: float = 0.0) -> str:
     """A square diffuse wall (one-sided, facing the camera) at ``distance`` on the optical
-    axis of a pinhole camera at the origin looking along +z, no light."""
+    axis of a pinhole camera at the origin looking along +z, no light; ``angle_deg``:
+    turned by that angle about the vertical axis through its centre (the angle between
+    the axis and the wall's normal)."""
     size = 4.0 * distance * math.tan(math.radians(fov_deg) / 2) + 1.0
+    turn = ""
+    if angle_deg:
+        size /= math.cos(math.radians(angle_deg))
+        turn = f'<rotate y="1" angle="{float(angle_deg)!r}"/>'
     return f"""<scene version="3.0.0">
 <integrator type="dopplertof"><integer name="max_depth" value="2"/></integrator>
 <sensor type="perspective"><float name="fov" value="{fov_deg!r}"/>
@@ -51,7 +57,7 @@ def wall_scene_xml(distance: float, albedo: float, fov_deg: float, crop: int,
 <film type="hdrfilm"><integer name="width" value="{crop}"/><integer name="height" value="{crop}"/>
 <rfilter type="box"/></film></sensor>
 <shape type="rectangle"><transform name="to_world"><scale value="{size / 2!r}"/>
-<rotate y="1" angle="180"/><translate z="{distance!r}"/></transform>
+<rotate y="1" angle="180"/>{turn}<translate z="{distance!r}"/></transform>
 <bsdf type="diffuse"><rgb name="reflectance" value="{albedo!r}"/></bsdf></shape>
 </scene>
 """
@@ -63,26 +69,67 @@ def crop_fov(preset, crop: int) -> float:
     return math.degrees(2 * half)
 
 
-def wall_accuracy(camera, distance: float, albedo: float, ambient: float | None = None,
-                  seeds: int = 32, crop: int = 16, spp: int = 16,
-                  seed: int = 0) -> WallAccuracy:
-    """The random and systematic depth error of ``camera`` (a preset or its name) on a
-    wall at ``distance`` (m) of ``albedo``, under ``ambient`` (uW/cm^2/nm; None: the
-    preset's condition)."""
+def centre_half(crop: int) -> slice:
+    """The rows (and columns) of a crop's centre half, where the errors are taken."""
+    return slice(crop // 4, crop - crop // 4)
+
+
+def render_wall(preset, distance: float, albedo: float, ambient: float | None = None,
+                crop: int = 16, spp: int = 16, seed: int = 0, angle_deg: float = 0.0):
+    """The noise-free :class:`CameraResult` of ``preset`` on the wall of
+    :func:`wall_scene_xml` (a crop of ``crop`` x ``crop`` of its pixels about the axis),
+    lit by its illuminator where absolute, under ``ambient``: read it again with noise
+    (:meth:`CameraResult.read_again`) or with other sensor constants
+    (:func:`predicted_random`)."""
     from ..scene import load_string
     from .capture import capture_camera, with_illuminator
-    from .preset import CameraPreset, load_preset
     from .radiometry import view_tangents
 
-    preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
     fov = crop_fov(preset, crop)
-    text = wall_scene_xml(distance, albedo, fov, crop, spp)
+    text = wall_scene_xml(distance, albedo, fov, crop, spp, angle_deg)
     if preset.absolute:
         text = with_illuminator(text, preset, view_tangents(fov, crop, crop))
     scene = load_string(text, {}, source=f"wall at {distance:g} m")
-    result = capture_camera(scene, preset, spp, seed, noise=False, progress=False,
-                            ambient_irradiance=ambient if preset.absolute else None)
-    centre = slice(crop // 4, crop - crop // 4)
+    return capture_camera(scene, preset, spp, seed, noise=False, progress=False,
+                          ambient_irradiance=ambient if preset.absolute else None)
+
+
+def predicted_random(result, preset=None) -> float:
+    """The median over the crop's centre of the predicted depth standard deviation (m,
+    first order from the sensor's predicted variance of each raw frame: no noise drawn)
+    of a wall's renders (:func:`render_wall`) read through ``preset`` (default the
+    rendered one): an absolute preset of another illuminator power scales the photons
+    by the ratio of the powers (the renders are linear in the light), one of other
+    sensor constants reads them with its own. NaN where no centre pixel is reported."""
+    from dataclasses import replace
+
+    light = result.light
+    if preset is None:
+        preset = result.preset
+    elif preset.absolute:
+        ratio = preset.illuminator["power_w"] / result.preset.illuminator["power_w"]
+        light = replace(light, photons_per_unit=light.photons_per_unit * ratio)
+    _, recon = light.read(preset, None, result.mixed_footprints)
+    crop = recon.depth.shape[0]
+    centre = centre_half(crop)
+    variance = np.where(np.isfinite(recon.depth[centre, centre]),
+                        recon.depth_variance[centre, centre], np.nan)
+    if not np.isfinite(variance).any():
+        return float("nan")
+    return float(np.sqrt(np.nanmedian(variance)))
+
+
+def wall_accuracy(camera, distance: float, albedo: float, ambient: float | None = None,
+                  seeds: int = 32, crop: int = 16, spp: int = 16,
+                  seed: int = 0, angle_deg: float = 0.0) -> WallAccuracy:
+    """The random and systematic depth error of ``camera`` (a preset or its name) on a
+    wall at ``distance`` (m) of ``albedo``, under ``ambient`` (uW/cm^2/nm; None: the
+    preset's condition), turned by ``angle_deg`` (:func:`wall_scene_xml`)."""
+    from .preset import CameraPreset, load_preset
+
+    preset = camera if isinstance(camera, CameraPreset) else load_preset(camera)
+    result = render_wall(preset, distance, albedo, ambient, crop, spp, seed, angle_deg)
+    centre = centre_half(crop)
     truth = result.depth_gt[centre, centre]
     depths, predicted = [], []
     for noise_seed in range(seeds):

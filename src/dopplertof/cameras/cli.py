@@ -30,7 +30,14 @@ def add_subcommand(sub) -> None:
     c.add_argument("--res", metavar="WIDTHxHEIGHT", help="with --compare: one resolution")
     c.add_argument("--spp", type=int, default=16, help="with --compare: samples per pixel "
                    "per raw frame (default 16)")
-    c.add_argument("-o", "--output", metavar="FIG.png", help="with --compare: the figure")
+    c.add_argument("-o", "--output", metavar="FIG.png|MINE.toml",
+                   help="with --compare: the figure; with --calibrate: the preset written")
+    c.add_argument("--calibrate", metavar="TABLE.csv", help="with NAME (the base preset) "
+                   "and -o MINE.toml: fit its illuminator power (and read noise where the "
+                   "table constrains it) to measured wall noise: columns distance_m, albedo, "
+                   "random_error_mm, optional angle_deg, ambient_uw_cm2_nm (docs/cameras.md)")
+    c.add_argument("--figure", metavar="FIG.png", help="with --calibrate: measured and "
+                   "simulated random error against distance")
     c.add_argument("--noiseless", action="store_true",
                    help="with --compare: no shot or read noise (rounding stays)")
     add_variant_option(c)
@@ -57,6 +64,8 @@ def run_cameras(args) -> int:
 
     if args.compare is not None:
         return _compare(args)
+    if args.calibrate is not None or args.figure is not None:
+        return _calibrate(args)
     if args.wiggling is not None:
         return _wiggling(args)
     if args.list and args.name is not None:
@@ -79,6 +88,54 @@ def _png_path(path, option: str) -> str:
         raise CaptureError(f"{option} needs a .png figure path, got {path!r}")
     io.check_output_path(path)
     return path
+
+
+def _calibrate(args) -> int:
+    """``cameras BASE --calibrate TABLE.csv -o MINE.toml [--figure FIG.png]``."""
+    from .calibration import POOR_FIT, fit_table, rms_log_residual, write_calibration_figure
+    from .preset import PresetError, load_preset, write_preset
+
+    from ..tof.capture import CaptureError
+
+    if args.calibrate is None:
+        raise CaptureError("--figure needs --calibrate TABLE.csv")
+    if args.name is None:
+        raise CaptureError("--calibrate needs the base preset: dopplertof cameras BASE "
+                           "--calibrate TABLE.csv -o MINE.toml")
+    if args.output is None or not args.output.lower().endswith(".toml"):
+        raise CaptureError(f"--calibrate needs -o MINE.toml (the preset written), got "
+                           f"{args.output!r}")
+    from .. import io
+
+    io.check_output_folder(os.path.dirname(os.path.abspath(args.output)))
+    if os.path.isdir(args.output):
+        raise PresetError(f"{args.output}: is a folder, not a preset file")
+    figure = _png_path(args.figure, "--figure") if args.figure is not None else None
+    base = load_preset(args.name)
+    import dopplertof
+
+    dopplertof.set_variant(args.variant)
+    calibration = fit_table(base, args.calibrate)
+    stem = os.path.splitext(os.path.basename(args.output))[0]
+    from dataclasses import replace
+
+    preset = replace(calibration.preset, name=stem)
+    print(f"{base.name} calibrated to {args.calibrate} ({len(calibration.rows)} rows):")
+    for line in calibration.lines():
+        print(f"  {line}")
+    write_preset(preset, args.output)
+    written = [args.output]
+    if figure is not None:
+        calibration.preset = preset
+        write_calibration_figure(figure, calibration)
+        written.append(figure)
+    if rms_log_residual(calibration) > POOR_FIT:
+        print(f"dopplertof: note: {base.name}'s noise model does not follow {args.calibrate} "
+              f"(rms log residual {rms_log_residual(calibration):.2f}, over {POOR_FIT:g}): "
+              "the camera's noise has a shape the base lacks (a noise floor, a dynamic-range "
+              "scheme); the preset follows the rows only on average", file=sys.stderr)
+    print(f"wrote {' and '.join(written)} (capture with --camera {args.output})")
+    return 0
 
 
 def _wiggling(args) -> int:
@@ -113,6 +170,10 @@ def _compare(args) -> int:
     path = _png_path(args.output, "--compare -o")
     names = args.with_cameras.split(",") if args.with_cameras else preset_names()
     presets = [load_preset(n.strip()) for n in names]
+    for preset in presets:
+        note = preset.uncalibrated_note()
+        if note and not args.noiseless:
+            print(f"dopplertof: note: {note}", file=sys.stderr)
     resolution = parse_resolution(args.res) if args.res else None
     dopplertof.set_variant(args.variant)
     results = capture_through(args.compare, presets, resolution, spp=args.spp,
@@ -162,8 +223,9 @@ def run_camera_capture(args, load_defines) -> int:
         preset = preset_with_scene_view(args.scene, preset, resolution, load_defines)
     scene = load_scene_for_camera(args.scene, preset, resolution, load_defines,
                                   keep_view=args.keep_view)
-    for note in scene.notes:
-        print(f"dopplertof: note: {note}", file=sys.stderr)
+    for note in scene.notes + (preset.uncalibrated_note(),):
+        if note:
+            print(f"dopplertof: note: {note}", file=sys.stderr)
 
     def report(spec, seconds):
         if not args.quiet:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..hints import did_you_mean, unknown_key
 from ..io import read_toml
@@ -67,7 +67,9 @@ def _finite_list(n, check=None):
 SCHEMA = {
     "": {"name": (str, None, "the preset's name"),
          "description": (str, None, "one line"),
-         "sources": (list, None, "the documents its numbers come from")},
+         "sources": (list, None, "the documents its numbers come from"),
+         "noise_calibration": (str, None, "what its noise is fitted to (a published figure "
+                               "or a measured table); absent: not calibrated")},
     "optics": {"resolution": (list, None, "[width, height] pixels"),
                "fov_deg": (float, lambda x: 0.1 <= x <= 160, "a pinhole's horizontal field "
                            "of view, 0.1 to 160 degrees (a wider lens is no pinhole)"),
@@ -148,7 +150,7 @@ OPTIONAL = {("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): Tr
             ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
             ("reconstruction", "min_range_m"): 0.0, ("reconstruction", "min_snr"): 0.0,
             ("reconstruction", "edge_range_m"): 0.0,
-            ("conditions", "ambient_irradiance_uw_cm2_nm"): 0.0}
+            ("conditions", "ambient_irradiance_uw_cm2_nm"): 0.0, ("", "noise_calibration"): ""}
 #: the optics keys absolute radiometry needs
 RADIOMETRIC_OPTICS = ("f_number", "transmission", "filter_width_nm", "fill_factor")
 
@@ -192,6 +194,10 @@ class CameraPreset:
     optics: dict = None  #: the [optics] section (radiometry, binning, distortion)
     illuminator: dict | None = None  #: the [illuminator] section (None: auto exposure)
     conditions: dict = None  #: the [conditions] section (the maker's ambient light)
+    noise_calibration: str = ""  #: what its noise is fitted to ("": not calibrated)
+    #: ((section, key, comment), ...): the comments :func:`write_preset` gives these keys
+    #: beyond those of ``source_file`` (a calibration's fitted lines)
+    comments: tuple = field(default=(), compare=False)
 
     @property
     def absolute(self) -> bool:
@@ -217,10 +223,43 @@ class CameraPreset:
     def heterodyne(self) -> bool:
         return any(not f.homodyne for f in self.frames)
 
+    @property
+    def noise_calibrated(self) -> bool:
+        """Whether its noise is fitted to a published figure or a measured table: an
+        absolute preset with ``noise_calibration`` (an auto-exposed one's noise is
+        relative whatever its file says: the loader refuses the key there)."""
+        return self.absolute and bool(self.noise_calibration)
+
+    @property
+    def noise_source(self) -> str:
+        """What its noise is fitted to, or why it is not the camera's."""
+        if self.noise_calibrated:
+            return self.noise_calibration
+        if not self.absolute:
+            return ("not calibrated: auto exposure scales every capture so that its "
+                    "brightest pixel fills the well (sensor.well_fill): the noise is "
+                    "relative, not the camera's (dopplertof cameras NAME --calibrate "
+                    "TABLE.csv fits it to measurements)")
+        return ("not calibrated: absolute radiometry from the preset's inferred constants, "
+                "not fitted to a measured noise figure")
+
+    def uncalibrated_note(self) -> str | None:
+        """The line a capture prints when its noise is not the camera's, else None."""
+        if self.noise_calibrated:
+            return None
+        if not self.absolute:
+            return (f"{self.name} is auto-exposed: its noise is relative, not the camera's "
+                    "(each capture fills the well at its brightest pixel); dopplertof "
+                    f"cameras {self.name} --calibrate TABLE.csv -o MINE.toml fits it to "
+                    "measurements")
+        return (f"{self.name}'s noise comes from inferred constants, not calibrated to a "
+                "measured figure (no noise_calibration in its file)")
+
     def describe(self) -> dict:
         """Every value, for summaries and ``dopplertof cameras NAME``."""
         return {"name": self.name, "description": self.description,
                 "sources": list(self.sources), "file": self.source_file,
+                "noise_calibrated": self.noise_calibrated, "noise_source": self.noise_source,
                 "optics": {"resolution": list(self.resolution), "fov_deg": self.fov_deg,
                            "pixel_pitch_um": self.pixel_pitch_um},
                 "modulation": {"waveform": self.waveform, "contrast": self.contrast},
@@ -293,14 +332,15 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
                           resolution, optics["fov_deg"], optics["pixel_pitch_um"],
                           sections["modulation"]["waveform"], sections["modulation"]["contrast"],
                           sections["sensor"], sections["reconstruction"], raw, optics,
-                          illuminator, conditions)
+                          illuminator, conditions, top["noise_calibration"])
     _check_radiometry(preset)
     ignored = [f"[{name}]" for name in ("illuminator", "conditions") if name in data]
+    ignored += ["noise_calibration"] if "noise_calibration" in data else []
     if ignored and not preset.absolute:
         raise PresetError(f"{path}: {' and '.join(ignored)} would be ignored: "
                           "sensor.auto_exposure = true chooses the photon scale per capture "
-                          "(set it false for absolute radiometry, or remove the "
-                          f"section{'s' if len(ignored) > 1 else ''})")
+                          "(set it false for absolute radiometry, or remove "
+                          f"{'them' if len(ignored) > 1 else 'it'})")
     _check_ranges(preset)
     _check_sequence(preset)
     return preset
@@ -492,3 +532,125 @@ def format_preset(preset: CameraPreset) -> str:
                      f"{f.integration_s * 1e6:g} us from {f.start_s * 1e6:g} us, {kind}")
     lines.append("  sources: " + "; ".join(preset.sources))
     return "\n".join(lines)
+
+
+# ---- Writing -------------------------------------------------------------------------
+
+#: the sections of a preset file, in the packaged presets' order ([[frames]] last)
+SECTIONS = ("optics", "illuminator", "conditions", "modulation", "sensor", "reconstruction")
+
+
+def preset_document(preset: CameraPreset) -> dict:
+    """The TOML document of ``preset``: :func:`load_preset` reads it back to an equal
+    preset (keys without a value, such as an auto-exposed preset's optics f_number,
+    left out)."""
+    doc = {"name": preset.name, "description": preset.description,
+           "sources": list(preset.sources)}
+    if preset.noise_calibration:
+        doc["noise_calibration"] = preset.noise_calibration
+    optics = {k: v for k, v in (preset.optics or {}).items() if v is not None}
+    optics.update(resolution=list(preset.resolution), fov_deg=preset.fov_deg,
+                  pixel_pitch_um=preset.pixel_pitch_um)
+    doc["optics"] = {k: optics[k] for k in SCHEMA["optics"] if k in optics}
+    if preset.illuminator is not None:
+        doc["illuminator"] = dict(preset.illuminator)
+    if preset.absolute:
+        doc["conditions"] = dict(preset.conditions or {})
+    doc["modulation"] = {"waveform": preset.waveform, "contrast": preset.contrast}
+    doc["sensor"] = dict(preset.sensor)
+    doc["reconstruction"] = dict(preset.reconstruction)
+    doc["frames"] = [vars(f).copy() for f in preset.frames]
+    return doc
+
+
+def toml_value(value) -> str:
+    """One TOML value: a string (JSON's escapes are TOML's), a bool, a number (floats
+    as Python's shortest repr, which reads back bitwise), a list of them."""
+    import json
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"a TOML preset holds finite numbers, got {value!r}")
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML value for {value!r}")
+
+
+def preset_comments(path) -> dict:
+    """{(section, key): comment} of the ``key = value  # comment`` lines of a preset file
+    (its sections' keys; the top-level keys and [[frames]] left out); {} when ``path``
+    is no readable file."""
+    import re
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except (OSError, TypeError, UnicodeDecodeError):
+        return {}
+    pattern = re.compile(r'\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*("[^"#]*"|[^"#]*?)\s+#\s?(.*)$')
+    section, found = "", {}
+    for line in lines:
+        header = re.match(r"\s*\[+\s*([A-Za-z_]+)\s*\]+", line)
+        if header:
+            section = header.group(1)
+            continue
+        match = pattern.match(line)
+        if match and section in SCHEMA and section not in ("", "frames"):
+            found[(section, match.group(1))] = match.group(3)
+    return found
+
+
+def format_preset_toml(preset: CameraPreset) -> str:
+    """The text of ``preset``'s file: its document (:func:`preset_document`), each key
+    with the comment its source file gives it, or ``preset.comments``."""
+    doc = preset_document(preset)
+    comments = preset_comments(preset.source_file)
+    comments.update({(s, k): c for s, k, c in preset.comments})
+    lines = [f"# {preset.name}: {preset.description}",
+             f"# written by dopplertof (cameras.write_preset) from {preset.source_file};",
+             "# the comments say where each value comes from (docs/cameras.md)."]
+    lines += [f"{k} = {toml_value(doc[k])}" for k in ("name", "description", "sources",
+                                                       "noise_calibration") if k in doc]
+    for section in SECTIONS:
+        if section not in doc:
+            continue
+        lines += ["", f"[{section}]"]
+        for key, value in doc[section].items():
+            note = comments.get((section, key))
+            lines.append(f"{key} = {toml_value(value)}" + (f"  # {note}" if note else ""))
+    for frame in doc["frames"]:
+        lines.append("[[frames]]")
+        lines += [f"{key} = {toml_value(value)}" for key, value in frame.items()]
+    return "\n".join(lines) + "\n"
+
+
+def write_preset(preset: CameraPreset, path) -> str:
+    """Write ``preset`` as a preset file (.toml) that :func:`load_preset` reads back to
+    the same camera, atomically (a failed write leaves no file and an earlier one
+    whole); returns the path."""
+    from .. import io
+
+    path = os.fspath(path)
+    if not path.lower().endswith(".toml"):
+        raise PresetError(f"a preset file ends in .toml, got {path!r}")
+    if os.path.isdir(path):
+        raise PresetError(f"{path}: is a folder, not a preset file")
+    text = format_preset_toml(preset)
+    _preset_from(_parse_toml(text, path), path)  # what is written loads
+    with io.atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+    return path
+
+
+def _parse_toml(text: str, path: str) -> dict:
+    try:  # Python 3.11+
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
+        import tomli as tomllib
+    return tomllib.loads(text)
