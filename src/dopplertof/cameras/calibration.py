@@ -376,9 +376,9 @@ def calibrate(base, table, **options):
 def write_calibration_figure(path, calibration: Calibration) -> None:
     """Measured and simulated random error against distance, one colour per albedo
     (angle, ambient)."""
-    from .. import io
+    from .. import image_files
 
-    plt = io.pyplot()
+    plt = image_files.pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     groups = {}
     for row, sim in zip(calibration.rows, calibration.simulated_m):
@@ -399,4 +399,4 @@ def write_calibration_figure(path, calibration: Calibration) -> None:
                  f"{rms_log_residual(calibration):.3g}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    io.save_figure(fig, path)
+    image_files.save_figure(fig, path)
