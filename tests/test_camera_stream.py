@@ -359,6 +359,24 @@ def test_a_sequence_longer_than_a_frame_is_refused(tmp_path, capsys):
     assert code == 2 and "no frame_rate_hz: give the stream's --fps" in err, err
 
 
+def test_a_trajectory_for_a_camera_that_moves_already_is_refused(tmp_path, capsys):
+    from dopplertof.cli import main
+
+    moving = SCENE_XML.replace(
+        '<transform name="to_world"><lookat origin="0, 0, 2.5" target="0, 0, 0" up="0, 1, 0"/></transform>',
+        '<animation name="to_world"><transform time="0"><translate z="2.5"/></transform>'
+        '<transform time="1"><translate z="2"/></transform></animation>')
+    (tmp_path / "scene.xml").write_text(moving)
+    straight_trajectory(tmp_path / "t.txt")
+    code = main(["animate", str(tmp_path / "scene.xml"), "--camera", "azure-kinect",
+                 "--frames", "2", "--trajectory", str(tmp_path / "t.txt"), "-o",
+                 str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "the scene's sensor has an <animation> of its own" in err
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("argv,expected", [
     (["--trajectory", "t.txt"], "--trajectory needs --camera"),
     (["--camera", "azure-kinect", "--frame-period", "0.1"], "--frame-period does not apply"),
