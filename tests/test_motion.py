@@ -101,11 +101,11 @@ def test_matrix_to_quaternion_is_the_rotation_about_its_axis(angle, axis):
     """The keyframes' quaternions (written out, not SciPy's: its import cost every scene
     load 0.5 s): a rotation by ``angle`` about ``axis`` is (cos a/2, sin a/2 axis), up to
     sign, also at a half turn, where the trace branch cannot be used; and SciPy agrees."""
-    from dopplertof.scene.motion import _matrix_to_quat
+    from dopplertof.scene.motion import rotation_quaternion
 
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     R = Rotation.from_rotvec(angle * axis).as_matrix()
-    q = _matrix_to_quat(R)
+    q = rotation_quaternion(R)
     expected = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
     q = q if np.dot(q, expected) >= 0 else -q
     assert np.allclose(q, expected, atol=1e-12)

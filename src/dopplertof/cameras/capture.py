@@ -31,7 +31,7 @@ from ..tof.ground_truth import camera_forward, ground_truth, mixed_footprints
 from ..tof.summary import error_stats
 from . import radiometry
 from . import sensor as camera_sensor
-from .preset import CameraPreset, load_preset
+from .preset import CameraPreset, load_preset, sequence_window
 from .reconstruct import CameraReconstruction, reconstruct
 
 
@@ -87,12 +87,6 @@ def frame_specs(preset: CameraPreset) -> list:
     return [CaptureSpec(f"raw_{k}", "homodyne" if f.homodyne else "heterodyne",
                         f.frequency_mhz, f.hetero_frequency, f.offset)
             for k, f in enumerate(preset.frames)]
-
-
-def sequence_window(preset: CameraPreset) -> tuple:
-    """(first start, last end) of the raw frames within the depth frame (s)."""
-    return (min(f.start_s for f in preset.frames),
-            max(f.start_s + f.integration_s for f in preset.frames))
 
 
 def _base_params(scene, preset: CameraPreset, params) -> RenderParams:
@@ -446,9 +440,10 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
     reaches past it; default the preset's view) added when it has no light at all (a
     scene's own point and spot lights stand for it otherwise): at the preset's offset
-    from the lens, riding with the camera. The offset is in OpenCV's camera axes (x
-    right, y down, z forward); Mitsuba's camera has x left and y up, so the light is
-    translated by (-x, -y, z) in the camera's frame."""
+    from the lens, riding with the camera (a keyframed camera's: placed at its first
+    keyframe, whose pose the loader takes for the rest pose). The offset is in OpenCV's
+    camera axes (x right, y down, z forward); Mitsuba's camera has x left and y up, so
+    the light is translated by (-x, -y, z) in the camera's frame."""
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(text)
@@ -458,6 +453,9 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     sensor = root.find("sensor")
     placed = next((t for t in sensor.findall("transform") if t.get("name") == "to_world"),
                   None) if sensor is not None else None
+    moving = sensor.find("animation") if sensor is not None else None
+    if placed is None and moving is not None:  # the first keyframe: the camera's rest pose
+        placed = moving.find("transform")  # (the light rides on: follow="sensor")
     transform = light.find("transform")
     if placed is not None:
         for step in placed:  # after the offset: the camera's own placement
@@ -545,19 +543,26 @@ def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
 
 
 def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=None,
-                          keep_view: bool = False):
+                          keep_view: bool = False, camera_keyframes=None):
     """The scene file ``path`` with the camera's field of view and resolution (or
     ``resolution`` = (width, height): the same field of view, other pixels); a note
     (``scene.notes``) when that field of view replaces the scene's, unless
-    ``keep_view`` (``preset`` is :func:`preset_with_scene_view`'s: the scene's view)."""
+    ``keep_view`` (``preset`` is :func:`preset_with_scene_view`'s: the scene's view).
+    ``camera_keyframes``: :class:`dopplertof.scene.motion.Keyframes` of the sensor's
+    to_world that replace its placement (a trajectory's,
+    :meth:`dopplertof.scene.trajectory.Trajectory.keyframes`)."""
     from dataclasses import replace
 
     from ..scene import load_string
+    from ..scene.xml import set_sensor_keyframes
 
     text = _scene_text(path)
     note = None if keep_view else scene_view_note(text, preset, os.fspath(path))
     width, height = resolution or preset.resolution
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
+    if camera_keyframes is not None:
+        text = set_sensor_keyframes(text, camera_keyframes, os.fspath(path), "a trajectory",
+                                    CaptureError)
     if preset.absolute:
         text = with_illuminator(text, preset,
                                 radiometry.view_tangents(preset.fov_deg, width, height))

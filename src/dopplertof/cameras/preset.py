@@ -69,7 +69,9 @@ SCHEMA = {
          "description": (str, None, "one line"),
          "sources": (list, None, "the documents its numbers come from"),
          "noise_calibration": (str, None, "what its noise is fitted to (a published figure "
-                               "or a measured table); absent: not calibrated")},
+                               "or a measured table); absent: not calibrated"),
+         "frame_rate_hz": (float, lambda x: 0 < x <= 1e5, "depth frames per second, the "
+                           "rate of a stream (dopplertof animate --camera)")},
     "optics": {"resolution": (list, None, "[width, height] pixels"),
                "fov_deg": (float, lambda x: 0.1 <= x <= 160, "a pinhole's horizontal field "
                            "of view, 0.1 to 160 degrees (a wider lens is no pinhole)"),
@@ -144,7 +146,7 @@ SCHEMA = {
 }
 
 #: keys with a default
-OPTIONAL = {("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): True,
+OPTIONAL = {("", "frame_rate_hz"): None, ("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): True,
             ("optics", "f_number"): None, ("optics", "transmission"): None,
             ("optics", "filter_width_nm"): None, ("optics", "fill_factor"): None,
             ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
@@ -198,6 +200,7 @@ class CameraPreset:
     #: ((section, key, comment), ...): the comments :func:`write_preset` gives these keys
     #: beyond those of ``source_file`` (a calibration's fitted lines)
     comments: tuple = field(default=(), compare=False)
+    frame_rate_hz: float | None = None  #: depth frames per second (None: not given)
 
     @property
     def absolute(self) -> bool:
@@ -260,6 +263,7 @@ class CameraPreset:
         return {"name": self.name, "description": self.description,
                 "sources": list(self.sources), "file": self.source_file,
                 "noise_calibrated": self.noise_calibrated, "noise_source": self.noise_source,
+                **({"frame_rate_hz": self.frame_rate_hz} if self.frame_rate_hz else {}),
                 "optics": {"resolution": list(self.resolution), "fov_deg": self.fov_deg,
                            "pixel_pitch_um": self.pixel_pitch_um},
                 "modulation": {"waveform": self.waveform, "contrast": self.contrast},
@@ -332,7 +336,8 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
                           resolution, optics["fov_deg"], optics["pixel_pitch_um"],
                           sections["modulation"]["waveform"], sections["modulation"]["contrast"],
                           sections["sensor"], sections["reconstruction"], raw, optics,
-                          illuminator, conditions, top["noise_calibration"])
+                          illuminator, conditions, top["noise_calibration"],
+                          frame_rate_hz=top["frame_rate_hz"])
     _check_radiometry(preset)
     ignored = [f"[{name}]" for name in ("illuminator", "conditions") if name in data]
     ignored += ["noise_calibration"] if "noise_calibration" in data else []
@@ -343,7 +348,29 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
                           f"{'them' if len(ignored) > 1 else 'it'})")
     _check_ranges(preset)
     _check_sequence(preset)
+    if preset.frame_rate_hz is not None:
+        problem = sequence_too_long(preset, preset.frame_rate_hz)
+        if problem:
+            raise PresetError(f"{path}: frame_rate_hz = {preset.frame_rate_hz:g}: {problem}")
     return preset
+
+
+def sequence_window(preset: CameraPreset) -> tuple:
+    """(first start, last end) of the raw frames within the depth frame (s)."""
+    return (min(f.start_s for f in preset.frames),
+            max(f.start_s + f.integration_s for f in preset.frames))
+
+
+def sequence_too_long(preset: CameraPreset, fps: float) -> str | None:
+    """Why ``preset``'s raw frame sequence does not fit in a depth frame at ``fps``
+    frames per second (its first start to its last end longer than 1 / fps), else
+    None."""
+    first, last = sequence_window(preset)
+    if last - first <= 1.0 / fps:
+        return None
+    return (f"{preset.name}'s raw frame sequence lasts {(last - first) * 1e3:.6g} ms, longer "
+            f"than a depth frame at {fps:g} fps ({1e3 / fps:.6g} ms): the frames would "
+            f"overlap (at most {1.0 / (last - first):.6g} fps)")
 
 
 def _table(data: dict, name: str, path: str, where: str | None = None) -> dict:

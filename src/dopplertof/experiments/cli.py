@@ -78,6 +78,10 @@ def add_subcommands(subparsers) -> None:
     r.add_argument("-o", "--output", required=True, help=f"report folder ({FOLDER_HELP})")
     r.set_defaults(func=cmd_report)
 
+    _add_animate(subparsers)
+
+
+def _add_animate(subparsers) -> None:
     a = subparsers.add_parser(
         "animate", help="render a keyframed scene as a sequence of camera frames on Dask",
         description="Frame k exposes [start + k * period, start + k * period + T]; each "
@@ -92,13 +96,35 @@ def add_subcommands(subparsers) -> None:
     a.add_argument("--spp", type=positive_int, help="samples per pixel per capture")
     a.add_argument("--seed", type=non_negative_int, default=0,
                    help="seed of every frame (default 0: noise coherent across frames)")
-    a.add_argument("--fps", type=float, default=10.0, help="frames per second of the GIF")
+    a.add_argument("--fps", type=float, help="frames per second of the GIF (default 10); "
+                   "with --camera, of the stream (default: the preset's frame_rate_hz)")
     a.add_argument("--previews", action="store_true",
                    help="also write every frame's PNG previews")
     add_defines_option(a)
     add_params_option(a, "override an integrator parameter (repeatable)")
+    _stream_options(a)
     _cluster_options(a)
     a.set_defaults(func=cmd_animate)
+
+
+def _stream_options(a) -> None:
+    g = a.add_argument_group("camera stream (a preset's depth frames at its frame rate)")
+    g.add_argument("--camera", metavar="NAME|FILE.toml",
+                   help="a stream of the preset's depth frames: frame k's raw frames start "
+                   "at k / fps plus their own start (dopplertof cameras lists them)")
+    g.add_argument("--trajectory", metavar="FILE",
+                   help="with --camera: the camera's poses, TUM RGB-D format (timestamp tx "
+                   "ty tz qx qy qz qw), its first stamp at the scene's shutter_open")
+    g.add_argument("--res", metavar="WIDTHxHEIGHT",
+                   help="with --camera: other resolution, same field of view")
+    g.add_argument("--noiseless", action="store_true",
+                   help="with --camera: no shot or read noise (rounding stays)")
+    g.add_argument("--noise-seed", type=non_negative_int, metavar="S",
+                   help="with --camera: the sensor noise's seed (default 0; each frame "
+                   "draws its own from it)")
+    g.add_argument("--ambient-irradiance", type=float, metavar="UW_CM2_NM",
+                   help="with --camera (an absolute preset): ambient light, uW/cm^2/nm "
+                   "(default: the preset's documented condition)")
 
 
 def _progress(args):
@@ -172,20 +198,69 @@ def cmd_report(args) -> int:
     return 0
 
 
+#: animate's options that a camera stream takes, and those it refuses
+STREAM_ONLY = ("trajectory", "res", "noiseless", "noise_seed", "ambient_irradiance")
+NOT_STREAM = ("frame_period", "start", "previews")
+
+
+def _check_stream_options(args) -> None:
+    from .config import ConfigError
+
+    given = lambda name: getattr(args, name) not in (None, False)  # noqa: E731
+    if args.camera is None:
+        wrong = [n for n in STREAM_ONLY if given(n)]
+        if wrong:
+            raise ConfigError(f"--{wrong[0].replace('_', '-')} needs --camera")
+        return
+    wrong = [n for n in NOT_STREAM if given(n)]
+    if wrong:
+        raise ConfigError(f"--{wrong[0].replace('_', '-')} does not apply to a camera stream "
+                          "(its frames start at k / fps; the preset says the rest)")
+
+
+def _stream(args):
+    from .stream import run_stream
+
+    return run_stream(args.scene, args.output, args.frames, args.camera, fps=args.fps,
+                      trajectory=args.trajectory, resolution=args.res,
+                      spp=args.spp, seed=args.seed, noise=not args.noiseless,
+                      noise_seed=args.noise_seed or 0,
+                      ambient_irradiance=args.ambient_irradiance,
+                      defines=parse_pairs(args.defines, "-D"),
+                      params=parse_pairs(args.params, "-P"), variant=args.variant,
+                      scheduler=args.scheduler, workers=args.workers, retries=args.retries,
+                      progress=_progress(args))
+
+
 def cmd_animate(args) -> int:
     from .animate import run_animation
 
+    _check_stream_options(args)
+    if args.camera is not None:
+        summary = _stream(args)
+        if not args.quiet:
+            print(f"animate: a stream of {summary.frames} frames through {args.camera}: "
+                  f"{summary.done} done now, {summary.skipped} already complete, "
+                  f"{len(summary.failed)} failed ({summary.seconds:.1f} s) -> "
+                  f"{summary.output}")
+        return _report(summary)
     summary = run_animation(args.scene, args.output, args.frames,
                             frame_period=args.frame_period, start=args.start, spp=args.spp,
                             seed=args.seed, defines=parse_pairs(args.defines, "-D"),
                             params=parse_pairs(args.params, "-P"), variant=args.variant,
-                            previews=args.previews, fps=args.fps, scheduler=args.scheduler,
+                            previews=args.previews,
+                            fps=10.0 if args.fps is None else args.fps, scheduler=args.scheduler,
                             workers=args.workers, retries=args.retries,
                             progress=_progress(args))
     if not args.quiet:
         print(f"animate: {summary.frames} frames: {summary.done} done now, {summary.skipped} "
               f"already complete, {len(summary.failed)} failed ({summary.seconds:.1f} s)"
               + (f" -> {summary.video}" if summary.video else f" -> {summary.output}"))
+    return _report(summary)
+
+
+def _report(summary) -> int:
+    """The warnings and failed frames of an animation or a stream; the exit code."""
     for warning in summary.warnings:
         print(f"dopplertof: warning: {warning}", file=sys.stderr)
     for name, error in summary.failed:

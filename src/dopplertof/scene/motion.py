@@ -127,7 +127,7 @@ def _inverse3(A):
     ]
 
 
-def _quat_to_matrix(w, x, y, z):
+def quaternion_matrix(w, x, y, z):
     return [
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
@@ -135,7 +135,7 @@ def _quat_to_matrix(w, x, y, z):
     ]
 
 
-def _matrix_to_quat(R: np.ndarray) -> np.ndarray:
+def rotation_quaternion(R: np.ndarray) -> np.ndarray:
     """The unit quaternion (w, x, y, z) of a proper rotation matrix ``R``: from the
     largest of 1 + trace and the diagonal's 1 + 2 R_ii - trace (Shepperd's choice, so
     that no component comes from a difference of nearly equal numbers). Its sign is
@@ -183,7 +183,7 @@ class Motion:
         self.translation_only = bool(np.all(self.linear == self.linear[0]))
         if keyframes.interpolation == "rigid":
             polar = [_polar(a) for a in self.linear]
-            quats = [_matrix_to_quat(r) for r, _ in polar]
+            quats = [rotation_quaternion(r) for r, _ in polar]
             for i in range(1, len(quats)):  # shortest arcs
                 if np.dot(quats[i - 1], quats[i]) < 0:
                     quats[i] = -quats[i]
@@ -254,7 +254,7 @@ class Motion:
         q = [w0 * q0[i] + w1 * q1[i] for i in range(4)]
         norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
         q = [c / norm for c in q]
-        R = _quat_to_matrix(*q)
+        R = quaternion_matrix(*q)
         S0, S1 = n["stretch"][j], n["stretch"][j + 1]
         S = [[beta * S0[r][c] + alpha * S1[r][c] for c in range(3)] for r in range(3)]
         return _matmul3(R, S), b
