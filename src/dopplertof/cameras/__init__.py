@@ -20,7 +20,8 @@ from ..lazy import lazy_exports
 # imported on first use: `dopplertof --help` builds this package's command cheaply
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     ".preset": ("CameraPreset", "PresetError", "RawFrame", "format_preset", "load_preset",
-                "preset_names", "write_preset"),
+                "preset_names"),
+    ".preset_file": ("write_preset",),
     ".calibration": ("calibrate", "fit_table", "CalibrationError"),
     ".capture": ("capture_camera", "load_scene_for_camera"),
 })

@@ -206,7 +206,8 @@ def absolute_base(base):
     """``base`` as an absolute preset: itself when absolute; an auto-exposed one with an
     illuminator at its lens lighting its field (power 1 W, to be fitted) and
     :data:`ABSOLUTE_DEFAULTS`, through the preset loader's checks."""
-    from .preset import _preset_from, preset_document
+    from .preset import _preset_from
+    from .preset_file import preset_document
 
     if base.absolute:
         return base

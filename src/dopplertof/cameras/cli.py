@@ -93,7 +93,8 @@ def _png_path(path, option: str) -> str:
 def _calibrate(args) -> int:
     """``cameras BASE --calibrate TABLE.csv -o MINE.toml [--figure FIG.png]``."""
     from .calibration import POOR_FIT, fit_table, rms_log_residual, write_calibration_figure
-    from .preset import PresetError, load_preset, write_preset
+    from .preset import PresetError, load_preset
+    from .preset_file import write_preset
 
     from ..tof.capture import CaptureError
 
