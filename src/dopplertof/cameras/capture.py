@@ -426,7 +426,7 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
                           source: str) -> str:
     """The scene XML with its (single, top-level) sensor's film size and horizontal
     field of view set to the camera's."""
-    from ..scene.xml import set_sensor_properties
+    from ..scene.sensor_text import set_sensor_properties
 
     return set_sensor_properties(
         text, [("sensor", "float", "fov", repr(float(fov_deg))),
@@ -520,7 +520,7 @@ def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
     import mitsuba as mi
 
     from ..scene import load_string
-    from ..scene.xml import set_sensor_properties
+    from ..scene.sensor_text import set_sensor_properties
 
     width, height = resolution or preset.resolution
     text = set_sensor_properties(_scene_text(path),
@@ -554,7 +554,7 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     from dataclasses import replace
 
     from ..scene import load_string
-    from ..scene.xml import set_sensor_keyframes
+    from ..scene.sensor_text import set_sensor_keyframes
 
     text = _scene_text(path)
     note = None if keep_view else scene_view_note(text, preset, os.fspath(path))

@@ -92,7 +92,7 @@ class AnimationSummary:
 def scene_text_with_shutter(text: str, shutter_open: float, shutter_close: float,
                             source: str) -> str:
     """The scene XML with its sensor's shutter set to [shutter_open, shutter_close]."""
-    from ..scene.xml import set_sensor_properties
+    from ..scene.sensor_text import set_sensor_properties
 
     return set_sensor_properties(
         text, [("sensor", "float", "shutter_open", repr(float(shutter_open))),
