@@ -4,7 +4,7 @@ Issue 42's target: every fitted component within 3 of its reported standard devi
 Per scene, light and capture seed: `dopplertof capture` (the CLI, in this process), then
 `dopplertof fit`'s fit; per body and fitted component the fitted value, the truth (the
 capture scene's motion), and side by side the reported standard deviation and the
-z-score (error / sd) of the old covariance (s^2 (J^T J)^+, fit_solve._old_covariance)
+z-score (error / sd) of the old covariance (s^2 (J^T J)^+, fit_covariance.covariance's "plain" kind)
 and of the new sandwich (fit_noise), both from the same final state of the same fit.
 Ends with, per scene and light, the fraction of components within 3 sd, old and new,
 the z-scores' RMS and the Birge ratios.
@@ -60,24 +60,25 @@ def capture(scene: str, light: str, seed: int, res: int, spp: int, folder: str,
 
 
 def _recording_covariance():
-    """Patches the fit's covariance to record the old s^2 (J^T J)^+ beside the new
-    sandwich from the same final state: returns the list each fit appends to."""
+    """Wraps the fit's covariance to record the old s^2 (J^T J)^+ (the "plain" kind)
+    and the noise's variants beside the sandwich from the same final state (one fit, not
+    four): returns the list each fit appends to."""
     from dopplertof.diff import fit as fit_module
-    from dopplertof.diff import fit_noise, fit_solve
+    from dopplertof.diff import fit_covariance, fit_noise
 
     records = []
-    new = fit_solve._covariance
+    new = fit_covariance.covariance
 
-    def both(state, seen, theta=None, noise=None, report=None):
-        cov, sigma = new(state, seen, theta, noise, report)
+    def both(state, seen, theta=None, noise=None, report=None, kind="sandwich"):
+        cov, sigma = new(state, seen, theta, noise, report, kind)
         robust = fit_noise.CaptureNoise(noise.kinds, "residuals")  # for comparison
         plain = dataclasses.replace(noise, outliers=False)
-        records.append({"old": fit_solve._old_covariance(state, seen)[1], "new": sigma,
+        records.append({"old": new(state, seen, kind="plain")[1], "new": sigma,
                         "robust": new(state, seen, theta, robust)[1],
                         "plain": new(state, seen, theta, plain)[1], "report": report})
         return cov, sigma
 
-    fit_module._covariance = both
+    fit_module.covariance = both
     return records
 
 

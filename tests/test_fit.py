@@ -347,7 +347,8 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
     """A parameter the captures do not see stays at its start with an infinite
     uncertainty (afb2c4e moved such parameters: 27.5 +- 1132 m/s); the fit stops once a
     step no longer lowers the loss by 1%, well before its iteration limit."""
-    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_solve import _fit_progress, _gauss_newton
 
     problem = _LinearProblem([0.5, -1.0, 3.0])
     silent = _fit_progress(False, 50)
@@ -366,7 +367,7 @@ def test_gauss_newton_keeps_unseen_parameters_and_stops_on_a_plateau(capsys):
 class _RoundingColumnProblem(_LinearProblem):
     """The third parameter's column is rounding, the same in both seeds' Jacobians (the
     tall box's vertical velocity in issue 39's 2026-12-03 campaign F00: an energy of
-    4e-24 beside 5e-7, diag(G) 3e-24: its signal passed the test of :func:`_metric`)."""
+    4e-24 beside 5e-7, diag(G) 3e-24: its signal passed the test of :func:`fit_covariance.metric`)."""
 
     def __init__(self, start):
         super().__init__(start)
@@ -377,7 +378,8 @@ class _RoundingColumnProblem(_LinearProblem):
 def test_a_column_of_rounding_is_not_seen_and_its_parameter_not_a_result():
     """F00: ``fit`` reported the tall box's vertical velocity as -19.87 +- 1.17e9 m/s;
     a column of rounding is not seen, its parameter kept at its start, no uncertainty."""
-    from dopplertof.diff.fit_solve import KEPT, _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_solve import KEPT, _fit_progress, _gauss_newton
     from dopplertof.diff.fit_solve import _statuses
 
     problem = _RoundingColumnProblem([0.5, -1.0, 3.0])
@@ -394,7 +396,7 @@ def test_an_absurd_uncertainty_is_no_result():
     """A parameter the captures barely see (a column 2e-6 of the others') gets an
     uncertainty far beyond every velocity of the fit: not determined (infinite, null in
     fit.json), its covariance with the others dropped, not printed as a result."""
-    from dopplertof.diff.fit_solve import UNDETERMINED, _covariance
+    from dopplertof.diff.fit_covariance import UNDETERMINED, covariance as _covariance
 
     rng = np.random.default_rng(7)
     J = rng.normal(size=(40, 3))
@@ -427,7 +429,8 @@ def test_uncertainty_describes_the_spread_over_capture_and_render_noise():
     """The predicted standard deviation matches the spread of fits over independent
     captures and renders within 10% (the fit averages the two seeds' renders, so half
     their noise reaches it; 084448f's s^2 counted it whole: 1.2x too large here)."""
-    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_solve import _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(11)
     fitted, predicted = [], []
@@ -581,8 +584,10 @@ def test_a_combination_the_captures_do_not_see_is_named_and_has_no_uncertainty()
     (before: the pseudo-inverse gave d no variance, errors of -588 reported sd), v_y and a
     second body's components keep theirs; the body's radial velocity has none, the other
     body's does, unless its gradient leans on a parameter without one."""
-    from dopplertof.diff.fit_solve import (PARTLY_FIXED, _covariance, _radial_uncertainty,
-                                           _statuses, fixed_combinations)
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_covariance import fixed_combinations
+    from dopplertof.diff.fit_covariance import radial_uncertainty as _radial_uncertainty
+    from dopplertof.diff.fit_solve import PARTLY_FIXED, _statuses
 
     rng = np.random.default_rng(5)
     d = np.array([np.sqrt(3) / 2, 0.0, -0.5])
@@ -687,3 +692,14 @@ def test_a_capture_of_nan_is_refused_naming_the_file(capture_dir, tmp_path, caps
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"heterodyne_0.npy: {image.size} of {image.size} pixels are NaN or infinite" in err
     assert not out.exists()
+
+
+def test_an_unknown_covariance_kind_is_refused_before_any_work(tmp_path):
+    from dopplertof.diff.fit import FitError, fit
+    from dopplertof.diff.fit_covariance import covariance
+
+    with pytest.raises(FitError, match="covariance_kind must be one of sandwich, plain"):
+        fit(tmp_path / "no capture", covariance_kind="robust")
+    with pytest.raises(ValueError, match="unknown covariance 'robust'"):
+        covariance(((np.zeros(2), np.zeros(2)), (np.eye(2), np.eye(2))), np.ones(2, bool),
+                   kind="robust")

@@ -79,8 +79,8 @@ class _HeteroscedasticProblem:
 def _z_scores(noise_of, fits=1000, seed=5):
     """Per fit and component, the error in reported standard deviations, old (s^2
     (J^T J)^+) and new (the sandwich with ``noise_of(problem)``); and the Birge ratios."""
-    from dopplertof.diff.fit_solve import (_covariance, _fit_progress, _gauss_newton,
-                                           _old_covariance)
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_solve import _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(seed)
     old, new, birge = [], [], []
@@ -91,7 +91,7 @@ def _z_scores(noise_of, fits=1000, seed=5):
         error = theta - problem.truth
         report = {}
         new.append(error / _covariance(state, problem.seen, None, noise_of(problem), report)[1])
-        old.append(error / _old_covariance(state, problem.seen)[1])
+        old.append(error / _covariance(state, problem.seen, kind="plain")[1])
         birge.append(report["birge_ratio"])
     return np.array(old), np.array(new), np.array(birge)
 
@@ -128,7 +128,8 @@ def test_birge_ratio_scales_only_an_excess_beyond_its_noise():
     0.18 measured over 200 fits of 400 blocks); told right, its median is 1 within 0.1
     and it scales almost none (at most 10%)."""
     from dopplertof.diff.fit_noise import CaptureNoise
-    from dopplertof.diff.fit_solve import _covariance, _fit_progress, _gauss_newton
+    from dopplertof.diff.fit_covariance import covariance as _covariance
+    from dopplertof.diff.fit_solve import _fit_progress, _gauss_newton
 
     rng = np.random.default_rng(2)
     told_none, right = [], []

@@ -43,7 +43,7 @@ Birge ratio only where the residuals exceed what that noise predicts significant
 standard deviations scattered 1.3-2x too wide); a radial velocity's follows from it through its
 derivative. A parameter the captures do not see keeps its start; its uncertainty is
 infinite (null in fit.json), as is one whose uncertainty passes
-:data:`~.fit_solve.UNDETERMINED` times the parameters' norm: the captures do not
+:data:`~.fit_covariance.UNDETERMINED` times the parameters' norm: the captures do not
 determine it.
 """
 
@@ -61,8 +61,8 @@ from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitEr
                           load_capture)
 from .fit_noise import capture_noise
 from .fit_output import FitResult, format_fit, write_fit
-from .fit_solve import (PLATEAU, _covariance, _fit_progress, _FitProblem, _gauss_newton,
-                        _method_notes, fixed_combinations)
+from .fit_covariance import COVARIANCES, covariance, fixed_combinations
+from .fit_solve import PLATEAU, _fit_progress, _FitProblem, _gauss_newton, _method_notes
 from .motion import VelocityMotion
 from .symmetry import symmetry_notes
 from .settings import FIT_SPP, JACOBIAN_SHARE
@@ -77,7 +77,8 @@ __all__ = ["FIT_CAPTURES", "REFLECTANCE_CAPTURES", "FIT_SPP", "FitError", "FitRe
 def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
         iterations: int = 12, angular: bool = False, defines=None, progress=None,
         tolerance: float = 1e-3, block: int = 8, plateau: float = PLATEAU,
-        reflectances: bool = False, jacobian_spp: int | None = None) -> FitResult:
+        reflectances: bool = False, jacobian_spp: int | None = None,
+        covariance_kind: str = "sandwich") -> FitResult:
     """Fit every body's velocity to the captures in ``folder`` (see the module
     docstring). ``start``: {body index: linear velocity (3,) or (v (3,), omega (3,))}
     to start from instead of the closed form; ``seed``: of the fit's renders (default:
@@ -89,7 +90,10 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     :data:`JACOBIAN_SHARE` of ``spp``). ``progress``: a bar
     (True; None: when stderr is a terminal), else (None) one line per iteration on
     stderr, or nothing (False). ``reflectances``: fit :func:`reflectance_keys` too, on
-    :data:`REFLECTANCE_CAPTURES`."""
+    :data:`REFLECTANCE_CAPTURES`. ``covariance_kind``: the uncertainties' model,
+    "sandwich" (each residual's estimated noise) or "plain" (one variance for every
+    residual, s^2 G^+: for comparison; :func:`.fit_covariance.covariance`)."""
+    _check_kind(covariance_kind)
     data = load_capture(folder, defines, FIT_CAPTURES + REFLECTANCE_CAPTURES * reflectances)
     jacobian_spp = _jacobian_samples(spp, jacobian_spp, data.base)
     seed = int(data.summary.get("seed", 0)) + 1 if seed is None else seed
@@ -116,22 +120,16 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     _check_seen(problem, history[0])
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
-    cov, sigma, noise, fixed = _uncertainties(data, problem, spp, state, theta)
+    cov, sigma, noise, fixed = _uncertainties(data, problem, spp, state, theta,
+                                              covariance_kind)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths, fixed)
     warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
                 + ([] if angular else problem.rotation_warnings(state, bodies)))
-    settings = {
-        "capture": os.path.abspath(os.fspath(folder)), "captures_fitted": list(problem.fitted),
-        "spp": int(spp), "jacobian_spp": int(jacobian_spp), "seed": seed,
-        "jacobian_seed": seed + 1, "pixels": int(problem.pixels.size), "block": int(block),
-        "residuals": "per capture, sums over blocks of interior pixels of one body",
-        "parameters": problem.names, "angular": bool(angular),
-        "start": "user" if start else "closed form (velocity.npy)",
-        **_method_notes(t_mid, tolerance, plateau),
-        "noise": noise, "stopped": stop,
-        **_unconstrained(problem.names, theta, history[0], sigma, fixed[0]),
-        "seconds": round(_time.perf_counter() - started, 3),
-    }
+    settings = {"capture": os.path.abspath(os.fspath(folder)),
+                **_settings(problem, spp, jacobian_spp, seed, block, angular, start),
+                **_method_notes(t_mid, tolerance, plateau), "noise": noise, "stopped": stop,
+                **_unconstrained(problem.names, theta, history[0], sigma, fixed[0]),
+                "seconds": round(_time.perf_counter() - started, 3)}
     return FitResult(bodies, done, loss, history, settings,
                      problem.reflectance_entries(theta, sigma), warnings)
 
@@ -151,16 +149,32 @@ def _check_seen(problem, first: dict) -> None:
                            "form); no result")
 
 
-def _uncertainties(data, problem, spp: int, state, theta):
+def _settings(problem, spp, jacobian_spp, seed, block, angular, start) -> dict:
+    """fit.json's settings of the renders and the residuals."""
+    return {"captures_fitted": list(problem.fitted), "spp": int(spp),
+            "jacobian_spp": int(jacobian_spp), "seed": seed, "jacobian_seed": seed + 1,
+            "pixels": int(problem.pixels.size), "block": int(block),
+            "residuals": "per capture, sums over blocks of interior pixels of one body",
+            "parameters": problem.names, "angular": bool(angular),
+            "start": "user" if start else "closed form (velocity.npy)"}
+
+
+def _check_kind(covariance_kind: str) -> None:
+    if covariance_kind not in COVARIANCES:
+        raise FitError(f"covariance_kind must be one of {', '.join(COVARIANCES)}, got "
+                       f"{covariance_kind!r}")
+
+
+def _uncertainties(data, problem, spp: int, state, theta, kind: str = "sandwich"):
     """(cov, sigma, fit.json's settings.noise, fixed) at the end of the fit: the sandwich
     covariance with the capture's noise as its folder gives it (:mod:`.fit_noise`);
     ``fixed``: the combinations the captures do not constrain and the mask of the
-    parameters weighing on them (:func:`.fit_solve.fixed_combinations`), which have no
+    parameters weighing on them (:func:`.fit_covariance.fixed_combinations`), which have no
     uncertainty (``cov`` keeps them: a radial velocity that does not depend on a fixed
     combination has its variance from them all)."""
     capture = capture_noise(data, problem, spp)
     noise = {"capture_noise": capture.describe()}
-    cov, sigma = _covariance(state, problem.seen, theta, capture, noise)
+    cov, sigma = covariance(state, problem.seen, theta, capture, noise, kind)
     fixed = fixed_combinations(state, problem.seen)
     return cov, np.where(fixed[1], np.inf, sigma), noise, fixed
 

@@ -6,6 +6,6 @@ FIT_SPP = 256
 
 #: the Jacobian's renders take this fraction of the residuals' samples (default):
 #: Gauss-Newton needs the Jacobian only approximately, and the metric of two
-#: independent Jacobians (:func:`dopplertof.diff.fit_solve._metric`) is unbiased at any
+#: independent Jacobians (:func:`dopplertof.diff.fit_covariance.metric`) is unbiased at any
 #: sample count
 JACOBIAN_SHARE = 0.25
