@@ -43,15 +43,13 @@ from .doppler import (
     photon_delay,
     photon_doppler_shift,
 )
-from .figures import (
-    CSV_COLUMNS,
-    DATA_FILES,
-    FIGURE_FILES,
+from .figure_common import CSV_COLUMNS, DATA_FILES, FIGURE_FILES
+from .figures import write_figures
+from .figures_variance import (
     convergence_rates,
     local_maximum_at_half,
     theta_averaged_method_variance,
     theta_averaged_shift_variance,
-    write_figures,
 )
 from .mis import (
     antithetic_pdf,
@@ -73,5 +71,5 @@ from .waveforms import (
 )
 
 __all__ = [name for name in dir() if not name.startswith("_")
-           and name not in {"antithetic", "doppler", "figures", "mis", "signals", "waveforms",
-                            "quadrature"}]
+           and name not in {"antithetic", "doppler", "figures", "figure_common",
+                            "figures_variance", "mis", "signals", "waveforms", "quadrature"}]
