@@ -135,18 +135,22 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
 
 
 def _check_seen(problem, first: dict) -> None:
-    """A FitError for a body none of whose linear velocity components the captures see
-    at its start (a start far beyond its speed: the fit cannot move it, and its start
-    would be reported as a result, with no uncertainty or a zero one)."""
+    """A FitError where the captures see none of any body's linear velocity components
+    at its start (a start far beyond its speed, or bodies too small or too noisy to see:
+    the fit can move nothing, and its starts would be reported as a result). Where some
+    body is seen, an unseen one is reported with the status "not seen: kept at its
+    start", not as a fitted velocity."""
     per = problem.per_body
-    for k, body in enumerate(problem.data.scene.bodies):
-        linear = slice(k * per, k * per + 3)
-        if not problem.seen[linear].any():
-            start = ", ".join(f"{v:.3g}" for v in first["parameters"][linear])
-            raise FitError(f"the captures see none of body {k} ({', '.join(body.names)})'s "
-                           f"velocity components at its start ({start}) m/s: the fit cannot "
-                           "move it; give a start nearer its speed, or none (the closed "
-                           "form); no result")
+    unseen = [k for k in range(len(problem.data.scene.bodies))
+              if not problem.seen[k * per:k * per + 3].any()]
+    if unseen and len(unseen) == len(problem.data.scene.bodies):
+        k = unseen[0]
+        body = problem.data.scene.bodies[k]
+        start = ", ".join(f"{v:.3g}" for v in first["parameters"][k * per:k * per + 3])
+        raise FitError(f"the captures see none of body {k} ({', '.join(body.names)})'s "
+                       f"velocity components at its start ({start}) m/s, nor any other "
+                       "body's: the fit cannot move them; give a start nearer their "
+                       "speeds, or none (the closed form); no result")
 
 
 def _settings(problem, spp, jacobian_spp, seed, block, angular, start) -> dict:
