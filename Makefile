@@ -29,8 +29,8 @@ demo_out/summary.json: $(DEMO_INPUTS)
 	$(VENV)/bin/dopplertof demo -o demo_out
 
 # the whole suite (what CI runs, one process); `make quick`: the fast tier, for the
-# edit-test loop, in two pytest-xdist processes (129-148 s on the idle 2-core machine,
-# 2026-12-04; in one process about 1.4x that: docs/testing.md)
+# edit-test loop, in two pytest-xdist processes (144 s on the idle 2-core machine,
+# 2026-12-07; in one process about 1.4x that: docs/testing.md)
 test: setup
 	$(PY) -m pytest -q
 

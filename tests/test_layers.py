@@ -169,7 +169,7 @@ def test_top_rooms_import_down_and_only_the_command_line_imports_them():
 
 #: an issue number or a date in src/ (history lives in git); another project's issue
 #: tracker (Mitsuba's, the Azure Kinect SDK's) is a reference a reader can follow
-_HISTORY = re.compile(r"(?<!Mitsuba )(?<!SDK )(?<!SDK's )\b[Ii]ssue \d+|\b20\d\d-[01]\d-[0-3]\d\b")
+_HISTORY = re.compile(r"(?<!Mitsuba )(?<!SDK )(?<!SDK's )\b[Ii]ssues? \d+|\b20\d\d-[01]\d-[0-3]\d\b")
 
 
 def test_no_issue_numbers_or_dates_in_src_and_no_issue_numbers_in_docs():
