@@ -96,18 +96,14 @@ def config_hash(config: DatasetConfig, variant: str) -> str:
 
 def mesh_digests(config: DatasetConfig) -> list:
     """[file name, sha256] of every mesh the configuration may draw."""
-    import hashlib
-
+    from ..scene.inputs import file_sha256
     from .config import mesh_files
     from .generate import mesh_folder
 
     if "mesh" not in config["objects"]["shapes"]:
         return []
-    out = []
-    for path in mesh_files(mesh_folder(config)):
-        with open(path, "rb") as f:
-            out.append([os.path.basename(path), hashlib.sha256(f.read()).hexdigest()])
-    return out
+    return [[os.path.basename(path), file_sha256(path)]
+            for path in mesh_files(mesh_folder(config))]
 
 
 def copy_meshes(config: DatasetConfig, output: str) -> None:

@@ -24,7 +24,6 @@ one run uninterrupted.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import time
@@ -33,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..capture_summary import SUMMARY_JSON, read_capture
+from ..scene.inputs import file_sha256
 from .animate import AnimationSummary, frames_past_keyframes
 from .cluster import DEFAULT_RETRIES, run_in_folder
 from .config import ConfigError
@@ -90,11 +90,6 @@ def frame_noise_seed(noise_seed: int, index: int) -> int:
                .generate_state(1, np.uint64)[0])
 
 
-def _file_sha256(path: str) -> str:
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
-
-
 # ---- The frame task -------------------------------------------------------------------
 
 def _keyframes(task: StreamFrameTask):
@@ -117,7 +112,7 @@ def run_stream_frame_task(task: StreamFrameTask) -> dict:
     with RENDER_LOCK:
         prepare_worker(task.variant, task.threads)
         preset = load_preset(task.camera)
-        if _file_sha256(preset.source_file) != task.camera_sha256:
+        if file_sha256(preset.source_file) != task.camera_sha256:
             raise RuntimeError(f"{task.camera} changed since the stream was planned; rerun it")
         scene = load_scene_for_camera(task.scene, preset, task.resolution, task.defines,
                                       camera_keyframes=_keyframes(task))
@@ -252,7 +247,7 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
     tasks = [StreamFrameTask(
         index=k, name=f"frame_{k:04d}", folder=os.path.join(output, f"frame_{k:04d}"),
         scene=scene, scene_sha256=scene_file_digest(scene, probe),
-        camera=preset.source_file, camera_sha256=_file_sha256(preset.source_file),
+        camera=preset.source_file, camera_sha256=file_sha256(preset.source_file),
         defines=defines, variant=variant,
         resolution=None if resolution is None else tuple(int(v) for v in resolution),
         params={k2: v for k2, v in (params or {}).items()}, spp=spp, seed=seed,
