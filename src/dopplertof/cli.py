@@ -331,17 +331,15 @@ def _cmd_capture(args) -> int:
         if not args.quiet:
             print(f"  {spec.name:<16} {seconds:6.1f} s", flush=True)
 
-    result = dopplertof.capture(scene, spp=args.spp, seed=args.seed,
-                                params=parse_pairs(args.params, "-P") or None,
-                                hetero_frequency=args.hetero_frequency,
-                                unwrap_frequency=args.unwrap_frequency, noise=noise,
-                                min_signal_fraction=args.min_signal,
-                                progress=False if args.quiet else None, on_capture=report,
-                                mc_batches=args.mc_batches,
-                                max_velocity_std=args.max_velocity_std,
-                                max_depth_std=args.max_depth_std,
-                                keep_mixed_pixels=args.keep_mixed_pixels,
-                                checkpoint=args.checkpoint)
+    settings = dopplertof.CaptureSettings(
+        spp=args.spp, seed=args.seed, params=parse_pairs(args.params, "-P") or None,
+        hetero_frequency=args.hetero_frequency, unwrap_frequency=args.unwrap_frequency,
+        noise=noise, min_signal_fraction=args.min_signal,
+        progress=False if args.quiet else None, on_capture=report,
+        mc_batches=args.mc_batches, max_velocity_std=args.max_velocity_std,
+        max_depth_std=args.max_depth_std, keep_mixed_pixels=args.keep_mixed_pixels,
+        checkpoint=args.checkpoint)
+    result = dopplertof.capture(scene, settings=settings)
     if args.defines:  # dopplertof fit loads the scene again with them
         result.summary["scene_defines"] = parse_pairs(args.defines, "-D")
     result.write(args.output, pointcloud=args.pointcloud)
