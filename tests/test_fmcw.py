@@ -525,3 +525,16 @@ def test_the_fmcw_settings_are_parsed_apart_from_the_render_parameters():
         parsed({"fmcw_bin": 64}, "here", RenderParams())
     with pytest.raises(ParameterError, match="unknown parameter 'fmcw_bins'"):
         RenderParams.from_mapping({"fmcw_bins": 64})
+
+
+def test_a_dtof_command_refuses_an_fmcw_parameter_it_would_ignore(tmp_path, capsys):
+    """-P fmcw_bins=64 on `capture`: one line naming it and whose it is, exit 2, before
+    the scene loads; nothing written."""
+    out = tmp_path / "out"
+    code = main(["capture", str(tmp_path / "missing.xml"), "-o", str(out), "-P",
+                 "fmcw_bins=64"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "fmcw_bins is the FMCW lidar's (the fmcw command, dopplertof.fmcw), not a D-ToF " \
+           "render's" in err
+    assert not out.exists()

@@ -240,10 +240,10 @@ def _check_before_loading(args, where: str) -> None:
     scene load (a usage error in well under a second, not after seconds of start-up);
     the library checks them again against the scene."""
     from .arguments import check_seed
-    from .params import RenderParams
     from .sampling import check_sample_count
+    from .scene.parameters import render_values
 
-    RenderParams.coerced(parse_pairs(args.params, "-P"), where)
+    render_values(parse_pairs(args.params, "-P"), where)
     if args.spp is not None:
         check_sample_count(1, args.spp)
     check_seed(args.seed, "seed", UsageError)  # (all 64 bits key the random streams)

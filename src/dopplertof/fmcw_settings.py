@@ -39,7 +39,8 @@ class FMCWSettings:
     """The chirp pair and the beam a scene gives the FMCW lidar. A field ``x`` is the
     scene's parameter ``fmcw_x`` (:attr:`PREFIX`)."""
 
-    PREFIX = "fmcw_"  #: (a class constant, not a field)
+    PREFIX = "fmcw_"  #: (class constants, not fields)
+    WHOSE = "the FMCW lidar's (the fmcw command, dopplertof.fmcw)"  #: for messages
 
     wavelength: float = 1550.0  #: lambda (nm)
     bandwidth: float = 1.0  #: B, one chirp's sweep (GHz)

@@ -12,7 +12,8 @@ from ..hints import unknown_name
 from ..params import ParameterError, RenderParams
 
 #: the settings of the modalities other than the D-ToF camera, by modality: each a
-#: frozen dataclass with PREFIX, names(), coerced() and from_mapping(), as FMCWSettings
+#: frozen dataclass with PREFIX, WHOSE, names(), coerced() and from_mapping(), as
+#: FMCWSettings
 MODALITY_SETTINGS = {"fmcw": FMCWSettings}
 
 
@@ -51,6 +52,18 @@ def coerced(values: dict, where: str = "parameters") -> None:
     RenderParams.coerced(own, where)
     for modality, given in others.items():
         MODALITY_SETTINGS[modality].coerced(given, where)
+
+
+def render_values(values: dict, where: str = "render parameters") -> dict:
+    """``values`` checked as a D-ToF render's (-P of ``render``, ``capture``,
+    ``precision``): names and types, and a ParameterError for another modality's name,
+    which such a render would ignore."""
+    own, others = split(values, where)
+    for modality, given in others.items():
+        name, whose = next(iter(given)), MODALITY_SETTINGS[modality].WHOSE
+        raise ParameterError(f"{where}: {name} is {whose}, not a D-ToF render's: it would "
+                             "be ignored; leave it out")
+    return RenderParams.coerced(own, where)
 
 
 def parsed(values: dict, where: str, params: RenderParams,
