@@ -2,8 +2,8 @@
 
 Every section and key is listed in :data:`SCHEMA` with its type, range and meaning; an
 unknown or misspelt key is one line naming the file and the key (with the nearest known
-name), by the package's one TOML validator (toml_schema.py), the camera presets' too. A range is ``[low, high]`` and a sample
-draws uniformly in it; ``[x, x]`` fixes the value. ``examples/dataset.toml`` is the
+name), by the package's one TOML validator (toml_schema.py), the camera presets' too. A
+range is ``[low, high]`` and a sample draws uniformly in it; ``[x, x]`` fixes the value. ``examples/dataset.toml`` is the
 commented reference; docs/dataset.md describes what each key does to a scene.
 """
 
@@ -14,8 +14,8 @@ import os
 from dataclasses import dataclass
 
 from ..arguments import check_seed
-from ..io import read_toml
 from .. import toml_schema
+from ..io import read_toml
 from ..toml_schema import Key
 
 #: shapes a configuration may draw ("mesh": a file of [objects] mesh_folder)

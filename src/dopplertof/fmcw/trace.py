@@ -30,6 +30,7 @@ import drjit as dr
 import numpy as np
 
 from .. import sampling
+from ..fmcw_settings import FMCWSettings
 from ..integrators.path_loop import Modality, trace_path_loop
 from ..integrators.path_steps import (CameraSample, PassLayout, _as_colour, film_position,
                                       lane_streams)
@@ -40,7 +41,6 @@ from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
 from ..scene.parameters import parsed
 from ..tof.ground_truth import camera_origin, mid_exposure, velocity_field
 from .beam import Beam
-from ..fmcw_settings import FMCWSettings
 
 #: the most spectrum values (pixels x 2 x bins) a frame may hold: 4 GiB on the host in
 #: float64, 2 GiB on the device in float32

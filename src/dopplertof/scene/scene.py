@@ -95,9 +95,10 @@ class DopplerScene:
     - ``bodies``: one MovingBody per animation: ``.scene`` (an ``mi.Scene`` of its
       shapes at the first keyframe's pose), ``.motion`` and ``.names`` (the shape ids);
     - ``params`` (RenderParams, the D-ToF camera's), ``modality_settings`` (the other
-      modalities' settings, by modality: ``["fmcw"]`` the FMCW lidar's), ``spp``, ``variant``, ``source``, ``sensor_motion``,
-      ``light_motions``, ``notes``, ``fingerprint``; ``sensor``, ``shutter_open`` and
-      ``shutter_interval`` are the sensor's.
+      modalities' settings, by modality: ``["fmcw"]`` the FMCW lidar's), ``spp``,
+      ``variant``, ``source``, ``sensor_motion``, ``light_motions``, ``notes``,
+      ``fingerprint``; ``sensor``, ``shutter_open`` and ``shutter_interval`` are the
+      sensor's.
     """
 
     static: object  #: mi.Scene with the static shapes, the sensor and the emitters
