@@ -703,3 +703,24 @@ def test_an_unknown_covariance_kind_is_refused_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="unknown covariance 'robust'"):
         covariance(((np.zeros(2), np.zeros(2)), (np.eye(2), np.eye(2))), np.ones(2, bool),
                    kind="robust")
+
+
+@pytest.mark.slow  # two fits (about 15 s on 2 loaded cores)
+def test_the_final_state_gives_each_covariance_of_the_same_fit(capture_dir):
+    """result.final (fit_covariance.FinalState) is what the uncertainties came from: the
+    sandwich of it is the fit's reported deviations, its "plain" kind a fit with
+    covariance_kind="plain" (whose steps are the same: the kind is read only at the
+    end); so another model compares on one fit (benchmarks/fit_uncertainty.py)."""
+    from dopplertof.diff.fit import fit
+    from dopplertof.diff.fit_covariance import covariance
+
+    sandwich = fit(capture_dir, spp=8, iterations=1, progress=False)
+    plain = fit(capture_dir, spp=8, iterations=1, progress=False, covariance_kind="plain")
+    final = sandwich.final
+    for result, kind, noise in ((sandwich, "sandwich", final.noise), (plain, "plain", None)):
+        sigma = covariance(final.state, final.seen, final.theta, noise, None, kind)[1]
+        pairs = [(sd, sigma[3 * k + a]) for k, body in enumerate(result.bodies)
+                 for a, sd in enumerate(body["linear_velocity_uncertainty_m_s"])
+                 if sd is not None]  # (None: not constrained, no deviation)
+        assert pairs and all(sd == expected for sd, expected in pairs), (kind, pairs)
+    assert np.array_equal(plain.final.theta, final.theta)

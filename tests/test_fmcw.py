@@ -15,6 +15,7 @@ from analytic import FOV, INTENSITY, RHO, plane_scene
 import dopplertof
 from dopplertof.cli import main
 from dopplertof.fmcw import Chirp, FMCWError, fmcw, spectrum_peaks
+from dopplertof.fmcw_settings import FMCWSettings
 from dopplertof.tof.ground_truth import ground_truth
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -226,8 +227,10 @@ def test_a_chirp_in_the_xml_gives_the_spectrum_of_the_same_chirp_in_python(tmp_p
     override = fmcw(scene, Chirp(bins=64), spp=1, beam="flood")
     assert override.spectrum.shape[-1] == 64 and override.summary["beam"]["kind"] == "flood"
     # (the D-ToF renders' and checkpoints' keys: the image-defining parameters' repr)
-    assert scene.params.image_defining() == plain.params.image_defining()
-    assert "fmcw" not in repr(scene.params)
+    assert scene.params == plain.params and "fmcw" not in repr(scene.params)
+    assert scene.modality_settings["fmcw"] == FMCWSettings(
+        wavelength=1064.0, bandwidth=10.0, chirp_time=5.0, bins=512, beam=beam,
+        beam_intensity=3.0)
 
 
 def test_the_command_takes_its_options_over_the_xml_and_the_xml_over_the_defaults(
@@ -505,3 +508,33 @@ def test_a_file_in_the_way_of_the_folder_exits_2_before_rendering(tmp_path, caps
     assert main(["fmcw", SPHERE, "-o", str(blocker), "--spp", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not a folder" in err and blocker.read_text() == "x"
+
+
+def test_the_fmcw_settings_are_parsed_apart_from_the_render_parameters():
+    """One parser hands fmcw_* names to the lidar's settings and the rest to
+    RenderParams, which knows no fmcw_* name; a misspelt name is named with the nearest
+    known ones, whoever's they are."""
+    from dopplertof.params import ParameterError, RenderParams
+    from dopplertof.scene.parameters import parsed
+
+    params, settings = parsed({"max_depth": "3", "fmcw_bins": "64"}, "here", RenderParams())
+    assert params == RenderParams(max_depth=3) and settings["fmcw"] == FMCWSettings(bins=64)
+    assert not [name for name in RenderParams.names() if name.startswith("fmcw")]
+    with pytest.raises(ParameterError, match="here: unknown parameter 'fmcw_bin', did you "
+                                             "mean 'fmcw_bins'"):
+        parsed({"fmcw_bin": 64}, "here", RenderParams())
+    with pytest.raises(ParameterError, match="unknown parameter 'fmcw_bins'"):
+        RenderParams.from_mapping({"fmcw_bins": 64})
+
+
+def test_a_dtof_command_refuses_an_fmcw_parameter_it_would_ignore(tmp_path, capsys):
+    """-P fmcw_bins=64 on `capture`: one line naming it and whose it is, exit 2, before
+    the scene loads; nothing written."""
+    out = tmp_path / "out"
+    code = main(["capture", str(tmp_path / "missing.xml"), "-o", str(out), "-P",
+                 "fmcw_bins=64"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "fmcw_bins is the FMCW lidar's (the fmcw command, dopplertof.fmcw), not a D-ToF " \
+           "render's" in err
+    assert not out.exists()

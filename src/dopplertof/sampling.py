@@ -70,20 +70,58 @@ FULL_CORRELATION = 1 << 16
 ANTITHETIC_MAPPINGS = ("replay", "motion")
 
 # ---- Dimension layout -------------------------------------------------------
+# The path loop's own numbers; a modality's own (what it reads beyond the loop's) go in
+# the slots reserved for modalities, placed by its ModalityDimensions.
 DIM_TIME = 0  #: the time sample
 DIM_WAVELENGTH = 1  #: the wavelengths of the path (spectral variants)
-# (film positions come from CorrelatedStreams.film_2d; the D-ToF renders leave 2 and 3 free)
-DIM_BEAM_FILM = 2  #: FMCW's collimated beam: its spot's film position (2 numbers)
+# (film positions come from CorrelatedStreams.film_2d)
+DIM_MODALITY_LANE = 2  #: the first of a lane's numbers reserved for its modality
+MODALITY_LANE_DIMS = 2  #: how many: dimensions 2 and 3
 DIM_APERTURE = 4  #: lens position (2 numbers)
 DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here
-DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), spare (2)
+DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), modality (2)
 
 # Offsets within a bounce's block of dimensions.
 BOUNCE_EMITTER = 0
 BOUNCE_BSDF_LOBE = 2
 BOUNCE_BSDF_DIR = 3
 BOUNCE_RR = 5
-BOUNCE_SPARE = 6  #: the two spare numbers (FMCW's speckle phases)
+BOUNCE_MODALITY = 6  #: the first of a bounce's numbers reserved for the modality
+MODALITY_BOUNCE_DIMS = 2  #: how many: offsets 6 and 7
+
+
+class ModalityDimensions:
+    """The random numbers a modality reads of its own, each group by name with its
+    count: ``lane`` once per lane (stage 0, the camera ray's stream), ``bounce`` at
+    every surface hit (that hit's stage). Placed in declaration order in the slots the
+    layout reserves (DIM_MODALITY_LANE, BOUNCE_MODALITY), so that a modality's numbers
+    never coincide with the path loop's; a declaration that does not fit is refused
+    when it is made. The D-ToF camera reads none."""
+
+    def __init__(self, lane: tuple = (), bounce: tuple = ()):
+        self.lane = _placed(lane, DIM_MODALITY_LANE, MODALITY_LANE_DIMS, "lane")
+        self.bounce = _placed(bounce, BOUNCE_MODALITY, MODALITY_BOUNCE_DIMS, "bounce")
+
+    def lane_dim(self, name: str) -> int:
+        """The first dimension of the lane's numbers ``name``."""
+        return self.lane[name]
+
+    def bounce_dim(self, depth, name: str, k: int = 0):
+        """Dimension of number ``k`` of the group ``name`` at surface hit ``depth``."""
+        return bounce_dim(depth, self.bounce[name] + k)
+
+
+def _placed(groups: tuple, first: int, room: int, what: str) -> dict:
+    """{name: its first dimension} of ``groups`` ((name, count), ...) laid out from
+    ``first``, a ValueError beyond ``room`` numbers."""
+    placed, at = {}, first
+    for name, count in groups:
+        placed[name], at = at, at + count
+    if at - first > room:
+        raise ValueError(f"a modality's {what} numbers {dict(groups)} need {at - first} "
+                         f"dimensions; the layout reserves {room}")
+    return placed
+
 
 # TEA rounds: KEY_ROUNDS (sequences.py) to derive a lane's stream keys (once per path)
 # and 6 for its time numbers; the many numbers along a path use the cheaper integer hash.

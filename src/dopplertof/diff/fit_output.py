@@ -19,6 +19,9 @@ class FitResult:
     settings: dict = field(default_factory=dict)
     reflectances: dict = field(default_factory=dict)  #: key -> value, uncertainty (fitted)
     warnings: list = field(default_factory=list)  #: e.g. a body's unfitted rotation
+    #: what the uncertainties were computed from (.fit_covariance.FinalState), to compute
+    #: another covariance model on the same fit; not written to fit.json
+    final: object = None
 
     def as_json(self) -> dict:
         out = {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,

@@ -205,16 +205,16 @@ def _arguments(scene, chirp, spp, seed, params, returns, beam, beam_intensity, s
     if not is_integer(returns) or returns < 1:
         raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     returns, speckle = int(returns), check_flag(speckle, "speckle")
-    params = fmcw_params(scene, check_params(params))
-    chirp = Chirp.of_params(params) if chirp is None else chirp
+    params, settings = fmcw_params(scene, check_params(params))
+    chirp = Chirp.of_settings(settings) if chirp is None else chirp
     if not isinstance(chirp, Chirp):
         raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
-    beam = params.fmcw_beam if beam is None else beam
+    beam = settings.beam if beam is None else beam
     warnings = []
     if beam_intensity is not None and beam == "flood":  # (the command refuses it)
         warnings.append(f"beam_intensity {beam_intensity!r} is a collimated beam's: the "
                         "flood beam (the scene's lights) ignores it")
-    beam_intensity = params.fmcw_beam_intensity if beam_intensity is None else beam_intensity
+    beam_intensity = settings.beam_intensity if beam_intensity is None else beam_intensity
     return scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings
 
 
@@ -229,8 +229,8 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
     ``beam_intensity`` W/sr, None: the scene's fmcw_beam_intensity; :mod:`.beam`);
     ``speckle`` adds the spectra of random path phases summed coherently
     (:attr:`FMCWResult.speckle`). ``params`` (a mapping or RenderParams) override the
-    scene's integrator parameters, the fmcw_* ones included; an argument given here
-    overrides both."""
+    scene's integrator parameters, a mapping the fmcw_* ones too (the scene's
+    ``modality_settings["fmcw"]``); an argument given here overrides both."""
     from .trace import render_spectra
 
     scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings = \

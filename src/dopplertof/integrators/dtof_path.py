@@ -25,6 +25,7 @@ from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
 from ..scene.motion import opaque_tree
+from ..scene.parameters import parsed
 from ..scene.scene import DTOF_INTEGRATORS, loaded, require_light
 from . import pipeline
 from .analytic import trace_analytic_pass
@@ -60,9 +61,11 @@ def _define_class(mi):
             props = mi.Properties() if props is None else props
             super().__init__(props)
             self.mi = mi
-            #: the plugin's parameters (a DopplerScene's own are used for it instead)
-            self.params = RenderParams.from_mapping(
-                {name: props[name] for name in props.keys()}, where="integrator dopplertof")
+            #: the plugin's parameters (a DopplerScene's own are used for it instead),
+            #: and the other modalities' settings it carries ({modality: settings})
+            self.params, self.modality_settings = parsed(
+                {name: props[name] for name in props.keys()}, "integrator dopplertof",
+                RenderParams())
 
         # ---- Mitsuba's interface ----
 
@@ -71,7 +74,7 @@ def _define_class(mi):
             sensor), with this plugin's parameters."""
             if not isinstance(sensor, int) and sensor is not scene.sensors()[0]:
                 raise ValueError("dopplertof renders the scene's first sensor only")
-            dscene = loaded(mi, scene, self.params)
+            dscene = loaded(mi, scene, self.params, settings=self.modality_settings)
             result = self.render_result(dscene, spp=spp or None, seed=int(seed),
                                         progress=False)
             return mi.TensorXf(result.image)
