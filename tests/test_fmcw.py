@@ -86,7 +86,7 @@ def test_a_moving_plane_beats_at_the_closed_form_frequencies(velocity):
     assert abs(result.range[0, 0] - distance) < chirp.record()["range_per_bin_m"]
     assert result.velocity[0, 0] == pytest.approx(velocity, rel=0.01)
     assert result.range_gt[0, 0] == pytest.approx(distance, rel=1e-4)
-    assert result.velocity_gt[0, 0] == pytest.approx(velocity, rel=1e-3)
+    assert result.velocity_point[0, 0] == pytest.approx(velocity, rel=1e-3)
 
 
 def test_the_spectra_hold_the_pixel_radiance():
@@ -139,7 +139,7 @@ def test_a_spinning_sphere_spreads_its_doppler_by_its_angular_velocity():
     u = omega * np.cross([0.0, 1.0, 0.0], p - centre)
     closed_form = np.sum(u * truth.direction, axis=-1)
     on = np.isfinite(truth.depth) & (truth.body == 0)
-    assert result.velocity_gt[on] == pytest.approx(closed_form[on], abs=1e-3)
+    assert result.velocity_point[on] == pytest.approx(closed_form[on], abs=1e-3)
     # pixels wholly on the sphere (their neighbours too)
     inner = on & np.roll(on, 1, 0) & np.roll(on, -1, 0) & np.roll(on, 1, 1) & np.roll(on, -1, 1)
     step = np.max([np.abs(np.roll(closed_form, k, axis) - closed_form)
@@ -161,12 +161,12 @@ def test_the_fmcw_command_writes_its_folder(tmp_path, capsys):
     assert code == 0
     shapes = {name: np.load(out / f"{name}.npy").shape
               for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
-                           "velocity_gt", "returns_range", "returns_velocity")}
+                           "velocity_point", "returns_range", "returns_velocity")}
     assert shapes == {"spectrum": (8, 8, 2, 512), "frequencies": (512,), "range": (8, 8),
-                      "velocity": (8, 8), "range_gt": (8, 8), "velocity_gt": (8, 8),
+                      "velocity": (8, 8), "range_gt": (8, 8), "velocity_point": (8, 8),
                       "returns_range": (8, 8, 2), "returns_velocity": (8, 8, 2)}
     assert all((out / f"{name}.png").stat().st_size > 0
-               for name in ("range", "range_gt", "velocity", "velocity_gt"))
+               for name in ("range", "range_gt", "velocity", "velocity_point"))
     points = np.load(out / "points.npy")
     assert points.shape[1] == 5 and 64 <= len(points) <= 128
     summary = json.loads((out / "summary.json").read_text())
@@ -309,8 +309,8 @@ def test_the_street_example_reads_the_car_and_the_pedestrian():
     truth = ground_truth(scene)
     car, walker = truth.body == 0, truth.body == 1
     assert car.sum() > 10 and walker.sum() > 3
-    error = np.abs(result.velocity - result.velocity_gt)
-    assert np.median(result.velocity_gt[car]) < -9.5
+    error = np.abs(result.velocity - result.velocity_point)
+    assert np.median(result.velocity_point[car]) < -9.5
     assert np.median(error[car]) < 0.1 and np.median(error[walker]) < 0.1
     assert np.nanmedian(np.abs(result.velocity[truth.body == -1])) < 0.01
 
@@ -447,7 +447,7 @@ def test_a_collimated_beam_reads_the_moving_plane():
     chirp = Chirp(bandwidth=1e9, chirp_time=10e-6, bins=64)
     result = fmcw(scene, chirp, spp=16, beam="collimated", beam_intensity=5.0)
     assert result.range == pytest.approx(result.range_gt, rel=1e-3)
-    assert result.velocity == pytest.approx(result.velocity_gt, rel=1e-3)
+    assert result.velocity == pytest.approx(result.velocity_point, rel=1e-3)
 
 
 @pytest.mark.parametrize("beam,intensity,message", [

@@ -30,6 +30,15 @@ def add_variant_option(p, what: str = "Mitsuba variant") -> None:
                    help=f"{what} (default llvm_ad_rgb)")
 
 
+def add_camera_options(g) -> None:
+    """``--res`` and ``--noiseless`` of a camera preset's frames (``capture --camera``,
+    ``animate --camera``), into the command's camera group ``g``."""
+    g.add_argument("--res", metavar="WIDTHxHEIGHT",
+                   help="with --camera: other resolution, same field of view")
+    g.add_argument("--noiseless", action="store_true",
+                   help="with --camera: no shot or read noise (rounding stays)")
+
+
 def print_warnings(record: dict) -> None:
     """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
     for warning in record.get("warnings", ()):

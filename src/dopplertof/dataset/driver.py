@@ -38,9 +38,10 @@ DATASET_JSON = "dataset.json"
 #: dataset.json's key holding the SHA-256 of its other keys (:func:`json_digest`)
 JSON_DIGEST = "sha256"
 #: format of the folder (2: with the camera's outputs, incidence, grazing and
-#: truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
-LAYOUT_VERSION = 2
-READABLE_LAYOUTS = (1, 2)
+#: truth_valid, redrawn samples; 3: camera_depth_std and velocity_point, formerly
+#: camera_confidence and velocity_along_ray); a reader reads READABLE_LAYOUTS
+LAYOUT_VERSION = 3
+READABLE_LAYOUTS = (1, 2, 3)
 #: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
 SPLITS = {"full": "raw", "ideal": "raw_ideal", "direct": "raw_direct"}
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
-                           non_negative_int, parse_pairs, positive_int)
+from ..cli_options import (FOLDER_HELP, add_camera_options, add_defines_option,
+                           add_params_option, non_negative_int, parse_pairs, positive_int)
 from ..sampling import SEED_LIMIT
 
 
@@ -115,10 +115,7 @@ def _stream_options(a) -> None:
     g.add_argument("--trajectory", metavar="FILE",
                    help="with --camera: the camera's poses, TUM RGB-D format (timestamp tx "
                    "ty tz qx qy qz qw), its first stamp at the scene's shutter_open")
-    g.add_argument("--res", metavar="WIDTHxHEIGHT",
-                   help="with --camera: other resolution, same field of view")
-    g.add_argument("--noiseless", action="store_true",
-                   help="with --camera: no shot or read noise (rounding stays)")
+    add_camera_options(g)
     g.add_argument("--noise-seed", type=non_negative_int, metavar="S",
                    help="with --camera: the sensor noise's seed (default 0; each frame "
                    "draws its own from it)")
