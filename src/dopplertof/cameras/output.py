@@ -28,6 +28,10 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
                                   "sequence (from the scene's geometry; NaN in the maps "
                                   "unless kept: --keep-mixed-pixels)")}
+#: a capture's masks: those and the pixels outside the illuminator's field (a dataset's
+#: scenes carry their own light: it has none)
+CAPTURE_MASKS = {**MASKS, "mask_unlit": ("unlit", "wholly outside the field the camera's "
+                                         "illuminator lights: none of its light")}
 
 
 def write_camera_result(result, folder, pointcloud: bool = False) -> list:
@@ -55,7 +59,7 @@ def _write_camera_files(result, path) -> None:
     for name, data in arrays.items():
         io.write_npy(path(f"{name}.npy"),
                      data if data.dtype.kind in "iu" else data.astype(np.float32))
-    for name, (attribute, _) in MASKS.items():
+    for name, (attribute, _) in CAPTURE_MASKS.items():
         io.write_npy(path(f"{name}.npy"), _mask(result, attribute))
     _write_previews(result, path, camera)
     write_summary(path(SUMMARY_JSON), "camera", summary)
