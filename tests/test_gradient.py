@@ -207,23 +207,44 @@ def test_splat_adjoint_satisfies_the_emitters_homogeneity(published_small, scene
     """Every path carries its light's radiance once: the image is homogeneous of degree 1
     in the emitters' radiance, so for a linear loss sum_c e_c dL/de_c = L exactly. Through
     the splat film this holds only if the adjoint gathers every lane with the weights
-    (and normalization) the splat summed it with."""
+    (and normalization) the splat summed it with.
+
+    Homodyne (hetero_frequency 0) with positive weights: both sides then sum terms that do
+    not cancel, so the rounding bound of their sum is a small fraction of L (1.5e-4 to 4e-4)
+    and a wrong weight or normalization (percents of L) fails. A heterodyne image's lanes
+    cancel within each pixel (their magnitudes 150 times the image's on the plane), which
+    left only a tolerance taken from one machine (1e-4 of L) or a bound near L itself."""
+    from dataclasses import replace
+
     from dopplertof.diff import DifferentiableScene, gradient
     from dopplertof.diff.render import differentiable_names
 
     scene = published_small[0] if scene_name == "published" else _plane_with_filter(rfilter)
     assert scene.sensor.film().rfilter().class_name().lower().startswith(rfilter)
     ds = DifferentiableScene(scene)
+    ds.params = replace(ds.params, hetero_frequency=0.0)
     emitters = [n for n in differentiable_names(ds)
                 if n.endswith(("intensity.value", "radiance.value"))]
     assert emitters
     shape = tuple(int(x) for x in scene.sensor.film().crop_size())[::-1] + (3,)
-    got = gradient(ds, _linear_loss(_weights(shape)), names=emitters, spp=8,
+    weights, spp, depth = _weights(shape, positive=True), 8, ds.params.max_depth
+    got = gradient(ds, _linear_loss(weights), names=emitters, spp=spp,
                    params={"film_sampling": "splat"})
     values = {n: np.asarray(ds.scene_parameters()[n][0][n], dtype=np.float64).ravel()
               for n in emitters}
     euler = sum(float(np.dot(values[n], got[n])) for n in emitters)
-    assert abs(euler - got.loss) <= 1e-4 * abs(got.loss), (euler, got.loss)
+    # the terms' magnitude: a lane lands on the pixels within the filter's radius (2 px
+    # at most) with normalized weights summing to about 1/spp, so at most the largest
+    # weight there times its |value| / spp (x1.5 for the normalization's spread)
+    near = np.pad(weights, ((2, 2), (2, 2), (0, 0)))
+    reach = np.max([near[2 + dy:near.shape[0] - 2 + dy, 2 + dx:near.shape[1] - 2 + dx]
+                    for dy in range(-2, 3) for dx in range(-2, 3)], axis=0)
+    magnitude = 1.5 * sum(float(np.sum(reach * np.abs(values[n]) * _magnitudes(
+        ds, f"{scene_name}-{rfilter}-homodyne", n, spp, "splat"))) for n in emitters) / spp
+    terms = 2 * (weights.size * spp * 2 * depth + OPS_PER_BOUNCE * depth)
+    bound = 2 * rounding_bound(magnitude, terms)
+    assert bound < 1e-3 * abs(got.loss)  # (a bound that a bug would still exceed)
+    assert abs(euler - got.loss) <= bound, (euler, got.loss, bound)
 
 
 # ---- Against central differences with common random numbers ---------------------------
