@@ -120,6 +120,10 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
                                   "sequence (from the scene's geometry; NaN in the maps "
                                   "unless kept: --keep-mixed-pixels)")}
+#: a capture's masks: those and the pixels outside the illuminator's field (a dataset's
+#: scenes carry their own light: it has none)
+CAPTURE_MASKS = {**MASKS, "mask_unlit": ("unlit", "wholly outside the field the camera's "
+                                         "illuminator lights: none of its light")}
 
 #: a camera preset's frame (``dopplertof capture --camera``); ``dataset``: the key of the
 #: same quantity in a dataset sample (its camera outputs ``camera_*`` per split)
@@ -143,6 +147,7 @@ CAMERA = _table(
     Output("depth_error.png", "m", "", "(H, W)", "range error (camera - truth)"),
     *(Output(name, "1", "bool", "(H, W)", meaning, dataset=f"camera_{name}")
       for name, (_, meaning) in MASKS.items()),
+    Output("mask_unlit", "1", "bool", "(H, W)", CAPTURE_MASKS["mask_unlit"][1]),
     Output("velocity", "m/s", "float32", "(H, W)", "the camera's radial velocity",
            preview=True, when="heterodyne presets", dataset="camera_radial_velocity"),
     Output("velocity_gt", "m/s", "float32", "(H, W)", "true radial velocity at "

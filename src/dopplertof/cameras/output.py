@@ -12,7 +12,7 @@ from .. import io
 
 from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
-from ..outputs import CAMERA, MASKS
+from ..outputs import CAMERA, CAPTURE_MASKS
 from ..previews import NOTHING_HIT
 from ..tof import figures
 from ..tof.geometry import write_camera_files
@@ -41,7 +41,8 @@ def _write_camera_files(result, path) -> None:
               "depth_gt_z": result.depth_gt_z}
     if recon.velocity is not None:
         arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
-    arrays.update({name: _mask(result, attribute) for name, (attribute, _) in MASKS.items()})
+    arrays.update({name: _mask(result, attribute)
+                   for name, (attribute, _) in CAPTURE_MASKS.items()})
     for name, data in arrays.items():
         io.write_npy(path(CAMERA[name].npy), CAMERA[name].array(data))
     _write_previews(result, path, camera)

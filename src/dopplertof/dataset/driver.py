@@ -292,9 +292,9 @@ def given_up(task: ShardTask) -> bool:
     """Whether ``task``'s run gave it up: its Dask task was cancelled (the client's Ctrl-C)
     or its output folder is gone (deleted after the run was stopped): then it writes
     nothing (a shard written then, or the folder created again, outlived the run)."""
-    from ..experiments.cluster import task_abandoned
+    from ..experiments.tasks import run_given_up
 
-    return task_abandoned() or not os.path.isdir(os.path.dirname(task.path))
+    return run_given_up(os.path.dirname(task.path))
 
 
 def run_shard_task(task: ShardTask) -> dict:
