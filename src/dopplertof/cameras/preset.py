@@ -64,6 +64,12 @@ def _finite_list(n, check=None):
     return ok
 
 
+def _shutter_list(x):
+    """1, then strictly shorter fractions in (0, 1), at most 16."""
+    return (1 <= len(x) <= 16 and _finite_list(len(x), _fraction)(x) and x[0] == 1
+            and all(a > b for a, b in zip(x, x[1:])))
+
+
 SCHEMA = {
     "": {"name": (str, None, "the preset's name"),
          "description": (str, None, "one line"),
@@ -114,7 +120,12 @@ SCHEMA = {
                                          "electrons per DN, 0.001 to 10000"),
                "offset_dn": (float, _non_negative, "DN of a zero differential signal"),
                "well_fill": (float, _fraction, "auto photon scale: the brightest unmodulated "
-                             "signal fills this fraction of the full well"),
+                             "signal fills this fraction of the full well; with several "
+                             "shutters, the fill a pixel's shutter keeps it under"),
+               "shutters": (list, _shutter_list, "the dynamic-range scheme: fractions of "
+                            "each frame's integration, longest first, from 1 (each pixel "
+                            "integrates for the longest that keeps its taps under "
+                            "well_fill of the well); [1.0]: one shutter"),
                "ambient_photons_per_s": (float, _non_negative, "per pixel (auto exposure "
                                          "only: an absolute preset takes the ambient "
                                          "irradiance)"),
@@ -146,7 +157,8 @@ SCHEMA = {
 }
 
 #: keys with a default
-OPTIONAL = {("", "frame_rate_hz"): None, ("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): True,
+OPTIONAL = {("", "frame_rate_hz"): None, ("frames", "hetero_frequency"): 0.0,
+            ("sensor", "auto_exposure"): True, ("sensor", "shutters"): [1.0],
             ("optics", "f_number"): None, ("optics", "transmission"): None,
             ("optics", "filter_width_nm"): None, ("optics", "fill_factor"): None,
             ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
