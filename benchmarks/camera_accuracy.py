@@ -136,6 +136,53 @@ def fankhauser_table(seeds: int, spp: int) -> None:
               f"{r.random_m / model:6.3f} {r.valid:6.1%}  {role}", flush=True)
 
 
+#: kinect-v2 with one inferred choice changed: (label, section, key, value); "ambient"
+#: renders under that irradiance (uW/cm^2/nm)
+KINECT_V2_VARIANTS = (
+    ("as shipped", None, None, None),
+    ("read noise 25 e-", "sensor", "read_noise_electrons", 25.0),
+    ("read noise 100 e-", "sensor", "read_noise_electrons", 100.0),
+    ("shutters in full stops", "sensor", "shutters", [1.0, 0.5, 0.25, 0.125, 0.0625]),
+    ("one shutter", "sensor", "shutters", [1.0]),
+    ("one shutter, a 16x deeper well", "sensor", "full_well_electrons", 16.0),
+    ("ambient 2.2 uW/cm^2/nm", "ambient", None, 2.2),
+)
+
+
+def kinect_v2_sensitivity(spp: int, crop: int = 16) -> None:
+    """First-order noise (no draws) of kinect-v2 on Fankhauser's walls with one inferred
+    choice changed at a time (:data:`KINECT_V2_VARIANTS`; the fitted constants kept): the
+    ratio to his model per wall, and the rms of their logs."""
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.accuracy import predicted_random, render_wall
+
+    preset = load_preset("kinect-v2")
+    walls = {}
+    print(f"{'kinect-v2, one choice changed':32s} " + " ".join(
+        f"{d:g} m{'' if a == 0 else f' {a:g} deg':>7s}" for d, a in FANKHAUSER_WALLS)
+        + "  rms log")
+    for label, section, key, value in KINECT_V2_VARIANTS:
+        ambient = value if section == "ambient" else None
+        trial = preset
+        if section == "sensor":
+            changes = {key: value} if key != "full_well_electrons" else {
+                key: value * preset.sensor[key], "shutters": [1.0], "adc_bits": 16,
+                "offset_dn": 32768.0}  # the same gain: no more quantization
+            trial = dataclasses.replace(preset, sensor=dict(preset.sensor, **changes))
+        ratios = []
+        for distance, angle in FANKHAUSER_WALLS:
+            if (distance, angle, ambient) not in walls:
+                walls[distance, angle, ambient] = render_wall(
+                    preset, distance, FANKHAUSER_ALBEDO, ambient, crop, spp, angle_deg=angle)
+            sigma = predicted_random(walls[distance, angle, ambient], trial)
+            ratios.append(sigma / fankhauser_sigma(distance, angle))
+        finite = [math.log(r) for r in ratios if math.isfinite(r)]
+        rms = (math.sqrt(sum(x * x for x in finite) / len(finite))
+               if len(finite) == len(ratios) else float("nan"))
+        print(f"{label:32s} " + " ".join(f"{r:10.2f}" for r in ratios) + f"  {rms:7.3f}",
+              flush=True)
+
+
 def distances(near: float, far: float) -> list:
     points = [near, 1.0, 2.0, 3.0, 4.0, 5.0]
     return sorted({d for d in points if near <= d < far} | {far})
@@ -222,6 +269,8 @@ def main(argv=None) -> None:
     ap.add_argument("--presets", default=",".join(["kinect-v2"] + [m[0] for m in AZURE_MODES
                                                                    + OTHERS]))
     ap.add_argument("--calibrate", action="store_true")
+    ap.add_argument("--sensitivity", action="store_true",
+                    help="kinect-v2 with one inferred choice changed at a time")
     ap.add_argument("--starter", action="store_true")
     ap.add_argument("--res", default="64x48")
     args = ap.parse_args(argv)
@@ -235,6 +284,8 @@ def main(argv=None) -> None:
     dopplertof.set_variant()
     modes = [m for m in AZURE_MODES + OTHERS if m[0] in args.presets.split(",")]
     kinect_v2 = "kinect-v2" in args.presets.split(",")
+    if args.sensitivity:
+        return kinect_v2_sensitivity(args.spp)
     if args.calibrate and kinect_v2:
         for key, value in calibrate_kinect_v2(args.spp).items():
             print(f"kinect-v2: {key} = {value:.4g}")

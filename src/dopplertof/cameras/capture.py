@@ -176,7 +176,17 @@ def _radiometry_summary(preset: CameraPreset, result: CameraResult, ambient: flo
             "illuminator_intensity_W_sr": radiometry.radiant_intensity(preset.illuminator),
             "ambient_irradiance_uW_cm2_nm": ambient,
             "signal_electrons_p50": light.electrons_percentile(readout, preset, 50),
-            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99)}
+            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99),
+            **_shutter_summary(readout)}
+
+
+def _shutter_summary(readout) -> dict:
+    """The pixels that took each shutter of a sensor with several (none: {})."""
+    if readout.shutter is None:
+        return {}
+    fractions, counts = np.unique(readout.shutter, return_counts=True)
+    return {"pixels_per_shutter": {f"{f:.6g}": int(n) for f, n in zip(fractions[::-1],
+                                                                      counts[::-1])}}
 
 
 def _intrinsics(scene) -> dict:
@@ -342,7 +352,7 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
         "variant": require_variant().variant(), "resolution": [width, height],
         "spp_per_frame": int(spp), "seed": int(seed),
         "noise": {"shot_and_read_noise": bool(noise), "seed": int(noise_seed),
-                  "photons_per_unit": readout.photons_per_unit,
+                  "exposure": preset.exposure, "photons_per_unit": readout.photons_per_unit,
                   "saturated_pixels": int(recon.saturated.sum())},
         "frames": records,
         "sequence_s": [scene.shutter_open + first, scene.shutter_open + last],

@@ -239,6 +239,17 @@ class CameraPreset:
         return any(not f.homodyne for f in self.frames)
 
     @property
+    def exposure(self) -> str:
+        """How a capture's photons are scaled, for summary.json's noise.exposure."""
+        if self.absolute:
+            return ("absolute: photons from the illuminator's power, the lens and the pixel"
+                    + (" (a shutter per pixel: sensor.shutters)"
+                       if len(self.sensor["shutters"]) > 1 else ""))
+        return ("auto: every capture scaled so that its brightest pixel fills "
+                "sensor.well_fill of the well, whatever the distance, albedo and ambient "
+                "light: the noise is relative, not the camera's")
+
+    @property
     def noise_calibrated(self) -> bool:
         """Whether its noise is fitted to a published figure or a measured table: an
         absolute preset with ``noise_calibration`` (an auto-exposed one's noise is

@@ -72,14 +72,17 @@ def raw_dtype(bits: int):
 
 def read_frames(rendered, unmodulated, integration_s, sensor: dict, contrast: float,
                 rng: np.random.Generator | None = None,
-                photons_per_unit: float | None = None, ambient_photons=None) -> Readout:
+                photons_per_unit: float | None = None, ambient_photons=None,
+                shutter=None) -> Readout:
     """The sensor's readout of rendered raw frames (K, H, W) with the unmodulated light
     g0 R (H, W); ``rng`` None: no shot or read noise (rounding and clipping stay).
     ``photons_per_unit``: the photon scale (default: the brightest unmodulated pixel
     fills well_fill of the well at the longest integration). ``ambient_photons``: (H, W)
     unmodulated photons per second at each pixel (ambient light, :mod:`.radiometry`),
     shared by the two taps; with it the [sensor] section's scalar
-    ambient_photons_per_s is not used."""
+    ambient_photons_per_s is not used. ``shutter``: (H, W) each pixel's fraction of the
+    integration (another readout's, of the same scene); default the sensor's own choice
+    (:func:`shutter_fractions`)."""
     model = noise_model(sensor)
     if ambient_photons is not None:
         model = replace(model, ambient=0.0)
@@ -102,7 +105,8 @@ def read_frames(rendered, unmodulated, integration_s, sensor: dict, contrast: fl
         if ambient_photons is not None:
             dark = dark + 0.5 * model.quantum_efficiency * ambient_photons * exposure
         means.append((e_a + dark, e_b + dark))
-    shutter = shutter_fractions(means, sensor)
+    if shutter is None:
+        shutter = shutter_fractions(means, sensor)
     for k, (e_a, e_b) in enumerate(means):
         if shutter is not None:
             e_a, e_b = e_a * shutter, e_b * shutter
