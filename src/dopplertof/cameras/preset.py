@@ -571,7 +571,10 @@ def format_preset(preset: CameraPreset) -> str:
              f"{s['full_well_electrons']:g} e-, read noise {s['read_noise_electrons']:g} e-, "
              f"dark current {s['dark_current_electrons_per_s']:g} e-/s, {s['adc_bits']} bits at "
              f"{s['gain_electrons_per_dn']:g} e-/DN, offset {s['offset_dn']:g} DN, ambient "
-             f"{s['ambient_photons_per_s']:g} photons/s",
+             f"{s['ambient_photons_per_s']:g} photons/s"
+             + (f", {len(s['shutters'])} shutters per pixel from 1 to {s['shutters'][-1]:g} "
+                f"of each frame (under {s['well_fill']:g} of the well)"
+                if len(s["shutters"]) > 1 else ""),
              f"  reconstruction: unwrapping {r['unwrapping']}, range {r['max_range_m']:g} m, "
              f"wiggling calibration {'on' if r['wiggling_calibration'] else 'off'}, "
              f"confidence above {r['min_amplitude_dn']:g} DN",
