@@ -223,10 +223,13 @@ class PixelLight:
 
     def electrons_percentile(self, readout, preset, q: float) -> float:
         """A percentile of the unmodulated signal electrons (both taps) of the longest
-        frame, over the lit pixels."""
+        frame, at each pixel's shutter, over the lit pixels."""
         longest = max(f.integration_s for f in preset.frames)
         per = preset.sensor["quantum_efficiency"] * readout.photons_per_unit * longest
-        values = per * self.unmodulated[np.isfinite(self.unmodulated) & (self.unmodulated > 0)]
+        if readout.shutter is not None:
+            per = per * readout.shutter
+        lit = np.isfinite(self.unmodulated) & (self.unmodulated > 0)
+        values = (per * self.unmodulated)[lit]
         return float(np.percentile(values, q)) if values.size else 0.0
 
 
