@@ -156,3 +156,22 @@ def test_the_shutters_make_the_floor():
     wall = render_wall(preset, 1.0, 0.9, crop=4, spp=2)
     assert not wall.light.read(preset, None)[0].saturated.any()
     assert wall.light.read(single, None)[0].saturated.all()
+
+
+def test_a_capture_writes_its_shutters(tmp_path):
+    """kinect-v2's frame of a near wall: shutter.npy is each pixel's fraction, and the
+    summary counts the pixels of each."""
+    import json
+
+    from dopplertof.cameras.accuracy import render_wall
+    from dopplertof.cameras.output import write_camera_result
+
+    wall = render_wall(cameras.load_preset("kinect-v2"), 1.0, 0.9, crop=4, spp=2)
+    write_camera_result(wall, tmp_path / "out")
+    shutter = np.load(tmp_path / "out" / "shutter.npy")
+    assert np.array_equal(shutter, wall.readout.shutter.astype(np.float32))
+    counts = json.loads((tmp_path / "out" / "summary.json").read_text())[
+        "noise"]["radiometry"]["pixels_per_shutter"]
+    assert sum(counts.values()) == shutter.size
+    assert set(counts) == {f"{f:.6g}" for f in np.unique(wall.readout.shutter)}
+    assert np.all(shutter < 1)  # a white wall at 1 m fills more than the well unshuttered

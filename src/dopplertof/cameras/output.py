@@ -52,6 +52,8 @@ def _write_camera_files(result, path) -> None:
               "depth_gt_z": result.depth_gt_z}
     if recon.velocity is not None:
         arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
+    if readout.shutter is not None:
+        arrays["shutter"] = readout.shutter
     for name, data in arrays.items():
         io.write_npy(path(f"{name}.npy"),
                      data if data.dtype.kind in "iu" else data.astype(np.float32))
