@@ -98,7 +98,7 @@ def test_an_auto_exposed_preset_refuses_the_sections_it_would_ignore(tmp_path):
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.preset import PresetError
 
-    with open(os.path.join(PRESETS, "kinect-v2.toml"), encoding="utf-8") as f:
+    with open(os.path.join(PRESETS, "opt8241.toml"), encoding="utf-8") as f:
         text = f.read()
     extra = ("\n[illuminator]\npower_w = 1.0\nwavelength_nm = 850.0\nfov_deg = [70.0, 60.0]\n"
              "offset_m = [0.0, 0.0, 0.0]\n[conditions]\nambient_irradiance_uw_cm2_nm = 90.0\n")

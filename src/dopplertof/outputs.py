@@ -148,6 +148,8 @@ CAMERA = _table(
     *(Output(name, "1", "bool", "(H, W)", meaning, dataset=f"camera_{name}")
       for name, (_, meaning) in MASKS.items()),
     Output("mask_unlit", "1", "bool", "(H, W)", CAPTURE_MASKS["mask_unlit"][1]),
+    Output("shutter", "1", "float32", "(H, W)", "each pixel's fraction of the integration "
+           "(raw and amplitude are in DN of it)", when="sensors with several shutters"),
     Output("velocity", "m/s", "float32", "(H, W)", "the camera's radial velocity",
            preview=True, when="heterodyne presets", dataset="camera_radial_velocity"),
     Output("velocity_gt", "m/s", "float32", "(H, W)", "true radial velocity at "

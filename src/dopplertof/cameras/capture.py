@@ -176,7 +176,17 @@ def _radiometry_summary(preset: CameraPreset, result: CameraResult, ambient: flo
             "illuminator_intensity_W_sr": radiometry.radiant_intensity(preset.illuminator),
             "ambient_irradiance_uW_cm2_nm": ambient,
             "signal_electrons_p50": light.electrons_percentile(readout, preset, 50),
-            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99)}
+            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99),
+            **_shutter_summary(readout)}
+
+
+def _shutter_summary(readout) -> dict:
+    """The pixels that took each shutter of a sensor with several (none: {})."""
+    if readout.shutter is None:
+        return {}
+    fractions, counts = np.unique(readout.shutter, return_counts=True)
+    return {"pixels_per_shutter": {f"{f:.6g}": int(n) for f, n in zip(fractions[::-1],
+                                                                      counts[::-1])}}
 
 
 def _intrinsics(scene) -> dict:
@@ -215,10 +225,13 @@ class PixelLight:
 
     def electrons_percentile(self, readout, preset, q: float) -> float:
         """A percentile of the unmodulated signal electrons (both taps) of the longest
-        frame, over the lit pixels."""
+        frame, at each pixel's shutter, over the lit pixels."""
         longest = max(f.integration_s for f in preset.frames)
         per = preset.sensor["quantum_efficiency"] * readout.photons_per_unit * longest
-        values = per * self.unmodulated[np.isfinite(self.unmodulated) & (self.unmodulated > 0)]
+        if readout.shutter is not None:
+            per = per * readout.shutter
+        lit = np.isfinite(self.unmodulated) & (self.unmodulated > 0)
+        values = (per * self.unmodulated)[lit]
         return float(np.percentile(values, q)) if values.size else 0.0
 
 
@@ -369,7 +382,7 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
         "variant": require_variant().variant(), "resolution": [width, height],
         "spp_per_frame": int(spp), "seed": int(seed),
         "noise": {"shot_and_read_noise": bool(noise), "seed": int(noise_seed),
-                  "photons_per_unit": readout.photons_per_unit,
+                  "exposure": preset.exposure, "photons_per_unit": readout.photons_per_unit,
                   "saturated_pixels": int(recon.saturated.sum())},
         "frames": records,
         "sequence_s": [scene.shutter_open + first, scene.shutter_open + last],

@@ -43,6 +43,8 @@ def _write_camera_files(result, path) -> None:
         arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
     arrays.update({name: _mask(result, attribute)
                    for name, (attribute, _) in CAPTURE_MASKS.items()})
+    if readout.shutter is not None:
+        arrays["shutter"] = readout.shutter
     for name, data in arrays.items():
         io.write_npy(path(CAMERA[name].npy), CAMERA[name].array(data))
     _write_previews(result, path, camera)

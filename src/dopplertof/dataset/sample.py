@@ -97,7 +97,8 @@ def _raw_frames(scene, preset, spp: int, description: dict) -> tuple[dict, dict]
     direct_readout = read_frames(direct.rendered, unmodulated,
                                  [f.integration_s for f in preset.frames], preset.sensor,
                                  preset.contrast, None,
-                                 photons_per_unit=full.readout.photons_per_unit)
+                                 photons_per_unit=full.readout.photons_per_unit,
+                                 shutter=full.readout.shutter)
     readings = {"full": full.reconstruction, "ideal": full.read_again(None)[1],
                 "direct": reconstruct(direct_readout, preset, full.mixed_footprints)}
     return ({"raw": full.readout.raw, "raw_ideal": full.readout.raw_ideal.astype(np.float32),
