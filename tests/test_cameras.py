@@ -574,7 +574,7 @@ def test_a_plain_mitsuba_scene_is_captured(tmp_path):
     dopplertof.set_variant("llvm_ad_rgb")
     box = mi.cornell_box()
     box["sensor"]["film"].update(width=3, height=2)
-    result = capture_camera(mi.load_dict(box), "kinect-v2", spp=4, noise=False,
+    result = capture_camera(mi.load_dict(box), "opt8241", spp=4, noise=False,
                             progress=False)
     assert result.depth.shape == (2, 3) and np.isfinite(result.depth_gt).any()
 

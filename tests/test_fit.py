@@ -645,6 +645,37 @@ def test_a_start_that_is_no_velocity_is_one_line_naming_start(capture_dir, tmp_p
     assert check_start_velocity((1, 2, 3), "x") == [1.0, 2.0, 3.0]
 
 
+def test_a_fit_that_takes_no_step_says_its_values_are_the_start(capture_dir, tmp_path,
+                                                                capsys, monkeypatch):
+    """A fit whose bodies are seen but where no damped step lowers the loss from the
+    start (what FT10's 1e30 start met) printed its start as '0 iterations (no damped
+    step lowers the loss)' and the start's velocities with uncertainties, like a fitted
+    answer. Now the summary and a warning (stderr and fit.json) say that no
+    optimisation step was taken and the values are the start's."""
+    from dopplertof.cli import main
+    from dopplertof.diff import fit_solve
+
+    def no_lower(problem, residuals, jacobians, loss, theta, damping, samples):
+        problem.set_values(theta)
+        return np.zeros_like(theta), residuals, float("inf")
+
+    monkeypatch.setattr(fit_solve, "_damped_trials", no_lower)
+    out = tmp_path / "fit"
+    assert main(["fit", capture_dir, "-o", str(out), "--spp", "8", "--iterations", "2",
+                 "--quiet"]) == 0
+    printed = capsys.readouterr()
+    assert "fit: 0 iterations (no damped step lowers the loss)" in printed.out
+    assert "no optimisation step was taken: the values below are the start's" in printed.out
+    assert "dopplertof: warning: no optimisation step was taken" in printed.err
+    saved = json.loads((out / "fit.json").read_text())
+    assert saved["iterations"] == 0 and len(saved["history"]) == 1
+    assert any(w.startswith("no optimisation step was taken") for w in saved["warnings"])
+    # a fit that steps carries no such warning
+    from dopplertof.diff.fit import no_step_warnings
+
+    assert no_step_warnings(1, "plateau") == [] and no_step_warnings(0, "x")
+
+
 def _copy_capture(capture_dir, tmp_path):
     import shutil
 

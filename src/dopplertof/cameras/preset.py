@@ -66,6 +66,12 @@ def _finite_list(n, check=None):
     return ok
 
 
+def _shutter_list(x):
+    """1, then strictly shorter fractions in (0, 1), at most 16."""
+    return (1 <= len(x) <= 16 and _finite_list(len(x), _fraction)(x) and x[0] == 1
+            and all(a > b for a, b in zip(x, x[1:])))
+
+
 #: section -> key -> Key (toml_schema.py: kind, meaning, range check, default)
 SCHEMA = {
     "": {
@@ -129,7 +135,12 @@ SCHEMA = {
                                      lambda x: 1e-3 <= x <= 1e4),
         "offset_dn": Key("float", "DN of a zero differential signal", _non_negative),
         "well_fill": Key("float", "auto photon scale: the brightest unmodulated signal "
-                         "fills this fraction of the full well", _fraction),
+                         "fills this fraction of the full well; with several shutters, the "
+                         "fill a pixel's shutter keeps it under", _fraction),
+        "shutters": Key("list", "the dynamic-range scheme: fractions of each frame's "
+                        "integration, longest first, from 1 (each pixel integrates for the "
+                        "longest that keeps its taps under well_fill of the well); [1.0]: "
+                        "one shutter", _shutter_list, default=[1.0]),
         "ambient_photons_per_s": Key("float", "per pixel (auto exposure only: an absolute "
                                      "preset takes the ambient irradiance)", _non_negative),
         "auto_exposure": Key("bool", "true: the photon scale is chosen per capture "
@@ -234,6 +245,17 @@ class CameraPreset:
     @property
     def heterodyne(self) -> bool:
         return any(not f.homodyne for f in self.frames)
+
+    @property
+    def exposure(self) -> str:
+        """How a capture's photons are scaled, for summary.json's noise.exposure."""
+        if self.absolute:
+            return ("absolute: photons from the illuminator's power, the lens and the pixel"
+                    + (" (a shutter per pixel: sensor.shutters)"
+                       if len(self.sensor["shutters"]) > 1 else ""))
+        return ("auto: every capture scaled so that its brightest pixel fills "
+                "sensor.well_fill of the well, whatever the distance, albedo and ambient "
+                "light: the noise is relative, not the camera's")
 
     @property
     def noise_calibrated(self) -> bool:
@@ -518,7 +540,10 @@ def format_preset(preset: CameraPreset) -> str:
              f"{s['full_well_electrons']:g} e-, read noise {s['read_noise_electrons']:g} e-, "
              f"dark current {s['dark_current_electrons_per_s']:g} e-/s, {s['adc_bits']} bits at "
              f"{s['gain_electrons_per_dn']:g} e-/DN, offset {s['offset_dn']:g} DN, ambient "
-             f"{s['ambient_photons_per_s']:g} photons/s",
+             f"{s['ambient_photons_per_s']:g} photons/s"
+             + (f", {len(s['shutters'])} shutters per pixel from 1 to {s['shutters'][-1]:g} "
+                f"of each frame (under {s['well_fill']:g} of the well)"
+                if len(s["shutters"]) > 1 else ""),
              f"  reconstruction: unwrapping {r['unwrapping']}, range {r['max_range_m']:g} m, "
              f"wiggling calibration {'on' if r['wiggling_calibration'] else 'off'}, "
              f"confidence above {r['min_amplitude_dn']:g} DN",

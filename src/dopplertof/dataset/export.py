@@ -171,6 +171,7 @@ def _export_torf(ds, staging: str) -> dict:
     """Every sample of ``ds`` as a TöRF scan (one view each): sample_<index>/{tof, depth,
     color}/0000.npy and cams/."""
     from .. import io
+    from ..outputs import TORF
 
     scans = []
     for item in range(len(ds)):
@@ -193,8 +194,8 @@ def _export_torf(ds, staging: str) -> dict:
             files[f"cams/{kind}_intrinsics.npy"] = np.asarray(sample["K"], np.float32)
             files[f"cams/{kind}_extrinsics.npy"] = extrinsics.astype(np.float32)
             files[f"cams/{kind}_light_extrinsics.npy"] = lights.astype(np.float32)
-        for name, array in files.items():
-            io.write_npy(os.path.join(scan, name), array)
+        for name in TORF:
+            io.write_npy(os.path.join(scan, name), files[name])
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 

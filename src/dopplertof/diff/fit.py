@@ -123,7 +123,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     cov, sigma, noise, fixed, final = _uncertainties(data, problem, spp, state, theta,
                                                      covariance_kind)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths, fixed)
-    warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
+    warnings = (no_step_warnings(done, stop)
+                + symmetry_notes(data.scene, motions, t_mid, bodies, angular)
                 + ([] if angular else problem.rotation_warnings(state, bodies)))
     settings = {"capture": os.path.abspath(os.fspath(folder)),
                 **_settings(problem, spp, jacobian_spp, seed, block, angular, start),
@@ -132,6 +133,16 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
                 "seconds": round(_time.perf_counter() - started, 3)}
     return FitResult(bodies, done, loss, history, settings,
                      problem.reflectance_entries(theta, sigma), warnings, final)
+
+
+def no_step_warnings(done: int, stop: str) -> list:
+    """fit.json's warning of a fit that took no step ([] after one or more): every value
+    it reports is its start's, with the uncertainty there, not an optimum found."""
+    if done:
+        return []
+    return [f"no optimisation step was taken ({stop}): every velocity reported is its "
+            "start, with the uncertainty at the start, not a fitted value; give another "
+            "start (--start, or none: the closed form) or more samples (--spp)"]
 
 
 def _check_seen(problem, first: dict) -> None:

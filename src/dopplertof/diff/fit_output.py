@@ -87,6 +87,9 @@ def format_fit(result: FitResult) -> str:
     with uncertainties and its median radial velocity against the capture's truth."""
     lines = [f"fit: {result.iterations} iterations ({result.settings.get('stopped', '')}), "
              f"final loss {result.loss:.4g}, {result.settings.get('seconds', 0):.1f} s"]
+    if not result.iterations:
+        lines[0] += ("\n  no optimisation step was taken: the values below are the start's, "
+                     "not fitted ones")
     for b in result.bodies:
         lines.append(f"  {b['name']}: linear velocity "
                      + _vector(b["linear_velocity_m_s"], b["linear_velocity_uncertainty_m_s"],

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..capture_summary import SUMMARY_JSON, read_capture
+from ..outputs import CAMERA, CAMERA_JSON
 from ..scene.inputs import file_sha256
 from .animate import AnimationSummary, frames_past_keyframes
 from .cluster import DEFAULT_RETRIES, run_in_folder
@@ -43,8 +44,8 @@ from .tasks import (PARAMS_JSON, RENDER_LOCK, begin_task, check_unchanged, finis
 STREAM_JSON = "stream.json"
 GROUNDTRUTH_TXT = "groundtruth.txt"
 #: files every complete frame folder holds
-FRAME_FILES = (SUMMARY_JSON, "camera.json", "raw.npy", "depth.npy", "depth_gt.npy",
-               "velocity_gt.npy", PARAMS_JSON)
+FRAME_FILES = (SUMMARY_JSON, CAMERA_JSON.name, *(CAMERA[name].npy for name in (
+    "raw", "depth", "depth_gt", "velocity_gt")), PARAMS_JSON)
 
 
 @dataclass(frozen=True)
@@ -123,9 +124,9 @@ def run_stream_frame_task(task: StreamFrameTask) -> dict:
                                 noise_seed=task.noise_seed, progress=False,
                                 ambient_irradiance=task.ambient_irradiance)
     written = [os.path.basename(p) for p in result.write(task.folder)]
-    if "velocity_gt.npy" not in written:  # (a preset without velocity: the truth still)
-        io.write_npy(os.path.join(task.folder, "velocity_gt.npy"),
-                     np.asarray(result.velocity_gt, np.float32))
+    truth = CAMERA["velocity_gt"]
+    if truth.npy not in written:  # (a preset without velocity: the truth still)
+        io.write_npy(os.path.join(task.folder, truth.npy), truth.array(result.velocity_gt))
     seconds = time.perf_counter() - started
     io.write_json(os.path.join(task.folder, PARAMS_JSON), {
         "frame": task.index, "frame_start_s": task.shutter_open,
