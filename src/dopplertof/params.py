@@ -15,8 +15,8 @@ from dataclasses import dataclass, field, fields, replace
 from .hints import unknown_name
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .pixel_sets import PIXEL_SETS
-from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
-                       METHOD_NAMES, auto_sampling)
+from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, CLOSED_FORM,  # noqa: F401
+                       FULL_CORRELATION, METHOD_NAMES, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -180,14 +180,15 @@ class RenderParams:
         if self.time_sampling_method not in METHOD_NAMES:
             return (f"unknown time_sampling_method {self.time_sampling_method!r}: expected "
                     f"one of {', '.join(METHOD_NAMES)}")
-        if self.time_sampling_method == ANALYTIC:  # the published closed form's limits
+        method = self.time_sampling_method
+        if method in CLOSED_FORM:  # the published closed form's limits
             if self.wave_function_type != "sinusoidal":
-                return ("time_sampling_method 'analytic' integrates a sinusoid in closed form: "
-                        "it needs wave_function_type 'sinusoidal', got "
+                return (f"time_sampling_method {method!r} integrates a sinusoid in closed "
+                        "form: it needs wave_function_type 'sinusoidal', got "
                         f"{self.wave_function_type!r}")
             if not self.low_frequency_component_only:
-                return ("time_sampling_method 'analytic' integrates the low-pass correlation: "
-                        "it needs low_frequency_component_only=true")
+                return (f"time_sampling_method {method!r} integrates the low-pass "
+                        "correlation: it needs low_frequency_component_only=true")
         return None
 
     def _path_problem(self) -> str | None:
@@ -274,13 +275,17 @@ class RenderParams:
         return replace(self, **{f.name: f.default for f in fields(self)
                                 if f.name in EXECUTION_PARAMS})
 
-    def resolved(self, shutter: float) -> "RenderParams":
+    def resolved(self, shutter: float, sampled: bool = False) -> "RenderParams":
         """The parameters with ``time_sampling_method="auto"`` replaced by its choice
-        (which never maps pairs by motion: measured, see docs/benchmarks.md)."""
+        (which never maps pairs by motion: measured, see docs/benchmarks.md);
+        ``sampled``: time sampled in every path (what derivatives need), so never the
+        control variate."""
         if self.time_sampling_method != "auto":
             return replace(self, antithetic_mapping=self.antithetic_mapping or "replay")
         h = self.modulation(shutter).hetero_frequency
-        return replace(self, **auto_sampling(h))
+        closed_form = (not sampled and self.wave_function_type == "sinusoidal"
+                       and self.low_frequency_component_only)
+        return replace(self, **auto_sampling(h, closed_form))
 
     def exposure(self, shutter: float) -> float:
         """Exposure T: ``time`` when given, else the sensor's shutter interval, else 0.0015."""
