@@ -105,7 +105,8 @@ def _keyframes(task: StreamFrameTask):
 def run_stream_frame_task(task: StreamFrameTask) -> dict:
     """Capture one depth frame into its folder (runs on a worker)."""
     from .. import io
-    from ..cameras.capture import capture_camera, load_scene_for_camera
+    from ..cameras.capture import capture_camera
+    from ..cameras.scene_view import load_scene_for_camera
     from ..cameras.preset import load_preset
 
     started = time.perf_counter()
@@ -213,7 +214,7 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
     ``"WIDTHxHEIGHT"``; None: the preset's."""
     from ..arguments import check_seed
     from ..backend import DEFAULT_VARIANT
-    from ..cameras.capture import load_scene_for_camera, parse_resolution
+    from ..cameras.scene_view import load_scene_for_camera, parse_resolution
     from ..cameras.preset import load_preset, sequence_window
     from ..scene.inputs import scene_file_digest
     from ..scene.trajectory import read_tum
