@@ -4,7 +4,7 @@ kind, range, meaning and default, checked strictly. An unknown or misspelt key (
 the nearest known name), a missing key, a value of the wrong kind or out of its range is
 one line naming the file and the key, raised as the caller's error class.
 
-A schema is ``{section: {key: Key}}``, section "" the top level. (io.read_toml reads
+A schema is ``{section: {key: Key}}``, section "" the top level. (file_formats.read_toml reads
 the files.)
 """
 

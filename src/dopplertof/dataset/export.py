@@ -170,7 +170,7 @@ def light_pose(pose: np.ndarray, light: dict) -> np.ndarray:
 def _export_torf(ds, staging: str) -> dict:
     """Every sample of ``ds`` as a TöRF scan (one view each): sample_<index>/{tof, depth,
     color}/0000.npy and cams/."""
-    from .. import io
+    from .. import file_formats
     from ..outputs import TORF
 
     scans = []
@@ -195,7 +195,7 @@ def _export_torf(ds, staging: str) -> dict:
             files[f"cams/{kind}_extrinsics.npy"] = extrinsics.astype(np.float32)
             files[f"cams/{kind}_light_extrinsics.npy"] = lights.astype(np.float32)
         for name in TORF:
-            io.write_npy(os.path.join(scan, name), files[name])
+            file_formats.write_npy(os.path.join(scan, name), files[name])
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 from ..arguments import check_seed
 from ..hints import did_you_mean
-from ..io import read_toml
+from ..file_formats import read_toml
 from ..params import FULL_CORRELATION, ParameterError, RenderParams
 from ..sampling import seed_words
 
