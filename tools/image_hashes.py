@@ -82,6 +82,8 @@ def configurations():
                               "antithetic_mapping": "motion"}}
     yield "published-analytic", rgb, published(), {
         "spp": 32, "params": {"time_sampling_method": "analytic"}}
+    yield "published-control-variate", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "control_variate"}}
     yield "published-adaptive", rgb, published(), {
         "spp": 128, "params": {"adaptive_sampling": True}}
     for wave in ("rectangular", "triangular", "trapezoidal"):
