@@ -549,12 +549,17 @@ def test_fit_warns_of_an_unfitted_rotation_naming_the_body(tmp_path, capsys):
         if turns:
             assert len(warnings) == 1 and warnings[0].startswith(
                 "dopplertof: warning: body 0 (cube): its residuals show an unfitted rotation")
-            assert saved["warnings"] == [warnings[0][len("dopplertof: warning: "):]]
+            # (beside it, where the fit ended further from the truth than its start, the
+            # warning that says so: the rotation the linear velocity absorbs)
+            assert warnings[0][len("dopplertof: warning: "):] in saved["warnings"]
+            assert all("unfitted rotation" in w or "the fit ended further" in w
+                       for w in saved["warnings"])
             evidence = saved["bodies"][0]["unfitted_rotation"]
             assert abs(evidence["angular_velocity_rad_s"][1] - 66.7) < 10
             assert "angular velocity not fitted; truth (+0.000, +66.667, +0.000)" in printed.out
         else:
-            assert not warnings and "warnings" not in saved
+            assert not warnings and not any("unfitted rotation" in w
+                                            for w in saved.get("warnings", []))
 
 
 def test_the_fit_loads_the_scene_with_the_captures_own_defines(tmp_path, capsys):
