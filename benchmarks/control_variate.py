@@ -1,29 +1,33 @@
-"""The analytic integral as a control variate against ``auto``, and the floor of any time integration.
+"""The analytic integral as a control variate against sampled time, and the floor of any time integration.
 
-    .venv/bin/python benchmarks/control_variate.py [--spp 32] [--seeds 4] [--res 256]
-        [--figure FIG.png] [--fixtures DIR]
+    .venv/bin/python benchmarks/control_variate.py [--hetero-frequency 1 2.5] [--spp 32]
+        [--seeds 4] [--res 256] [--figure FIG.png] [--fixtures DIR]
+    .venv/bin/python benchmarks/control_variate.py --beats 0.5 1 1.05 ... [--res 128]
 
-On the published moving Cornell box (max depth 4, one beat per exposure), renders each
+On the published moving Cornell box (max depth 4), at each beat count h, renders each
 method with ``--seeds`` seeds, one seed of every method after the other (the machine's
-load falls on all alike), and prints per method the image's mean per-pixel variance over
-the seeds, the seconds per render and the efficiency against ``auto`` (variance x time,
-inverted: above 1 is better at equal time). The methods:
+load falls on all alike), and prints per method the image's mean per-pixel variance
+over the seeds, the seconds per render and the efficiency against sampled time
+(variance x time, inverted: above 1 is better at equal time). The methods:
 
-- ``auto``: antithetic pairs half a beat apart sharing their whole path;
+- sampled: what ``auto`` picks without the control variate (antithetic pairs half a beat
+  apart sharing their whole path near a whole number of beats, else stratified time);
 - ``control_variate``: the analytic integral as a control variate for one sampled time
   per path (three paths traced per sample: the exposure's ends and the sampled time);
 - ``analytic``: biased (its image mean is far from the reference's): its variance only;
-- antithetic groups of K = 8, 16 and 32 periodic times sharing one path: each path's
-  time average is then nearly exact, and the variance is a K / spp, a the variance of
-  one path's exact time average over paths (the path-space variance).
+- at a whole number of beats, antithetic groups of K = 8, 16 and 32 periodic times
+  sharing one path: each path's time average is then nearly exact, and the variance is
+  a K / spp, a the variance of one path's exact time average over paths.
 
 From the last rows the floor a / spp: the variance at one path per sample with its time
-average exact, the best any time integration can do at equal paths. ``auto``'s variance
+average exact, the best any time integration can do at equal paths. The pairs' variance
 over the floor bounds what a time integrator (a control variate included) can gain at
 equal cost; the printout turns it into the most an equal-time race against the
-published code could reach from the 4.07x measured before. ``--figure`` draws the
-per-pixel variance ratio of the control variate against ``auto``, where it loses
-(silhouettes, occlusion changes) and the costs.
+published code could reach from the 4.07x measured before. ``--figure`` draws, per h,
+the block variance ratio of the control variate against sampled time, where it loses
+(silhouettes, occlusion changes) and each method's efficiency and seconds. ``--beats``
+instead prints, per h, the candidates of ``auto`` against the control variate: the
+table its rule comes from.
 """
 
 from __future__ import annotations
@@ -44,24 +48,34 @@ PUBLISHED_RATIO = 4.07
 #: periodic group sizes whose variance gives the path-space floor
 FLOOR_GROUPS = (8, 16, 32)
 
-METHODS = {
-    "auto": {"time_sampling_method": "auto"},
-    "control_variate": {"time_sampling_method": "control_variate"},
-    "analytic (biased)": {"time_sampling_method": "analytic"},
-    **{f"antithetic K={k}": {"time_sampling_method": "antithetic", "time_correlate_number": k,
-                             "antithetic_shift": 1.0 / k, "path_correlation_depth": 1 << 16}
-       for k in FLOOR_GROUPS},
-}
+def methods(h: float) -> dict:
+    """The rows at h beats per exposure: name -> render parameters (the floor's groups
+    only at a whole number of beats, which K periodic times then cancel)."""
+    from dopplertof.sampling import FULL_CORRELATION, auto_sampling
+
+    rows = {"sampled (auto's choice without the control variate)": auto_sampling(h),
+            "control_variate": {"time_sampling_method": "control_variate"},
+            "analytic (biased)": {"time_sampling_method": "analytic"}}
+    if h == round(h) and h >= 1:
+        rows.update({f"antithetic K={k}": {
+            "time_sampling_method": "antithetic", "time_correlate_number": k,
+            "antithetic_shift": 1.0 / k, "path_correlation_depth": FULL_CORRELATION}
+            for k in FLOOR_GROUPS})
+    return rows
 
 
-def measure(dopplertof, scene, spp: int, seeds: int):
-    """Per method: the per-pixel variance over seeds (H, W) and the seconds per render."""
-    images = {name: [] for name in METHODS}
-    seconds = {name: 0.0 for name in METHODS}
-    for name, params in METHODS.items():  # compile every kernel before timing
+#: the row the others are measured against
+BASE = "sampled (auto's choice without the control variate)"
+
+
+def measure(dopplertof, scene, rows: dict, spp: int, seeds: int):
+    """Per row: the per-pixel variance over seeds (H, W) and the seconds per render."""
+    images = {name: [] for name in rows}
+    seconds = {name: 0.0 for name in rows}
+    for name, params in rows.items():  # compile every kernel before timing
         dopplertof.render(scene, spp=spp, seed=0, params=params)
     for seed in range(1, seeds + 1):
-        for name, params in METHODS.items():
+        for name, params in rows.items():
             started = time.perf_counter()
             image = dopplertof.render(scene, spp=spp, seed=seed, params=params)
             seconds[name] += time.perf_counter() - started
@@ -71,25 +85,28 @@ def measure(dopplertof, scene, spp: int, seeds: int):
     return variance, {name: s / seeds for name, s in seconds.items()}
 
 
-def report(variance: dict, seconds: dict, spp: int) -> dict:
-    """Prints the table and the floor; returns the floor's numbers."""
-    base = variance["auto"].mean() * seconds["auto"]
-    print(f"{'method':24s} {'mean variance':>14s} {'s/render':>9s} {'efficiency vs auto':>19s}")
-    for name in METHODS:
+def report(variance: dict, seconds: dict, spp: int, h: float) -> None:
+    """Prints the table and, at a whole number of beats, the floor."""
+    base = variance[BASE].mean() * seconds[BASE]
+    print(f"\nh = {h:g} beats per exposure, {spp} spp")
+    print(f"{'method':52s} {'mean variance':>14s} {'s/render':>9s} {'efficiency':>11s}")
+    for name in variance:
         v = variance[name].mean()
-        print(f"{name:24s} {v:14.3e} {seconds[name]:9.2f} {base / (v * seconds[name]):19.2f}")
-    per_k = [variance[f"antithetic K={k}"].mean() / k for k in FLOOR_GROUPS]
+        print(f"{name:52s} {v:14.3e} {seconds[name]:9.2f} {base / (v * seconds[name]):11.2f}")
+    per_k = [variance[f"antithetic K={k}"].mean() / k for k in FLOOR_GROUPS
+             if f"antithetic K={k}" in variance]
+    if not per_k:
+        return
     floor = min(per_k)  # (the most generous: it falls with more paths per pixel)
-    gain = variance["auto"].mean() / floor
-    print(f"\npath-space floor (variance / K at K = {FLOOR_GROUPS}): "
-          + ", ".join(f"{v:.3e}" for v in per_k) + f"; taken as {floor:.3e} at {spp} spp")
-    print(f"auto's variance over the floor: {gain:.2f} (RMSE {np.sqrt(gain):.2f}x): the most "
+    gain = variance[BASE].mean() / floor
+    print(f"path-space floor (variance / K at K = {FLOOR_GROUPS}): "
+          + ", ".join(f"{v:.3e}" for v in per_k) + f"; taken as {floor:.3e}")
+    print(f"pairs' variance over the floor: {gain:.2f} (RMSE {np.sqrt(gain):.2f}x): the most "
           "any time integration gains at equal paths")
     for paths in (1, 2, 3):
         print(f"  at {paths} path(s) per sample and equal cost per path: equal-time ratio "
               f"against the published code at most {PUBLISHED_RATIO * np.sqrt(gain / paths):.2f}"
               f" (from {PUBLISHED_RATIO})")
-    return {"floor": floor, "gain": gain}
 
 
 #: pixels per side of the figure's blocks (4 seeds' variances are too noisy per pixel)
@@ -102,36 +119,42 @@ def _blocks(image):
     return image[:h, :w].reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).mean(axis=(1, 3))
 
 
-def figure(variance: dict, seconds: dict, path: str) -> None:
+def figure(results: dict, path: str) -> None:
+    """One row per beat count: the block variance ratio map, its histogram (auto's
+    noisiest blocks apart) and each method's efficiency with its seconds."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    auto, cv = (_blocks(variance[n]) for n in ("auto", "control_variate"))
-    ratio = np.log2(np.maximum(cv, 1e-30) / np.maximum(auto, 1e-30))
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5), constrained_layout=True)
-    shown = axes[0].imshow(ratio, cmap="RdBu_r", vmin=-4, vmax=4)
-    axes[0].set_title(f"log2 variance, control variate / auto, {BLOCK}x{BLOCK}-pixel blocks"
-                      "\n(red: the control variate is noisier)")
-    fig.colorbar(shown, ax=axes[0])
-    busy = auto >= np.quantile(auto, 0.9)
-    bins = np.linspace(-4, 4, 41)
-    axes[1].hist(ratio[~busy].ravel(), bins=bins, alpha=0.6, density=True,
-                 label="other pixels")
-    axes[1].hist(ratio[busy].ravel(), bins=bins, alpha=0.6, density=True,
-                 label="auto's noisiest 10% of blocks (silhouettes)")
-    axes[1].set_xlabel("log2 variance ratio per block, control variate / auto")
-    axes[1].legend()
-    names = list(METHODS)
-    efficiency = [auto.mean() * seconds["auto"] / (variance[n].mean() * seconds[n])
-                  for n in names]
-    axes[2].barh(names, efficiency)
-    axes[2].axvline(1.0, color="k", lw=0.8)
-    axes[2].set_xlabel("efficiency against auto (1 / variance x seconds); seconds per render")
-    for y, n in enumerate(names):
-        axes[2].text(efficiency[y], y, f" {seconds[n]:.1f} s", va="center")
-    fig.savefig(path, dpi=80)
+    fig, grid = plt.subplots(len(results), 3, figsize=(17, 5 * len(results)),
+                             constrained_layout=True, squeeze=False)
+    for axes, (h, (variance, seconds)) in zip(grid, results.items()):
+        base, cv = (_blocks(variance[n]) for n in (BASE, "control_variate"))
+        ratio = np.log2(np.maximum(cv, 1e-30) / np.maximum(base, 1e-30))
+        shown = axes[0].imshow(ratio, cmap="RdBu_r", vmin=-6, vmax=6)
+        axes[0].set_title(f"h = {h:g}: log2 variance, control variate / sampled time,\n"
+                          f"{BLOCK}x{BLOCK}-pixel blocks (red: the control variate is noisier)")
+        fig.colorbar(shown, ax=axes[0])
+        busy = base >= np.quantile(base, 0.9)
+        bins = np.linspace(-8, 8, 49)
+        axes[1].hist(ratio[~busy].ravel(), bins=bins, alpha=0.6, density=True,
+                     label="other blocks")
+        axes[1].hist(ratio[busy].ravel(), bins=bins, alpha=0.6, density=True,
+                     label="sampled time's noisiest 10% (silhouettes)")
+        axes[1].set_xlabel("log2 variance ratio per block, control variate / sampled time")
+        axes[1].legend()
+        names = list(variance)
+        base_cost = variance[BASE].mean() * seconds[BASE]
+        efficiency = [base_cost / (variance[n].mean() * seconds[n]) for n in names]
+        axes[2].barh([n.split(" (")[0] for n in names], efficiency)
+        axes[2].axvline(1.0, color="k", lw=0.8)
+        axes[2].set_xscale("log")
+        axes[2].tick_params(axis="x", which="minor", labelbottom=False)
+        axes[2].set_xlabel("efficiency against sampled time (1 / variance x seconds)")
+        for y, n in enumerate(names):
+            axes[2].text(efficiency[y], y, f" {seconds[n]:.1f} s", va="center")
+    fig.savefig(path, dpi=70)
     print(f"figure: {path}")
 
 
@@ -170,6 +193,8 @@ def main(argv=None) -> int:
     p.add_argument("--spp", type=int, default=32)
     p.add_argument("--seeds", type=int, default=4)
     p.add_argument("--res", type=int, default=256)
+    p.add_argument("--hetero-frequency", type=float, nargs="+", default=[1.0, 2.5],
+                   metavar="H", help="beats per exposure of the rows (default 1 and 2.5)")
     p.add_argument("--figure", metavar="PNG")
     p.add_argument("--beats", type=float, nargs="+", metavar="H",
                    help="instead: compare the candidates of `auto` at these beat counts")
@@ -188,11 +213,14 @@ def main(argv=None) -> int:
     if args.beats:
         beats(dopplertof, xml, args.beats, args.spp, args.seeds, args.res)
         return 0
-    scene = dopplertof.load_file(xml, {"resx": str(args.res), "resy": str(args.res)})
-    variance, seconds = measure(dopplertof, scene, args.spp, args.seeds)
-    report(variance, seconds, args.spp)
+    results = {}
+    for h in args.hetero_frequency:
+        scene = dopplertof.load_file(xml, {"resx": str(args.res), "resy": str(args.res)})
+        scene = scene.with_params(hetero_frequency=h)
+        results[h] = measure(dopplertof, scene, methods(h), args.spp, args.seeds)
+        report(*results[h], args.spp, h)
     if args.figure:
-        figure(variance, seconds, args.figure)
+        figure(results, args.figure)
     return 0
 
 

@@ -160,6 +160,40 @@ def test_agrees_with_the_deep_reference_on_the_published_scene():
     assert np.all(t < PUBLISHED_T), (t, mean, expected, se)
 
 
+def test_auto_takes_it_away_from_whole_beats_and_never_for_derivatives():
+    """auto's rule (docs/benchmarks.md's table): pairs within 0.08 of a whole number of
+    beats, the control variate from half a beat on, stratified time below; never the
+    control variate for another waveform or where derivatives need sampled time."""
+    from dopplertof.sampling import auto_sampling
+
+    picks = {h: auto_sampling(h, closed_form=True)["time_sampling_method"]
+             for h in (0.0, 0.4, 0.5, 0.75, 1.0, 1.05, 1.1, 2.0, 2.5, 6.5)}
+    assert picks == {0.0: "stratified", 0.4: "stratified", 0.5: "control_variate",
+                     0.75: "control_variate", 1.0: "antithetic", 1.05: "antithetic",
+                     1.1: "control_variate", 2.0: "antithetic", 2.5: "control_variate",
+                     6.5: "control_variate"}
+    params = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=2.5,
+                                     time=0.001)
+    assert params.resolved(0.0).time_sampling_method == "control_variate"
+    assert params.resolved(0.0, sampled=True).time_sampling_method == "stratified"
+    square = dopplertof.RenderParams(time_sampling_method="auto", hetero_frequency=2.5,
+                                     time=0.001, wave_function_type="rectangular")
+    assert square.resolved(0.0).time_sampling_method == "stratified"
+
+
+def test_derivatives_of_an_auto_scene_sample_time():
+    """A scene at 2.5 beats renders with the control variate, and its gradient's render
+    parameters (diff/adjoint.gradient_params) resolve to sampled time."""
+    from dopplertof.diff.adjoint import gradient_params
+    from dopplertof.diff.render import DifferentiableScene
+
+    scene = dopplertof.load_dict(plane_scene(4.0, 30.0, spp=16, integrator=dict(
+        hetero_frequency=2.5)))
+    assert scene.params.resolved(scene.shutter_interval).time_sampling_method == (
+        "control_variate")
+    assert gradient_params(DifferentiableScene(scene)).time_sampling_method == "stratified"
+
+
 def test_a_render_leaves_the_settings_dataclasses_as_they_were():
     """The pass reads its loop's settings through a plain object: a loop that read the
     render's setup (a dataclass) took it for loop state, and Dr.Jit's traversal then

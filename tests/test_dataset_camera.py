@@ -2,6 +2,7 @@
 (incidence, grazing, redrawn samples, mesh sizes)."""
 
 import copy
+import json
 import math
 
 import numpy as np
@@ -158,28 +159,69 @@ def _binary_ply(path, points):
     path.write_bytes(header.encode() + np.asarray(points, "<f4").tobytes() + face)
 
 
-def test_a_mesh_of_the_wrong_size_is_one_line_naming_the_file_and_its_size(tmp_path, capsys):
-    from dopplertof.cli import main
+@pytest.mark.parametrize("scale, shift", [(50.0, [0.0, 40.0, 5.0]),  # centimetres
+                                          (0.08, [-0.02, 0.11, 0.0])])  # the bunny's size
+def test_a_mesh_in_any_unit_is_normalised_to_the_objects_size(tmp_path, scale, shift):
+    """A mesh folder's meshes come in any unit and placement: the Stanford bunny (0.16 m
+    across about (-0.02, 0.11, 0)) became a 3 cm object, a mesh in centimetres was
+    refused. Each is normalised (its bounding box centred, its largest half-extent 1)
+    and scaled by objects.size as a cube: its box's centre at the object's centre and,
+    in the loaded scene, its farthest vertex between size and sqrt(3) size from it."""
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.dataset.generate import draw_scene, mesh_normalisation
+    from dopplertof.dataset.scene_text import scene_xml
     from dopplertof.scene.meshes import mesh_file_bounds
 
     shapes = tmp_path / "shapes"
     shapes.mkdir()
+    points = np.array([[-1.0, -0.8, -0.1], [1.0, -0.8, -0.1], [0.0, 0.8, 0.1]]) * scale + shift
+    _binary_ply(shapes / "mesh.ply", points)
+    bounds = mesh_file_bounds(str(shapes / "mesh.ply")).astype(np.float64)
+    normalise = mesh_normalisation(str(shapes / "mesh.ply"))
+    corners = normalise[:3, :3] @ bounds.T + normalise[:3, 3:]
+    # float32 vertices: their box's centre to 0 and its half-extent to 1, to rounding
+    np.testing.assert_allclose(corners.sum(axis=1), 0.0, atol=1e-12)
+    assert np.max(corners[:, 1] - corners[:, 0]) == pytest.approx(2.0, rel=1e-12)
+    data = copy.deepcopy(TINY)
+    data["objects"].update(shapes=["mesh"], mesh_folder="shapes", count=[1, 1],
+                           size=[0.3, 0.3])
+    config = config_from_mapping(data, "<test>", str(tmp_path))
+    dopplertof.set_variant()
+    description = draw_scene(config, 0, load_preset(config["render"]["camera"]))
+    obj, = description["objects"]
+    rest = np.asarray(obj["rest"])
+    centre = rest[:3, :3] @ bounds.mean(axis=0) + rest[:3, 3]
+    np.testing.assert_allclose(centre, obj["centre_m"], atol=1e-9)
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "mesh.ply").write_bytes((shapes / "mesh.ply").read_bytes())
+    scene = dopplertof.scene.load_string(scene_xml(description, 4, 4), {},
+                                         base_dir=str(tmp_path))
+    import mitsuba as mi
+
+    vertices = np.asarray(mi.traverse(scene.bodies[0].scene)[
+        next(k for k in mi.traverse(scene.bodies[0].scene).keys()
+             if k.endswith("vertex_positions"))], np.float64).reshape(-1, 3)
+    reach = np.linalg.norm(vertices - obj["centre_m"], axis=1).max()
+    assert 0.3 * (1 - 1e-6) <= reach <= math.sqrt(3) * 0.3 * (1 + 1e-6)
+
+
+def test_a_mesh_without_an_extent_is_one_line_naming_the_file(tmp_path, capsys):
+    from dopplertof.cli import main
+
+    shapes = tmp_path / "shapes"
+    shapes.mkdir()
     (shapes / "unit.obj").write_text(OCTAHEDRON)
-    points = [[-50.0, 0, 0], [50.0, 0, 0], [0, 80.0, 10.0]]
-    _binary_ply(shapes / "zz_centimetres.ply", points)
-    np.testing.assert_array_equal(mesh_file_bounds(str(shapes / "zz_centimetres.ply")),
-                                  [[-50, 0, 0], [50, 80, 10]])
-    np.testing.assert_array_equal(mesh_file_bounds(str(shapes / "unit.obj")),
-                                  [[-1, -1, -1], [1, 1, 1]])
+    _binary_ply(shapes / "zz_point.ply", [[1.0, 2.0, 3.0]] * 3)
     data = copy.deepcopy(TINY)
     data["objects"].update(shapes=["mesh"], mesh_folder="shapes")
     code = main(["dataset", _write_toml(tmp_path / "meshes.toml", data), "-o",
                  str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
-    assert "zz_centimetres.ply spans 100 x 80 x 10" in err and "largest |coordinate| 80" in err
+    assert "zz_point.ply spans 0 x 0 x 0: a mesh needs an extent" in err
     assert "Traceback" not in err and not (tmp_path / "out").exists()
-    (shapes / "zz_centimetres.ply").unlink()
+    (shapes / "zz_point.ply").unlink()
     config_from_mapping(data, "<test>", str(tmp_path))  # (the unit mesh alone is fine)
 
 
@@ -284,3 +326,27 @@ def test_a_layout_1_folder_is_still_read_and_an_unknown_layout_is_named(tiny, tm
             with pytest.raises(DatasetError,
                                match="layout version 4, this reader reads 1, 2, 3"):
                 Dataset(folder)
+
+
+def test_a_sample_the_camera_barely_reports_is_drawn_again(monkeypatch):
+    """A sample held two one-pixel objects and 2 valid camera pixels without a word:
+    render.min_valid_share (default 0.01) is the least share of pixels the camera
+    reports (camera_valid); a drawing below it is drawn again, and after MAX_DRAWS the
+    sample fails naming the share. TINY's sample 2 reports 0.75 of its pixels at its
+    first drawing (kept with the threshold 0): with 0.76 a later drawing is kept."""
+    import dopplertof
+    from dopplertof.dataset import generate
+    from dopplertof.dataset.sample import render_sample, too_few_valid
+
+    assert too_few_valid(np.array([True, False, False, False]), 0.25) is None
+    assert too_few_valid(np.array([True, False, False, False]), 0.3) == (
+        "the camera reports 1 of 4 pixels (25.00%, below render.min_valid_share 0.3)")
+    dopplertof.set_variant()
+    arrays, attributes = render_sample(_config({"render": {"min_valid_share": 0.76}}), 2, ".")
+    assert json.loads(attributes["description"])["draw"] >= 1
+    assert arrays["camera_valid"].mean() >= 0.76
+    monkeypatch.setattr(generate, "MAX_DRAWS", 2)
+    with pytest.raises(DatasetError, match=r"sample 0: drawn 2 times, never usable; the "
+                       r"last: the camera reports \d+ of 120 pixels \(.*below "
+                       r"render.min_valid_share 1\)"):
+        render_sample(_config({"render": {"min_valid_share": 1.0}}), 0, ".")

@@ -165,6 +165,58 @@ def test_unit_scales_geometry_camera_and_velocity(tmp_path):
         assert float(wall.max[0] - wall.min[0]) == pytest.approx(10.0, rel=1e-6)
 
 
+def _lit_plane(scale, light):
+    """A grey plane 3 x ``scale`` before the camera, lit by ``light`` (formatted with
+    its distance ``d``, 0.9 of the camera's), in units of 1 / ``scale`` m."""
+    return f"""<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/>
+        <transform name="to_world"><lookat origin="0, 0, {3 * scale}" target="0, 0, 0"
+                                           up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height"
+                                                                  value="8"/></film></sensor>
+    {light.format(d=2.7 * scale)}
+    <shape type="rectangle"><transform name="to_world"><scale value="{5 * scale}"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></shape>
+</scene>"""
+
+
+POINT = '<emitter type="point"><point name="position" x="0" y="0" z="{d}"/>{i}</emitter>'
+SPOT = ('<emitter type="spot"><transform name="to_world"><lookat origin="0, 0, {d}" '
+        'target="0, 0, 0"/></transform><float name="cutoff_angle" value="30"/>{i}</emitter>')
+
+
+@pytest.mark.parametrize("light, written, scaled, ratio", [
+    (POINT, '<rgb name="intensity" value="2"/>', '<rgb name="intensity" value="2e6"/>', 1),
+    (SPOT, '<spectrum name="intensity" value="400:1, 700:3"/>',
+     '<spectrum name="intensity" value="400:1e6, 700:3e6"/>', 1),
+    (POINT, "", "", 1e-6)])
+def test_a_point_lights_intensity_follows_the_unit(light, written, scaled, ratio):
+    """A point or spot light's irradiance is I / r^2 with r in scene units: the same
+    scene written in millimetres (its lengths 1000 times, its intensity 10^6 times:
+    stock Mitsuba renders the two alike) and read with -D unit=mm renders the radiance
+    of the one in metres (it was 10^6 times brighter); a light without an intensity has
+    Mitsuba's 1 at 1 mm, 10^-6 of it at 1 m. The float32 geometry of the scaled scene
+    rounds differently: a few units in the last place of 1 / r^2."""
+    dopplertof.set_variant()
+    metres = dopplertof.load_string(_lit_plane(1, light.replace("{i}", written)), {})
+    millimetres = dopplertof.load_string(_lit_plane(1000, light.replace("{i}", scaled)),
+                                         {"unit": "mm"})
+    a, b = (dopplertof.capture(s, spp=4, seed=0, params={"max_depth": 2}, progress=False)
+            for s in (metres, millimetres))
+    assert a.radiance.max() > 0
+    np.testing.assert_allclose(b.radiance, ratio * a.radiance, rtol=1e-5, atol=0)
+
+
+def test_an_intensity_it_cannot_scale_is_one_line():
+    dopplertof.set_variant()
+    light = POINT.replace("{i}", '<spectrum name="intensity" filename="lamp.spd"/>')
+    with pytest.raises(SceneError, match=r"the point light's 'intensity' \(<spectrum>\) "
+                                         r"cannot be scaled to metres \(-D unit\)") as caught:
+        dopplertof.load_string(_lit_plane(1000, light), {"unit": "mm"})
+    assert len(str(caught.value).splitlines()) == 1
+
+
 def test_unit_m_changes_nothing_and_a_bad_unit_is_one_line():
     from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset

@@ -28,10 +28,6 @@ BACKDROPS = ("room", "wall", "none")
 LIGHT_PLACEMENTS = ("camera", "offset")
 #: mesh files a mesh folder may hold
 MESH_EXTENSIONS = (".obj", ".ply")
-#: a mesh's largest |vertex coordinate| must lie in [MESH_LEAST_REACH, MESH_MOST_REACH]:
-#: it fits the cube [-1, 1]^3 that objects.size scales (a mesh in centimetres is 100 times
-#: too large)
-MESH_LEAST_REACH, MESH_MOST_REACH = 0.05, 1.01
 #: a shape's bounding radius per unit of size (a mesh fits the cube [-1, 1]^3)
 BOUNDING_RADIUS = {"sphere": 1.0, "cube": math.sqrt(3.0), "rectangle": math.sqrt(2.0),
                    "mesh": math.sqrt(3.0)}
@@ -75,6 +71,9 @@ SCHEMA = {
                       "cameras --list)", default="paper-dtof"),
         "light_intensity": Key("range", "point light, W/sr, > 0",
                                lambda v: _range(0)(v) and v[0] > 0, default=[20.0, 20.0]),
+        "min_valid_share": Key("float", "least share of the pixels the camera reports "
+                               "(camera_valid): a sample below it is drawn again",
+                               lambda x: 0 <= x <= 1, default=0.01),
         "grazing_deg": Key("float", "incidence angle beyond which a pixel's depth and "
                            "velocity truth is flagged grazing", lambda x: 0 < x <= 90,
                            default=80.0),
@@ -91,9 +90,9 @@ SCHEMA = {
         "count": Key("ints", "[fewest, most] objects", _range(0), default=[1, 3]),
         "shapes": Key("names", "drawn from " + ", ".join(SHAPES),
                       lambda v: set(v) <= set(SHAPES), default=["sphere", "cube"]),
-        "mesh_folder": Key("string", "folder of .obj/.ply meshes (each fits the cube "
-                           "[-1, 1]^3 and reaches past MESH_LEAST_REACH of it; scaled by "
-                           "size)", default=""),
+        "mesh_folder": Key("string", "folder of .obj/.ply meshes in any unit (each "
+                           "normalised: its bounding box centred, its largest half-extent 1; "
+                           "then scaled by size, as a cube)", default=""),
         "materials": Key("names", "drawn from " + ", ".join(MATERIALS),
                          lambda v: set(v) <= set(MATERIALS), default=["diffuse"]),
         "size": Key("range", "radius or half-size, m", _range(1e-3), default=[0.2, 0.5]),
@@ -285,8 +284,8 @@ def bounding_radius(shape: str, size: float) -> float:
 
 
 def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
-    """Every mesh fits the cube [-1, 1]^3 and fills a part of it (one line naming the
-    first that does not, its extent and what objects.size makes of it)."""
+    """Every mesh is readable and has an extent to normalise (one line naming the first
+    that does not: a mesh of one point, or of non-finite vertices)."""
     import numpy as np
 
     from ..scene.meshes import mesh_file_bounds, mesh_file_problem
@@ -303,15 +302,12 @@ def _check_mesh_sizes(folder: str, size: list, source: str) -> None:
         except (OSError, ValueError) as e:
             raise DatasetError(f"{source}: objects.mesh_folder: {path}: unreadable ({e})") \
                 from None
-        reach = float(np.abs(bounds).max())
-        if not MESH_LEAST_REACH <= reach <= MESH_MOST_REACH:
-            extent = " x ".join(f"{x:.4g}" for x in bounds[1] - bounds[0])
+        extent = bounds[1] - bounds[0]
+        if not (np.all(np.isfinite(bounds)) and extent.max() > 0):
             raise DatasetError(
-                f"{source}: objects.mesh_folder: {path} spans {extent} (largest |coordinate| "
-                f"{reach:.4g}): scaled by objects.size {size} it would reach "
-                f"{reach * size[0]:.4g}-{reach * size[1]:.4g} m; a mesh must fit the cube "
-                f"[-1, 1]^3 and reach past {MESH_LEAST_REACH} of it: rescale it (a mesh in "
-                "centimetres is 100 times too large)")
+                f"{source}: objects.mesh_folder: {path} spans "
+                f"{' x '.join(f'{x:.4g}' for x in extent)}: a mesh needs an extent to be "
+                f"normalised to objects.size {size} (its largest half-extent)")
 
 
 #: farthest a light offset may be from the camera, m (a point light's irradiance falls

@@ -134,10 +134,12 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
     velocities."""
     objects, motion = config["objects"], config["motion"]
     shape = str(rng.choice(objects["shapes"]))
-    mesh = None
+    mesh, normalise = None, np.eye(4)
     if shape == "mesh":
         files = mesh_files(mesh_folder(config))
-        mesh = f"{MESH_DIR}/{os.path.basename(files[int(rng.integers(0, len(files)))])}"
+        path = files[int(rng.integers(0, len(files)))]
+        mesh = f"{MESH_DIR}/{os.path.basename(path)}"
+        normalise = mesh_normalisation(path)
     size = _uniform(rng, objects["size"])
     depth = _uniform(rng, objects["distance"])
     lateral = [float(rng.uniform(-1, 1)) * objects["spread"] * t * depth for t in tans]
@@ -149,6 +151,7 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
     rest = np.eye(4)
     rest[:3, :3] = turn * size
     rest[:3, 3] = centre
+    rest = rest @ normalise  # (a mesh: its box centred on ``centre``, half-size ``size``)
     velocity = (np.array(_unit_vector(rng)) * _uniform(rng, motion["speed"])).tolist()
     spin = (np.array(_unit_vector(rng)) * _uniform(rng, motion["angular_speed"])).tolist()
     kind = str(rng.choice(objects["materials"]))
@@ -173,6 +176,21 @@ def enclosed_camera(description: dict) -> str | None:
             return (f"{obj['id']} ({obj['shape']}, size {obj['size_m']:.3g} m) is "
                     f"{gap:.3g} m from the camera, within its bounding radius {radius:.3g} m")
     return None
+
+
+def mesh_normalisation(path: str) -> np.ndarray:
+    """The 4x4 matrix that puts a mesh file in the cube [-1, 1]^3 as a cube of size 1
+    fills it: its bounding box's centre to the origin and its largest half-extent to 1
+    (uniform scale: the mesh keeps its proportions). A dataset's meshes come in any
+    unit and placement (the Stanford bunny spans 0.16 x 0.15 x 0.12 about (-0.02, 0.11,
+    0)); ``objects.size`` then is their half-size in metres, as a cube's."""
+    from ..scene.meshes import mesh_file_bounds
+
+    low, high = mesh_file_bounds(path)
+    half = float(np.max(high - low)) / 2
+    out = np.diag([1.0 / half] * 3 + [1.0])
+    out[:3, 3] = -(low + high) / 2 / half
+    return out
 
 
 def mesh_folder(config: DatasetConfig) -> str:

@@ -34,10 +34,16 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
 
     render = config["render"]
     preset = load_preset(render["camera"])
-    description, text, scene, truth = drawn_sample(config, index, preset, folder)
-    arrays, readings = _raw_frames(scene, preset, render["spp"], description)
-    arrays.update(truth)
-    arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
+    draw = 0
+    while True:  # (drawn again while the camera reports too few pixels)
+        description, text, scene, truth = drawn_sample(config, index, preset, folder, draw)
+        arrays, readings = _raw_frames(scene, preset, render["spp"], description)
+        arrays.update(truth)
+        arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
+        problem = too_few_valid(arrays["camera_valid"], render["min_valid_share"])
+        if problem is None:
+            break
+        draw = _next_draw(index, description["draw"], problem)
     attributes = {"index": int(index), "render_seed": description["render_seed"],
                   "noise_seed": description["noise_seed"], "scene_xml": text,
                   "description": json.dumps(json_ready(description), sort_keys=True),
@@ -46,10 +52,35 @@ def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict,
     return arrays, attributes
 
 
-def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tuple:
+def too_few_valid(valid: np.ndarray, least: float) -> str | None:
+    """Why a sample whose camera reports the pixels ``valid`` is not kept (fewer than
+    ``least`` of them: render.min_valid_share), or None."""
+    share = float(np.mean(valid))
+    if share < least:
+        return (f"the camera reports {int(np.sum(valid))} of {valid.size} pixels "
+                f"({share:.2%}, below render.min_valid_share {least:g})")
+    return None
+
+
+def _next_draw(index: int, draw: int, problem: str) -> int:
+    """The drawing after ``draw`` of sample ``index``; a DatasetError naming ``problem``
+    where it was the last (MAX_DRAWS)."""
+    from .config import DatasetError
+    from .generate import MAX_DRAWS
+
+    if draw + 1 >= MAX_DRAWS:
+        raise DatasetError(f"sample {index}: drawn {MAX_DRAWS} times, never usable; the "
+                           f"last: {problem} (objects.distance, objects.size, "
+                           "objects.spread, render.min_valid_share)")
+    return draw + 1
+
+
+def drawn_sample(config: DatasetConfig, index: int, preset, folder: str,
+                 first: int = 0) -> tuple:
     """(description, scene XML, loaded scene, truth) of sample ``index``: its first
-    drawing in which no object encloses the camera and something is visible (an object,
-    when it has any); drawn again up to MAX_DRAWS times, then a DatasetError saying why."""
+    drawing from ``first`` on in which no object encloses the camera and something is
+    visible (an object, when it has any); drawn again up to MAX_DRAWS drawings in all,
+    then a DatasetError saying why."""
     from ..scene import load_string
     from .config import DatasetError
     from .generate import MAX_DRAWS, enclosed_camera
@@ -57,7 +88,7 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str) -> tupl
 
     render = config["render"]
     kinds_alive(config)  # (before any scene: the same registry ids in every worker)
-    for draw in range(MAX_DRAWS):
+    for draw in range(first, MAX_DRAWS):
         description = draw_scene(config, index, preset, draw)
         problem = enclosed_camera(description)
         if problem is None:

@@ -60,7 +60,7 @@ from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitEr
                           _truth, check_start_velocity, closed_form_velocity, interior,
                           load_capture)
 from .fit_noise import capture_noise
-from .fit_output import FitResult, format_fit, write_fit
+from .fit_output import FitResult, drift_warnings, format_fit, write_fit
 from .fit_covariance import COVARIANCES, FinalState, covariance, fixed_combinations
 from .fit_solve import PLATEAU, _fit_progress, _FitProblem, _gauss_newton, _method_notes
 from .motion import VelocityMotion
@@ -125,7 +125,8 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths, fixed)
     warnings = (no_step_warnings(done, stop)
                 + symmetry_notes(data.scene, motions, t_mid, bodies, angular)
-                + ([] if angular else problem.rotation_warnings(state, bodies)))
+                + ([] if angular else problem.rotation_warnings(state, bodies))
+                + drift_warnings(bodies))
     settings = {"capture": os.path.abspath(os.fspath(folder)),
                 **_settings(problem, spp, jacobian_spp, seed, block, angular, start),
                 **_method_notes(t_mid, tolerance, plateau), "noise": noise, "stopped": stop,

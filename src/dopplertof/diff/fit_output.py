@@ -72,14 +72,80 @@ def _truth_line(body: dict, kind: str, unit: str, shown: str) -> list:
             + (f" (sd of the error without {left_out})" if left_out else "")]
 
 
-def _error(value: float, truth) -> str:
-    """The error against ``truth``: relative where the truth is not near zero
-    (:data:`NEAR_ZERO`), else in the value's unit."""
+def _difference(value: float, truth: float) -> str:
+    """``value``'s error against ``truth``: relative where the truth is not near zero
+    (:data:`NEAR_ZERO`), else in m/s."""
+    if abs(truth) < NEAR_ZERO:
+        return f"{value - truth:+.3f} m/s"
+    return f"{100 * (value / truth - 1):+.2f}%"
+
+
+def _sds(error: float, sd) -> str:
+    """``error`` in reported standard deviations ("" without one)."""
+    return "" if not sd else f", {error / sd:+.1f} sd"
+
+
+def _error(body: dict) -> str:
+    """The radial velocity's error against the truth, in reported standard deviations
+    too, and its start's: the truth by the fit's own measure (median over the body's
+    pixels at its pose at mid-exposure) where fit.json has it, else the capture's
+    record; nothing without either."""
+    value, truth = body["radial_velocity_m_s"], body.get("truth_radial_velocity_m_s")
+    label = "truth"
+    if truth is None:
+        truth, label = body.get("capture_velocity_gt_median_m_s"), "capture's truth"
     if truth is None:
         return ""
-    if abs(truth) < NEAR_ZERO:
-        return f" (capture's truth {truth:+.3f}, error {value - truth:+.3f} m/s)"
-    return f" (capture's truth {truth:+.3f}, error {100 * (value / truth - 1):+.2f}%)"
+    start = body.get("start_radial_velocity_m_s")
+    return (f" ({label} {truth:+.3f}, error {_difference(value, truth)}"
+            f"{_sds(value - truth, body.get('radial_velocity_uncertainty_m_s'))}"
+            + ("" if start is None else f"; start {start:+.3f}, error "
+               f"{_difference(start, truth)}") + ")")
+
+
+def drift_warnings(bodies) -> list:
+    """Per body whose fit ended further from its radial velocity's truth (by the fit's
+    own measure) than its start: a warning with both errors and what the end's means
+    against the fit's uncertainty: within 3 reported standard deviations the start's
+    nearness is chance (the captures do not determine the velocity more closely),
+    beyond them the renders and the captures differ by more than their noise. The loss
+    decides the fit, not the truth (unknown to a real camera): the end is kept."""
+    out = []
+    for k, b in enumerate(bodies):
+        end, truth = b["radial_velocity_m_s"], b.get("truth_radial_velocity_m_s")
+        start, sd = b.get("start_radial_velocity_m_s"), b["radial_velocity_uncertainty_m_s"]
+        if None in (end, truth, start) or abs(end - truth) <= abs(start - truth):
+            continue
+        z = abs(end - truth) / sd if sd else None
+        meaning = (
+            "it has no uncertainty: the captures do not determine it" if z is None else
+            f"{z:.2g} of its reported standard deviations (+- {sd:.3g} m/s): within its "
+            "uncertainty, the start's nearness is chance (more samples per pixel in the "
+            "capture and the fit, or more pixels on the body, narrow it)" if z <= 3 else
+            f"{z:.2g} of its reported standard deviations (+- {sd:.3g} m/s): beyond its "
+            "uncertainty, the fit's renders and the captures differ by more than their "
+            "noise (another scene, -D value or max_depth than the capture's?)")
+        out.append(f"body {k} ({b['name']}): the fit ended further from the truth's radial "
+                   f"velocity ({truth:+.3f} m/s) than its start: error "
+                   f"{_difference(end, truth)} against the start's "
+                   f"{_difference(start, truth)}; {meaning}")
+    return out
+
+
+def _centre_line(body: dict) -> list:
+    """For a body that turns (in the fit or in the truth): the velocity at the centre of
+    its seen points, fitted and true, which does not depend on where its pivot lies;
+    none for a body that only translates (the same at every point)."""
+    turns = [w for key in ("angular_velocity_rad_s", "truth_angular_velocity_rad_s")
+             for w in body.get(key) or []]
+    centre = body.get("centre_m")
+    if centre is None or not any(abs(w) > 1e-6 for w in turns):
+        return []
+    truth = body.get("truth_centre_linear_velocity_m_s")
+    return ["    at its seen centre (" + ", ".join(f"{c:+.3f}" for c in centre) + ") m: ("
+            + ", ".join(f"{v:+.3f}" for v in body["centre_linear_velocity_m_s"]) + ") m/s"
+            + ("" if truth is None else
+               ", truth (" + ", ".join(f"{v:+.3f}" for v in truth) + ") m/s")]
 
 
 def format_fit(result: FitResult) -> str:
@@ -91,9 +157,12 @@ def format_fit(result: FitResult) -> str:
         lines[0] += ("\n  no optimisation step was taken: the values below are the start's, "
                      "not fitted ones")
     for b in result.bodies:
+        pivot = b.get("pivot_m")
         lines.append(f"  {b['name']}: linear velocity "
                      + _vector(b["linear_velocity_m_s"], b["linear_velocity_uncertainty_m_s"],
-                               "m/s", b.get("linear_velocity_status")))
+                               "m/s", b.get("linear_velocity_status"))
+                     + ("" if pivot is None else " at its pivot ("
+                        + ", ".join(f"{p:+.4g}" for p in pivot) + ") m"))
         lines += _truth_line(b, "linear", "m/s", "")
         if b.get("angular_velocity_uncertainty_rad_s") is not None:
             lines.append("    angular velocity " + _vector(
@@ -102,12 +171,12 @@ def format_fit(result: FitResult) -> str:
             lines += _truth_line(b, "angular", "rad/s", "")
         elif any(abs(w) > 1e-6 for w in b.get("truth_angular_velocity_rad_s") or []):
             lines += _truth_line(b, "angular", "rad/s", "angular velocity not fitted; ")
+        lines += _centre_line(b)
         sd = b["radial_velocity_uncertainty_m_s"]
         lines.append(f"    radial velocity {b['radial_velocity_m_s']:+.3f} "
                      + ("(no uncertainty: it depends on what the captures do not see)"
                         if sd is None else f"+- {sd:.3f} m/s")
-                     + " (median over the body)"
-                     + _error(b["radial_velocity_m_s"], b.get("capture_velocity_gt_median_m_s")))
+                     + " (median over the body)" + _error(b))
     for combination in result.settings.get("fixed_combinations") or []:
         lines.append("  kept at its start, the captures do not see it: " + " ".join(
             f"{c:+.3f} {name}" for name, c in combination["direction"].items()))

@@ -158,6 +158,19 @@ class _FitProblem:
         truth = _truth(self.data.scene, self.motions, self.data.base)
         return [radial_velocity(truth, k) for k in range(len(self.motions))]
 
+    def radial_of(self, motions) -> list:
+        """Each body's median radial velocity (:meth:`radial`) with the motions set to
+        ``motions`` (per body (v, omega), about the same pivots), the current motions
+        kept: the truth's by the fit's own measure."""
+        kept = [(m.velocity, m.angular_velocity) for m in self.motions]
+        for m, (v, w) in zip(self.motions, motions):
+            m.velocity, m.angular_velocity = [float(x) for x in v], [float(x) for x in w]
+        try:
+            return self.radial()
+        finally:
+            for m, (v, w) in zip(self.motions, kept):
+                m.velocity, m.angular_velocity = v, w
+
     def record(self, iteration: int, loss: float, samples: int, theta, started) -> dict:
         """One entry of the fit's history."""
         return {"iteration": iteration, "loss": loss, "spp": samples,
@@ -192,7 +205,9 @@ class _FitProblem:
         of the capture's scene), the 3-D truth and the per-component errors. ``fixed``:
         :func:`fixed_combinations`' (directions, affected), None: none."""
         partly = fixed[1] if fixed is not None else np.zeros(len(theta), bool)
-        radial = self.radial()
+        geometry = _truth(self.data.scene, self.motions, self.data.base)
+        radial = [radial_velocity(geometry, k) for k in range(len(self.motions))]
+        true_radial = None if truths is None else self.radial_of(truths)
         # the radial velocities' derivatives (central differences of the truth; linear in u)
         grad_radial = self.radial_gradient(theta)
         per, bodies = self.per_body, []
@@ -223,8 +238,12 @@ class _FitProblem:
                                                     else closed_form[k].tolist()),
                 "interior_pixels": int(self.masks[k].sum()),
             }
+            entry.update(_centre_entries(geometry, self.masks[k], m.pivot,
+                                         entry["linear_velocity_m_s"],
+                                         entry["angular_velocity_rad_s"]))
             if truths is not None:
                 entry.update(_truth_entries(entry, *truths[k]))
+                entry["truth_radial_velocity_m_s"] = true_radial[k]
             _add_capture_record(entry, self.data.summary)
             bodies.append(entry)
         return bodies
@@ -300,7 +319,9 @@ def _truth_entries(entry: dict, v_true, w_true) -> dict:
     and the per-component errors, in m/s (rad/s) and in reported standard deviations
     (None without one)."""
     out = {"truth_linear_velocity_m_s": [float(x) for x in v_true],
-           "truth_angular_velocity_rad_s": [float(x) for x in w_true]}
+           "truth_angular_velocity_rad_s": [float(x) for x in w_true],
+           "truth_centre_linear_velocity_m_s": point_velocity(
+               v_true, w_true, entry["pivot_m"], entry["centre_m"]).tolist()}
     for kind, unit, truth in (("linear", "m_s", v_true), ("angular", "rad_s", w_true)):
         fitted = np.asarray(entry[f"{kind}_velocity_{unit}"], np.float64)
         error = fitted - np.asarray(truth, np.float64)
@@ -309,6 +330,27 @@ def _truth_entries(entry: dict, v_true, w_true) -> dict:
         out[f"{kind}_velocity_error_sigmas"] = [
             None if s is None or s == 0 else float(e / s) for e, s in zip(error, sigma)]
     return out
+
+
+def _centre_entries(geometry, mask, pivot, v, w) -> dict:
+    """fit.json's ``centre_m`` (the mean of the body's interior points at mid-exposure:
+    the part of it the captures see) and ``centre_linear_velocity_m_s`` (the velocity
+    of that point, v + omega x (centre - pivot)): a turning body's linear velocity is
+    its pivot's, which may lie far from the body (a mesh's own origin); at the centre it
+    compares with what the body does where it is seen."""
+    on = mask & np.isfinite(geometry.depth)
+    points = geometry.camera_origin + geometry.depth[on][:, None] * geometry.direction[on]
+    centre = points.mean(axis=0)
+    return {"centre_m": centre.tolist(),
+            "centre_linear_velocity_m_s": point_velocity(v, w, pivot, centre).tolist()}
+
+
+def point_velocity(v, w, pivot, point) -> np.ndarray:
+    """The velocity of ``point`` of a rigid body moving at ``v`` (its pivot's) and
+    turning at ``w`` about ``pivot``: v + w x (point - pivot)."""
+    return np.asarray(v, np.float64) + np.cross(np.asarray(w, np.float64),
+                                                np.asarray(point, np.float64)
+                                                - np.asarray(pivot, np.float64))
 
 
 def _add_capture_record(entry: dict, summary: dict) -> None:

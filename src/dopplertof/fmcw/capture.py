@@ -2,14 +2,14 @@
 the up and down peaks, the exact truth and the errors (docs/fmcw.md).
 
 The output folder (the set "fmcw" of :func:`dopplertof.io.output_folder`, all or
-nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
-frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
-pixel's spectra have no peak; range_gt.npy and velocity_point.npy (the truth: the hit
-point's velocity along the ray); points.npy, the point cloud with velocity (K, 5: x, y, z,
-radial velocity, peak height); with more than one return per pixel, returns_range.npy
-and returns_velocity.npy (H, W, N); with speckle, speckle.npy (H, W, 2, M); previews of
-the four maps (.png); summary.json. Each file is declared in
-:data:`dopplertof.outputs.FMCW`.
+nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first (2 M
+bins from -M / T with an I/Q receiver, :attr:`Chirp.iq`); frequencies.npy (M,) Hz;
+range.npy and velocity.npy (H, W) m and m/s, NaN where a pixel's spectra have no peak;
+range_gt.npy and velocity_point.npy (the truth: the hit point's velocity along the ray);
+points.npy, the point cloud with velocity (K, 5: x, y, z, radial velocity, peak height);
+with more than one return per pixel, returns_range.npy and returns_velocity.npy (H, W, N);
+with speckle, speckle.npy (H, W, 2, M); previews of the four maps (.png); summary.json.
+Each file is declared in :data:`dopplertof.outputs.FMCW`.
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ def spectrum_peaks(spectrum: np.ndarray, chirp: Chirp, count: int = 1):
     weights = np.take_along_axis(padded[..., None, :], index + 1, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         centre = (weights * index).sum(axis=-1) / weights.sum(axis=-1)
-    return np.where(height > 0, centre * chirp.bin_width, np.nan), height
+    return np.where(height > 0, (centre + chirp.first_bin) * chirp.bin_width, np.nan), height
 
 
 def regions(scene, truth, range_: np.ndarray, velocity: np.ndarray) -> list:
@@ -164,11 +164,15 @@ def folding(chirp: Chirp, truth, beats: np.ndarray):
         ambiguous = (np.isfinite(up) & np.isfinite(down)
                      & (0.25 * chirp.wavelength * np.abs(up - down) <= slack)
                      & (0.25 * chirp.wavelength * (up + down) <= slack))
-    beyond = fastest / chirp.unambiguous_speed(1.0)
+    if chirp.iq:  # (signed beats: a beat below zero is read as such, nothing folds)
+        folded, ambiguous = np.zeros_like(folded), np.zeros_like(ambiguous)
+    beyond = 0.0 if chirp.iq else fastest / chirp.unambiguous_speed(1.0)
     record = {"max_speed_m_s": fastest, "unambiguous_beyond_m": beyond,
               "unambiguous_speed_at_nearest_m_s": (
-                  float(chirp.unambiguous_speed(depth[seen].min())) if seen.any() else None),
-              "folded_pixels": int(folded.sum()), "ambiguous_pixels": int(ambiguous.sum())}
+                  None if chirp.iq or not seen.any()
+                  else float(chirp.unambiguous_speed(depth[seen].min()))),
+              "folded_pixels": int(folded.sum()), "ambiguous_pixels": int(ambiguous.sum()),
+              "receiver": "I/Q" if chirp.iq else "real"}
     warning = None
     if folded.any() or ambiguous.any():
         warning = (f"the beats fold: {int(folded.sum())} pixel(s) move faster than B lambda "

@@ -9,10 +9,12 @@ the local oscillator at
     f_down = (B / T) L / c - (dL/dt) / lambda
 
 (the convention of Kim et al. 2025, ACM TOG 44(4): a receding path, dL/dt > 0, is
-red-shifted, which raises the up chirp's beat). The detector sees |f| (a real beat
-has no sign). The spectrum has ``bins`` bins of width 1 / T (the Fourier resolution of
+red-shifted, which raises the up chirp's beat). A real receiver sees |f| (a real beat
+has no sign): its spectrum has ``bins`` bins of width 1 / T (the Fourier resolution of
 one chirp), bin m centred on m / T: the one-sided spectrum of the beat sampled at
-2 bins / T over the chirp. Range from the pair: L = c T (f_up + f_down) / (2 B), the
+2 bins / T over the chirp. An I/Q (complex, ``iq``) receiver sees the beat's sign: its
+spectrum has 2 ``bins`` bins, bin m centred on m / T for m = -bins .. bins - 1, and a
+beat below zero (a Doppler beat larger than the range beat) no longer folds. Range from the pair: L = c T (f_up + f_down) / (2 B), the
 range L / 2 (light at the camera); radial velocity (dL/dt) / 2 = lambda (f_up - f_down) / 4,
 positive receding as in the rest of the project.
 
@@ -49,7 +51,8 @@ class Chirp:
     wavelength: float = 1550e-9  #: lambda, m
     bandwidth: float = 1e9  #: B, the optical frequency sweep of one chirp, Hz
     chirp_time: float = 10e-6  #: T, the duration of one chirp, s
-    bins: int = 256  #: M, spectrum bins of width 1 / T
+    bins: int = 256  #: M, spectrum bins of width 1 / T (per sign with ``iq``)
+    iq: bool = False  #: an I/Q (complex) receiver: signed beats, bins -M .. M - 1
 
     def __post_init__(self):
         problem = self.problem()
@@ -58,6 +61,7 @@ class Chirp:
         for name in ("wavelength", "bandwidth", "chirp_time"):  # (NumPy scalars: Python's)
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "bins", int(self.bins))
+        object.__setattr__(self, "iq", bool(self.iq))
 
     def problem(self, names: dict | None = None) -> str | None:
         """What is wrong with these parameters, else None; ``names`` (as
@@ -83,6 +87,8 @@ class Chirp:
             return problem
         if not is_integer(self.bins) or self.bins < 2:
             return f"bins M must be an integer >= 2, got {self.bins!r}"
+        if not isinstance(self.iq, (bool, np.bool_)):
+            return f"iq must be True or False, got {self.iq!r}"
         return None
 
     @classmethod
@@ -129,9 +135,21 @@ class Chirp:
         and the pair reads range and velocity swapped (docs/fmcw.md section 3)."""
         return self.slope * self.wavelength * distance / SPEED_OF_LIGHT
 
+    @property
+    def first_bin(self) -> int:
+        """The index m of the spectrum's first bin (centred on m / T): 0, or -M with
+        ``iq``."""
+        return -self.bins if self.iq else 0
+
+    @property
+    def spectrum_bins(self) -> int:
+        """The bins of one chirp's spectrum: M, or 2 M with ``iq``."""
+        return 2 * self.bins if self.iq else self.bins
+
     def frequencies(self):
-        """The bins' centre frequencies (Hz), a NumPy array of M."""
-        return np.arange(self.bins, dtype=np.float64) * self.bin_width
+        """The bins' centre frequencies (Hz), a NumPy array of :attr:`spectrum_bins`."""
+        return (np.arange(self.spectrum_bins, dtype=np.float64) + self.first_bin) \
+            * self.bin_width
 
     def beats(self, path_length, length_rate):
         """(f_up, f_down), Hz, signed, of paths of length ``path_length`` (m) changing
@@ -150,6 +168,8 @@ class Chirp:
         """The parameters and what follows from them, for summary.json."""
         return {"wavelength_nm": self.wavelength * 1e9, "bandwidth_GHz": self.bandwidth * 1e-9,
                 "chirp_time_us": self.chirp_time * 1e6, "bins": self.bins,
+                "receiver": ("I/Q: signed beats, 2 M bins from -M / T" if self.iq
+                             else "real: |beat|, M bins from 0"),
                 "bin_width_Hz": self.bin_width,
                 "range_per_bin_m": 0.5 * self.bin_width * SPEED_OF_LIGHT / self.slope,
                 "velocity_per_bin_m_s": 0.25 * self.wavelength * self.bin_width,

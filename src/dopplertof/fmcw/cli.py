@@ -42,6 +42,10 @@ def add_subcommand(sub) -> None:
     g.add_argument("--beam-intensity", type=_positive_float, metavar="W_SR",
                    help="with a collimated beam: its radiant intensity within each pixel's "
                    "cone, W/sr (fmcw_beam_intensity; default 1)")
+    g.add_argument("--iq", action="store_true",
+                   help="an I/Q (complex) receiver: it sees the beats' signs, so a Doppler "
+                   "beat larger than the range beat does not fold (spectra of 2 M bins "
+                   "from -M/T; default: a real receiver, |beat|)")
     f.add_argument("--speckle", action="store_true",
                    help="also speckle.npy: each path at a random phase, summed coherently "
                    "per bin (its expectation is spectrum.npy)")
@@ -90,7 +94,8 @@ def chirp_of(args, settings=None):
              "chirp_time": ("--chirp-time" if args.chirp_time is not None
                             else "fmcw_chirp_time", "us", 1e-6)}
     return Chirp.of_settings(settings, names=names, wavelength=wavelength,
-                           bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins)
+                             bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins,
+                             iq=True if args.iq else None)
 
 
 def run_fmcw(args) -> int:
@@ -141,7 +146,9 @@ def format_summary(summary: dict, folder: str) -> str:
         f"FMCW {c['wavelength_nm']:g} nm, B {c['bandwidth_GHz']:g} GHz over "
         f"{c['chirp_time_us']:g} us, {c['bins']} bins of {c['bin_width_Hz']:g} Hz "
         f"(range {c['range_per_bin_m']:.4g} m and velocity {c['velocity_per_bin_m_s']:.4g} "
-        f"m/s per bin, up to {c['max_range_m']:.4g} m); {summary['render_seconds']:.1f} s",
+        f"m/s per bin, up to {c['max_range_m']:.4g} m)"
+        + (", I/Q receiver" if c.get("receiver", "").startswith("I/Q") else "")
+        + f"; {summary['render_seconds']:.1f} s",
         f"  range:    {stat(e['range_m'], 'm')}",
         f"  velocity: {stat(e['velocity_m_s'], 'm/s')}",
         *(f"  {r['name']}: velocity {stat(r['velocity_m_s'], 'm/s')} (truth median "

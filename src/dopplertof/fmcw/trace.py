@@ -102,8 +102,10 @@ class SpectrumSplat:
 
     def __init__(self, mi, chirp, n_pixels: int, speckle: bool = False):
         self.mi = mi
-        self.bins = chirp.bins
-        size = n_pixels * 2 * chirp.bins
+        self.bins = chirp.spectrum_bins
+        self.iq = chirp.iq  # (signed beats: bin 0 is -M / T)
+        self.offset = mi.Float(-chirp.first_bin)
+        size = n_pixels * 2 * chirp.spectrum_bins
         self.values = dr.zeros(mi.Float, size)
         self.real = dr.zeros(mi.Float, size) if speckle else None
         self.imag = dr.zeros(mi.Float, size) if speckle else None
@@ -120,11 +122,13 @@ class SpectrumSplat:
         mi = self.mi
         centre, doppler = path_length * self.per_metre, rate * self.per_rate  # in bins
         for chirp, position in enumerate((centre + doppler, centre - doppler)):
-            position = dr.abs(position)
+            # a real receiver folds a beat below zero; an I/Q one keeps its sign
+            position = position + self.offset if self.iq else dr.abs(position)
+            inside = active & (value != 0.0) & (position >= 0.0) & (position < self.bins - 1)
+            position = dr.maximum(position, 0.0)
             low = mi.UInt32(dr.floor(position))
             upper = position - mi.Float(low)
             base = (pixel * 2 + chirp) * self.bins
-            inside = active & (value != 0.0) & (position < self.bins - 1)
             for index, share in ((base + low, 1.0 - upper), (base + low + 1, upper)):
                 dr.scatter_reduce(dr.ReduceOp.Add, self.values, value * share, index, inside)
                 if self.real is not None:  # (the split keeps each bin's expected power)
@@ -261,7 +265,7 @@ def fmcw_params(scene, params=None) -> tuple[RenderParams, FMCWSettings]:
 
 def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str = "flood",
                    beam_intensity: float = 1.0, speckle: bool = False):
-    """The (H, W, 2, M) float64 spectra of ``scene`` (a DopplerScene): each pixel's mean
+    """The (H, W, 2, M) float64 spectra (2 M bins with an I/Q chirp) of ``scene`` (a DopplerScene): each pixel's mean
     over ``spp`` samples of its contributions at their up (0) and down (1) beats, lit by
     ``beam`` (:mod:`.beam`); t0, the time traced; and with ``speckle`` the spectra of the
     coherent sums, |sum of sqrt(value) e^(i phase)|^2 / spp per bin (else None)."""
@@ -270,9 +274,10 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
 
     mi, p, spp, seed = _resolve(scene, spp, seed, fmcw_params(scene, params)[0])
     width, height = (int(v) for v in scene.sensor.film().crop_size())
-    if width * height * 2 * chirp.bins > MAX_SPECTRUM_VALUES:
-        raise ValueError(f"{width}x{height} pixels x 2 chirps x {chirp.bins} bins is "
-                         f"{width * height * 2 * chirp.bins:,} spectrum values, over the "
+    bins = chirp.spectrum_bins  # (M, or 2 M for an I/Q receiver)
+    if width * height * 2 * bins > MAX_SPECTRUM_VALUES:
+        raise ValueError(f"{width}x{height} pixels x 2 chirps x {bins} bins is "
+                         f"{width * height * 2 * bins:,} spectrum values, over the "
                          f"{MAX_SPECTRUM_VALUES:,} a frame may hold: fewer bins or pixels")
     setup = integrator_class(mi)().prepared(scene, p, spp, int(seed),
                                             lit_by_beam=beam == "collimated")
@@ -281,8 +286,8 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
     lidar_beam = Beam(mi, scene, beam, beam_intensity, t0)
     n_pixels = width * height
     per_pass = max(1, DEFAULT_MAX_LANES // n_pixels)  # (the D-ToF passes' bound)
-    total = np.zeros(n_pixels * 2 * chirp.bins)
-    coherent = np.zeros(n_pixels * 2 * chirp.bins, np.complex128) if speckle else None
+    total = np.zeros(n_pixels * 2 * bins)
+    coherent = np.zeros(n_pixels * 2 * bins, np.complex128) if speckle else None
     with dr.suspend_grad():
         for s0 in range(0, spp, per_pass):
             layout = PassLayout(mi, n_pixels, min(per_pass, spp - s0),
@@ -292,6 +297,6 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
             total += splat.values.numpy()
             if speckle:
                 coherent += splat.real.numpy() + 1j * splat.imag.numpy()
-    shape = (height, width, 2, chirp.bins)
+    shape = (height, width, 2, bins)
     return ((total / spp).reshape(shape), t0,
             None if coherent is None else (np.abs(coherent) ** 2 / spp).reshape(shape))

@@ -157,10 +157,12 @@ def _in_metres(doc: _Doc, metres: float) -> None:
     shape's to_world (and keyframes) scaled (S M), the sensor's and lights' placements
     moved, not scaled (S M S^-1: their positions, and the sensor's near and far clip, in
     metres; orientations kept), a point light's position scaled. Velocities follow
-    from the keyframes. Light intensities are kept as written (radiance, an area light's
-    or a texture's, does not depend on the unit; a point or spot light's W/sr does, see
-    docs/own_scene.md). A preset's illuminator (CAMERA_ILLUMINATOR_ID) keeps its offset
-    from the camera, which is in metres."""
+    from the keyframes. The lights give the radiance stock Mitsuba renders of the scene
+    as written: an area light's, an environment's or a directional light's does not
+    depend on the unit, a point, spot or projector light's irradiance falls as
+    I / r^2 with r in scene units, so its intensity is scaled by metres^2
+    (:func:`_scale_intensity`). A preset's illuminator (CAMERA_ILLUMINATOR_ID) keeps its
+    offset from the camera and its intensity, which are in metres."""
     if metres == 1.0:
         return
     scale = {"value": repr(metres)}
@@ -178,12 +180,43 @@ def _in_metres(doc: _Doc, metres: float) -> None:
             for t in _placements(el):
                 t.insert(min(after, len(t)), ET.Element("scale", inverse))
                 t.append(ET.Element("scale", scale))
+            if el.tag == "emitter" and el.get("id") != CAMERA_ILLUMINATOR_ID:
+                _scale_intensity(doc, el, metres ** 2)
             for child in el:
                 if child.tag == "point" and child.get("name") == "position":
                     _scale_numbers(child, ("x", "y", "z", "value"), metres)
                 elif child.tag == "float" and child.get("name") in SENSOR_LENGTHS \
                         and el.tag == "sensor":
                     _scale_numbers(child, ("value",), metres)
+
+
+#: emitters whose irradiance falls as 1 / r^2 from a point: the property scaled by a
+#: scene's unit squared (a projector's ``scale`` multiplies its irradiance at unit distance)
+INVERSE_SQUARE_EMITTERS = {"point": "intensity", "spot": "intensity", "projector": "scale"}
+
+
+def _scale_intensity(doc: _Doc, el, factor: float) -> None:
+    """A point, spot or projector light's intensity times ``factor`` (metres^2 per scene
+    unit^2: the same irradiance I / r^2 at the same scene distance); a value it cannot
+    scale (a spectrum file) is one line naming it."""
+    name = INVERSE_SQUARE_EMITTERS.get(el.get("type"))
+    if name is None:
+        return
+    found = [c for c in el if c.get("name") == name]
+    if not found:  # (Mitsuba's default: 1, white)
+        el.append(ET.Element("float", {"name": name, "value": repr(factor)}))
+        return
+    child = found[0]
+    if child.tag not in ("float", "rgb", "spectrum") or "value" not in child.attrib:
+        raise SceneError(f"{doc.where(child)}: the {el.get('type')} light's '{name}' "
+                         f"(<{child.tag}>) cannot be scaled to metres (-D unit): its "
+                         f"irradiance falls as 1 / r^2; write it as values and multiply them "
+                         f"by {factor:g} yourself, without -D unit")
+    # a spectrum's "wavelength:value" pairs keep their wavelengths
+    child.set("value", ", ".join(
+        (f"{token.split(':')[0]}:{float(token.split(':')[1]) * factor!r}" if ":" in token
+         else repr(float(token) * factor))
+        for token in re.split(r"[,\s]+", child.get("value").strip()) if token))
 
 
 def _scale_numbers(el, keys, factor: float) -> None:
