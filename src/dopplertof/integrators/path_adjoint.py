@@ -242,8 +242,8 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         # ---- Its local terms, attached, back-propagated at once ----
         suffix = (total - prefix, total_dl - prefix_dl,
                   total - prefix - hit_contribution - light_contribution)
-        _back_propagate(mi, setup, attached, (delta, active), (si, ray, v, numbers, beta, t_rel),
-                        suffix, (depth, origin, followed), settings.bsdf_ctx)
+        _back_propagate(mi, attached.setup, attached, (delta, active), (si, ray, v, numbers,
+                        beta, t_rel), suffix, (depth, origin, followed), settings.bsdf_ctx)
         prefix += hit_contribution  # (summed as the primal pass sums them)
         prefix += light_contribution
         prefix_dl += length_derivatives(modulation, v, t_rel)
