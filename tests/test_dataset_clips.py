@@ -122,6 +122,9 @@ def test_verify_show_and_both_exports_keep_clips(clips, tmp_path, monkeypatch, c
         assert video.is_file()
         if video.suffix == ".gif":
             assert Image.open(video).n_frames == T
+    stats = tmp_path / "stats.png"  # (every frame of every clip)
+    assert main(["dataset", "show", clips, "--stats", "-o", str(stats)]) == 0
+    assert stats.is_file()
     ds = Dataset(clips)
     # TöRF: a scan per clip, a view per frame, the extrinsics each frame's
     out = tmp_path / "torf"

@@ -139,7 +139,7 @@ def dataset_statistics(ds, indices) -> dict:
     and |radial velocities| where truth_valid holds, the objects' distances and speeds,
     each item's valid fractions and, per split, the camera's |depth error| (modulo its
     unambiguous range: a one-frequency camera's depth wraps) and predicted depth std over
-    its valid pixels."""
+    its valid pixels (a clip's over every frame; its objects as in frame 0)."""
     from ..cameras.unwrap import unambiguous_range
     from .sample import CAMERA_SPLITS
 
@@ -161,7 +161,8 @@ def dataset_statistics(ds, indices) -> dict:
             if valid is None:  # (layout 1)
                 continue
             stats["valid"][split].append(valid.mean())
-            wrap = unambiguous_range(sample["camera_frequencies"] * 1e6)
+            frequencies = np.asarray(sample["camera_frequencies"])  # (a clip's: (T, F))
+            wrap = unambiguous_range(frequencies.reshape(-1, frequencies.shape[-1])[0] * 1e6)
             error = (sample[f"camera_depth{suffix}"] - sample["depth"])[valid]
             stats["error"][split].append(np.abs(error - wrap * np.round(error / wrap)))
             stats["std"][split].append(sample[f"camera_confidence{suffix}"][valid])
