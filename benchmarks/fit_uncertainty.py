@@ -59,31 +59,29 @@ def capture(scene: str, light: str, seed: int, res: int, spp: int, folder: str,
     return (cap if rc == 0 else None), text
 
 
-def _recording_covariance():
-    """Wraps the fit's covariance to record the old s^2 (J^T J)^+ (the "plain" kind)
-    and the noise's variants beside the sandwich from the same final state (one fit, not
-    four): returns the list each fit appends to."""
-    from dopplertof.diff import fit as fit_module
-    from dopplertof.diff import fit_covariance, fit_noise
+def covariances(result) -> dict:
+    """The standard deviations of the fit ``result``'s parameters under each covariance
+    model, all from its final state (``result.final``, fit_covariance.FinalState; one
+    fit, not four): "new" the fit's sandwich, "old" s^2 (J^T J)^+ (the "plain" kind),
+    "robust" the sandwich of the residuals' own noise, "plain" the sandwich without its
+    outlying blocks' rule; and "report", the fit's noise diagnostics (fit.json's
+    settings.noise: the Birge ratio, the scale)."""
+    from dopplertof.diff.fit_covariance import covariance
+    from dopplertof.diff.fit_noise import CaptureNoise
 
-    records = []
-    new = fit_covariance.covariance
+    final = result.final
 
-    def both(state, seen, theta=None, noise=None, report=None, kind="sandwich"):
-        cov, sigma = new(state, seen, theta, noise, report, kind)
-        robust = fit_noise.CaptureNoise(noise.kinds, "residuals")  # for comparison
-        plain = dataclasses.replace(noise, outliers=False)
-        records.append({"old": new(state, seen, kind="plain")[1], "new": sigma,
-                        "robust": new(state, seen, theta, robust)[1],
-                        "plain": new(state, seen, theta, plain)[1], "report": report})
-        return cov, sigma
+    def sigma(noise=None, theta=final.theta, kind="sandwich"):
+        return covariance(final.state, final.seen, theta, noise, None, kind)[1]
 
-    fit_module.covariance = both
-    return records
+    return {"old": sigma(theta=None, kind="plain"), "new": sigma(final.noise),
+            "robust": sigma(CaptureNoise(final.noise.kinds, "residuals")),
+            "plain": sigma(dataclasses.replace(final.noise, outliers=False)),
+            "report": result.settings["noise"]}
 
 
 def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool,
-            records: list, folder: str, defines=()) -> list:
+            folder: str, defines=()) -> list:
     """Capture and fit once; one row per body and fitted component."""
     from dopplertof.diff.fit import fit
 
@@ -92,7 +90,7 @@ def run_one(scene: str, light: str, seed: int, spp: int, res: int, angular: bool
     started = time.perf_counter()
     result = fit(cap, spp=spp, angular=angular, progress=False)
     seconds = time.perf_counter() - started
-    record = records[-1]
+    record = covariances(result)
     rows = []
     for k, body in enumerate(result.bodies):
         per = 6 if angular else 3
@@ -174,14 +172,14 @@ def main(argv=None) -> int:
     import dopplertof
 
     dopplertof.set_variant("llvm_ad_rgb")
-    records, rows = _recording_covariance(), []
+    rows = []
     print(f"{'scene':>18} {'light':>9} {'seed':>4} {'body':>10} {'c':>3} {'fitted':>9} "
           f"{'truth':>9} {'sd old':>9} {'z old':>7} {'sd new':>9} {'z new':>7}")
     with tempfile.TemporaryDirectory() as folder:
         for scene in a.scene:
             for light in a.light:
                 for seed in a.seeds:
-                    new = run_one(scene, light, seed, a.spp, a.res, a.angular, records, folder,
+                    new = run_one(scene, light, seed, a.spp, a.res, a.angular, folder,
                                   a.defines)
                     _print_rows(new)
                     rows += new

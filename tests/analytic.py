@@ -149,6 +149,13 @@ def reference(z0: float, velocity: float, *, exposure=0.0015, w_g=30.0, hetero_f
     return float(total)
 
 
+def homodyne_amplitude(z0: float, velocity: float, **motion) -> float:
+    """The size every sample of the plane's pixel stays within, heterodyne or not: the
+    homodyne signal's amplitude, hypot of its values at offsets 0 and 1/4."""
+    return math.hypot(*(reference(z0, velocity, hetero_frequency=0.0, hetero_offset=o,
+                                  **motion) for o in (0.0, 0.25)))
+
+
 def filter_1d(kind: str, x):
     """Mitsuba's reconstruction filters on one axis (default radii), x in pixels."""
     x = np.abs(x)

@@ -43,3 +43,19 @@ def rounding_bound(magnitude: float, terms: int, rate: float = 1e-6) -> float:
     lam = math.sqrt(2.0 * math.log(2.0 * n / rate)) / (1.0 - u)
     gamma = math.expm1(lam * math.sqrt(n) * u + n * u * u / (1.0 - u))
     return gamma * float(magnitude)
+
+
+#: roundings counted per sample of a render: its value's own arithmetic (a BSDF, a light
+#: sample, the modulation's cosine and their products; generous), as tests/test_gradient.py
+#: counts a bounce's
+OPS_PER_SAMPLE = 256
+
+
+def mean_rounding_bound(amplitude: float, samples: int, rate: float = 1e-6) -> float:
+    """How far a float32 render's pixel, the mean of ``samples`` samples each at most
+    ``amplitude`` in size, lies from the exact mean of its samples by rounding alone:
+    :func:`rounding_bound` of their sum (sum |x_i| <= samples x amplitude), each sample's
+    own OPS_PER_SAMPLE roundings counted as terms too (sqrt(n) + sqrt(k) <= sqrt(2 (n +
+    k))), over the count. The floor under a relative tolerance where the samples cancel
+    (a heterodyne value near zero), in place of a fixed absolute one."""
+    return rounding_bound(amplitude, 2 * (samples + OPS_PER_SAMPLE), rate)

@@ -106,10 +106,13 @@ def test_write_preset_round_trips_every_preset(tmp_path):
 def test_noise_labels():
     for name in cameras.preset_names():
         described = cameras.load_preset(name).describe()
-        assert described["noise_calibrated"] == name.startswith("azure-kinect")
+        assert described["noise_calibrated"] == (name.startswith("azure-kinect")
+                                                 or name == "kinect-v2")
         assert described["noise_source"]
-    kinect = cameras.load_preset("kinect-v2")
-    assert "relative, not the camera's" in kinect.uncalibrated_note()
+    auto = cameras.load_preset("opt8241")
+    assert "relative, not the camera's" in auto.uncalibrated_note()
+    assert "relative, not the camera's" in auto.exposure
+    assert cameras.load_preset("kinect-v2").uncalibrated_note() is None
     assert cameras.load_preset("azure-kinect").uncalibrated_note() is None
 
 
@@ -150,9 +153,11 @@ def test_capture_summaries_carry_the_label():
 
     summary = render_wall(cameras.load_preset("azure-kinect"), 2.0, 0.5, crop=4, spp=2).summary
     assert summary["camera"]["noise_calibrated"] is True
+    assert summary["noise"]["exposure"].startswith("absolute: ")
     lit = wall_scene_xml(2.0, 0.5, 5.0, 4, 2).replace(
         "</scene>", '<emitter type="point"><point name="position" x="0" y="0" z="0"/>'
         '<rgb name="intensity" value="1"/></emitter></scene>')
-    summary = capture_camera(load_string(lit, {}), "kinect-v2", 2, progress=False).summary
+    summary = capture_camera(load_string(lit, {}), "opt8241", 2, progress=False).summary
     assert summary["camera"]["noise_calibrated"] is False
+    assert summary["noise"]["exposure"].startswith("auto: ")
     assert "relative, not the camera's" in summary["camera"]["noise_source"]

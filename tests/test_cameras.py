@@ -102,7 +102,7 @@ def test_every_packaged_preset_loads_with_its_sources():
     (("sensor.full_well_electrons",), None, "missing key sensor.full_well_electrons"),
     ((), ("read_noise_electrons", "read_nosie_electrons"),
      "unknown key sensor.read_nosie_electrons, did you mean 'read_noise_electrons'?"),
-    ((), ("adc_bits = 12", 'adc_bits = "twelve"'), "sensor.adc_bits must be a int"),
+    ((), ("adc_bits = 12", 'adc_bits = "twelve"'), "sensor.adc_bits must be an integer"),
     ((), ("contrast = 0.8", "contrast = 1.5"), "modulation.contrast out of range"),
     ((), ("frequency_mhz = 30.0\nphase_deg = 270.0", "frequency_mhz = 30.0\nphse_deg = 270.0"),
      "unknown key frames[3].phse_deg, did you mean 'phase_deg'?"),
@@ -574,7 +574,7 @@ def test_a_plain_mitsuba_scene_is_captured(tmp_path):
     dopplertof.set_variant("llvm_ad_rgb")
     box = mi.cornell_box()
     box["sensor"]["film"].update(width=3, height=2)
-    result = capture_camera(mi.load_dict(box), "kinect-v2", spp=4, noise=False,
+    result = capture_camera(mi.load_dict(box), "opt8241", spp=4, noise=False,
                             progress=False)
     assert result.depth.shape == (2, 3) and np.isfinite(result.depth_gt).any()
 

@@ -256,6 +256,36 @@ def test_a_killed_exports_staging_folder_is_removed_by_the_next(tiny, tmp_path):
         os.close(fd)
 
 
+def test_sigterm_during_an_export_says_so_in_one_line(tiny, tmp_path, capsys, monkeypatch):
+    """SIGTERM during `dataset export` (EI02, EI05) ended the process without a word,
+    its staging sibling left. Now one line says the export was interrupted, OUT was not
+    written and the dataset and earlier outputs are intact; exit 143; no staging left;
+    a rerun exports."""
+    import signal
+
+    from dopplertof import io
+    from dopplertof.cli import main
+
+    real = io.write_npy
+
+    def terminated_while_writing(path, array):
+        real(path, array)
+        os.kill(os.getpid(), signal.SIGTERM)  # (handled at the next bytecode)
+
+    monkeypatch.setattr(io, "write_npy", terminated_while_writing)
+    out = tmp_path / "exp"
+    assert main(["dataset", "export", tiny[1], "--format", "torf", "-o", str(out)]) == 143
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"dopplertof: dataset export interrupted (SIGTERM): {out} was not "
+                          "written; the dataset") and "earlier output are intact" in err
+    assert os.listdir(tmp_path) == []
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # (the handler given back)
+    monkeypatch.setattr(io, "write_npy", real)
+    assert main(["dataset", "export", tiny[1], "--format", "torf", "-o", str(out)]) == 0
+    assert (out / "export.json").exists()
+
+
 def test_a_folder_written_meanwhile_is_refused_in_one_line(tmp_path):
     """CC05: two exports into one new OUT at once: the second's rename failed with
     '[Errno 39] Directory not empty: 'cc05''. Now the usual 'exists and is not empty'

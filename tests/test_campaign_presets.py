@@ -98,7 +98,7 @@ def test_an_auto_exposed_preset_refuses_the_sections_it_would_ignore(tmp_path):
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.preset import PresetError
 
-    with open(os.path.join(PRESETS, "kinect-v2.toml"), encoding="utf-8") as f:
+    with open(os.path.join(PRESETS, "opt8241.toml"), encoding="utf-8") as f:
         text = f.read()
     extra = ("\n[illuminator]\npower_w = 1.0\nwavelength_nm = 850.0\nfov_deg = [70.0, 60.0]\n"
              "offset_m = [0.0, 0.0, 0.0]\n[conditions]\nambient_irradiance_uw_cm2_nm = 90.0\n")
@@ -194,8 +194,72 @@ def test_pixels_outside_a_narrow_illuminator_get_no_light(tmp_path):
     assert np.all(result.rendered[:, outside] == 0) and np.all(result.light.unmodulated[outside] == 0)
     assert not np.isfinite(result.depth[outside]).any()
     assert result.reconstruction.low_confidence[outside].all()
+    # and they say why: outside the illuminator's field (exactly the pixels wholly out)
+    assert np.array_equal(result.reconstruction.unlit, outside)
+    assert result.summary["depth"]["masked_pixels"]["outside the illuminator's field"] == \
+        outside.sum()
     lit = (np.abs(centres)[None, :] + pixel / 2 < half) & (np.abs(centres)[:, None] + pixel / 2 < half)
     assert lit.sum() > 0 and np.isfinite(result.depth[lit]).all()
+
+
+def test_azure_kinects_nfov_illuminator_leaves_the_top_and_bottom_rows_unlit():
+    """Microsoft gives the NFOV modes a 75 x 65 deg field of view (its illuminator's
+    field in the presets), but 320 x 288 (and 640 x 576) square pixels over 75 deg
+    see 2 atan(tan 37.5 deg x 288 / 320) = 69.27 deg vertically. The rows whose
+    footprint lies wholly beyond 65 deg: those whose edge nearest the axis is more than
+    f tan 32.5 deg = 132.84 px from the centre (f = 160 / tan 37.5 deg = 208.51 px),
+    11 at the top and 11 at the bottom (7.6% of the rows); no column."""
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.radiometry import outside_field
+    from dopplertof.integrators.camera import pinhole_intrinsics
+
+    for name, (w, h) in (("azure-kinect-nfov-binned", (320, 288)),
+                         ("azure-kinect", (640, 576))):
+        preset = load_preset(name)
+        assert preset.resolution == (w, h) and preset.illuminator["fov_deg"] == [75.0, 65.0]
+        unlit = outside_field(preset.illuminator["fov_deg"],
+                              pinhole_intrinsics(w, h, preset.fov_deg), w, h)
+        focal = 0.5 * w / math.tan(math.radians(37.5))
+        per_side = math.floor(h / 2 - focal * math.tan(math.radians(32.5)))
+        rows = np.flatnonzero(unlit.all(axis=1))
+        assert rows.tolist() == list(range(per_side)) + list(range(h - per_side, h))
+        assert not unlit[per_side:h - per_side].any()
+        assert (per_side, name) in ((11, "azure-kinect-nfov-binned"), (22, "azure-kinect"))
+
+
+def test_a_capture_through_the_nfov_preset_reports_its_unlit_rows_invalid(tmp_path):
+    """azure-kinect-nfov-binned at 40 x 36 (its aspect): a wall fills the view, the
+    illuminator lights 65 of the view's 69.27 deg, so rows 0 and 35 (wholly beyond
+    it: 18 - 20/tan 37.5 deg x tan 32.5 deg = 1.4 rows a side) get none of its light
+    and, with shot and read noise too, report no depth, counted in summary.json as
+    outside the illuminator's field; the rows beside them, partly lit, are not."""
+    import dopplertof
+    from dopplertof.cameras import load_preset
+    from dopplertof.cameras.accuracy import wall_scene_xml
+    from dopplertof.cameras.capture import (capture_camera, format_camera_summary,
+                                            scene_text_for_camera, with_illuminator)
+    from dopplertof.cameras.radiometry import view_tangents
+    from dopplertof.scene import load_string
+
+    dopplertof.set_variant()
+    preset = load_preset("azure-kinect-nfov-binned")
+    w, h = 40, 36
+    text = scene_text_for_camera(wall_scene_xml(2.0, 0.5, preset.fov_deg, w, 4), w, h,
+                                 preset.fov_deg, "wall")
+    text = with_illuminator(text, preset, view_tangents(preset.fov_deg, w, h))
+    result = capture_camera(load_string(text, {}, source="wall"), preset, 4, 0,
+                            progress=False)
+    unlit = result.reconstruction.unlit
+    assert np.flatnonzero(unlit.any(axis=1)).tolist() == [0, h - 1] and unlit[[0, -1]].all()
+    assert not np.isfinite(result.depth[unlit]).any()
+    assert np.all(result.light.unmodulated[[0, -1]] == 0)
+    assert np.all(result.light.unmodulated[[1, -2]] > 0)
+    masked = result.summary["depth"]["masked_pixels"]
+    assert masked["outside the illuminator's field"] == 2 * w
+    assert f"{2 * w} px outside the illuminator's field" in format_camera_summary(
+        result.summary)
+    result.write(str(tmp_path / "capture"))
+    assert np.array_equal(np.load(tmp_path / "capture" / "mask_unlit.npy"), unlit)
 
 
 # ---- The reconstruction says why a depth is NaN -------------------------------------------

@@ -145,7 +145,7 @@ def test_flow_and_scene_flow_follow_the_sampled_motion(motion, rtol):
 
 @pytest.mark.parametrize("camera", [{}, MOVING_CAMERA["camera"]])
 def test_radial_velocity_truth_is_the_scene_flow_along_the_ray(camera):
-    """velocity_along_ray is the scene flow's component along the pixel's ray (per
+    """velocity_point is the scene flow's component along the pixel's ray (per
     second); velocity_gt, the rate of the distance along the fixed ray that the phase
     follows, is the scene flow along the normal over the ray's cosine to it."""
     config = _config({"motion": {"speed": [2.0, 10.0], "angular_speed": [10.0, 50.0]},
@@ -161,7 +161,7 @@ def test_radial_velocity_truth_is_the_scene_flow_along_the_ray(camera):
         valid = truth["mask"] & (np.abs(cosine) > 0.3)
         along = np.sum(flow * rays, -1)
         scale = np.abs(along[valid]).max()
-        np.testing.assert_allclose(truth["velocity_along_ray"][valid], along[valid], rtol=0,
+        np.testing.assert_allclose(truth["velocity_point"][valid], along[valid], rtol=0,
                                    atol=1e-2 * scale + 1e-4)
         radial = np.sum(flow * normals, -1) / cosine
         np.testing.assert_allclose(truth["velocity_gt"][valid], radial[valid], rtol=0,

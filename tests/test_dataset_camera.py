@@ -43,7 +43,7 @@ def test_every_split_holds_the_cameras_outputs_and_the_reader_picks_them(tiny):
             phase = s[f"camera_phase{suffix}"]
             assert phase.shape == (1,) + s["depth"].shape
             assert np.all((phase >= 0) & (phase < 2 * np.pi))
-            assert np.all(s[f"camera_confidence{suffix}"][valid] > 0)
+            assert np.all(s[f"camera_depth_std{suffix}"][valid] > 0)
         on = s["camera_valid_direct"]
         errors.append((s["camera_depth_direct"] - s["depth"])[on])
     # paper-dtof has one frequency (30 MHz): its depth wraps at c / (2 f) = 4.997 m
@@ -255,19 +255,32 @@ def test_the_statistics_page_counts_what_the_samples_hold(tiny):
 
 def test_a_layout_1_folder_is_still_read_and_an_unknown_layout_is_named(tiny, tmp_path):
     """Layout 2 (issue 41) adds keys only: a reader reads layout 1's folders (without
-    the camera's outputs) and names a layout it does not know."""
+    the camera's outputs) and names a layout it does not know; layout 3 renames two keys
+    (outputs.RENAMED), which a folder of layout 2 holds under their former names: read
+    under the present ones, with a FutureWarning naming them."""
     import json
     import shutil
 
-    for version, ok in ((1, True), (3, False)):
+    for version, ok in ((1, True), (2, True), (4, False)):
         folder = tmp_path / f"layout{version}"
         shutil.copytree(tiny[1], folder)
         info = json.loads((folder / "dataset.json").read_text())
         info["layout_version"] = version
         info.pop("sha256")  # (written before dataset.json held its checksum)
+        if version == 2:
+            info["units"] = {{"velocity_point": "velocity_along_ray",
+                              "camera_depth_std_ideal": "camera_confidence_ideal"}.get(k, k): v
+                             for k, v in info["units"].items()}
         (folder / "dataset.json").write_text(json.dumps(info))
-        if ok:
+        if version == 2:
+            with pytest.warns(FutureWarning, match=r"velocity_point \(velocity_along_ray\)"
+                              ) as caught:
+                ds = Dataset(folder)
+            assert "camera_depth_std_ideal (camera_confidence_ideal)" in str(caught[0].message)
+            assert ds.units["velocity_point"] == "m/s" and "velocity_along_ray" not in ds.units
+        elif ok:
             assert len(Dataset(folder)) == 3
         else:
-            with pytest.raises(DatasetError, match="layout version 3, this reader reads 1, 2"):
+            with pytest.raises(DatasetError,
+                               match="layout version 4, this reader reads 1, 2, 3"):
                 Dataset(folder)

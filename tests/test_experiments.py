@@ -205,6 +205,9 @@ def test_tiny_sweep_writes_everything_and_a_rerun_does_nothing(tmp_path, client)
     (stale / COMPLETE_MARKER).write_text(json.dumps(marker))
     repaired = run_sweep(tiny_config(), out, client=client, progress=False)
     assert repaired.done == 2 and repaired.skipped == 3 and repaired.ok
+    # the interrupted one is reported as left incomplete (the stale one is not)
+    assert repaired.partial == [names[0]]
+    assert json.loads((out / "summary.json").read_text())["partial_before"] == [names[0]]
     assert np.load(broken / "image.npy").shape == (8, 8, 3)
     assert not partial_files(out)
 
@@ -385,6 +388,73 @@ def test_a_changed_mesh_makes_the_sweep_render_again(tmp_path, client):
     again = run_sweep(config, out, client=client, progress=False)
     assert again.ok and again.done == 2 and again.skipped == 0
     assert not np.array_equal(np.load(out / "runs" / "seed=0" / "image.npy"), old)
+
+
+def test_a_sweep_task_given_up_by_its_run_writes_nothing(tmp_path, monkeypatch):
+    """A sweep's tasks did not ask whether their run gave them up (as a dataset's shard
+    tasks do since DK06/DK06b): a task still running on an external scheduler after the
+    client's Ctrl-C, or after the sweep's folder was deleted, rendered and wrote its run,
+    making the deleted folder again. Now it asks before the render and before the
+    writes, and writes nothing."""
+    import shutil
+
+    import dopplertof
+    from dopplertof.experiments import tasks as task_module
+    from dopplertof.experiments.sweep import write_sweep_files
+    from dopplertof.experiments.tasks import run_render_task
+
+    out = tmp_path / "results"
+    config = tiny_config(grid={"time_sampling_method": ["uniform"]}, reference=None)
+    task = plan_sweep(config, out)[0]
+    assert run_render_task(task)["given_up"] and not out.exists()  # (never made)
+    write_sweep_files(config, [task], str(out))
+    real = dopplertof.render_result
+
+    def deleting(*args, **kwargs):  # the user gives up on the run during the render
+        result = real(*args, **kwargs)
+        shutil.rmtree(out)
+        return result
+
+    monkeypatch.setattr(dopplertof, "render_result", deleting)
+    assert run_render_task(task)["given_up"] and not out.exists()
+    monkeypatch.setattr(dopplertof, "render_result", real)
+    monkeypatch.setattr(task_module, "task_abandoned", lambda: True)  # its Dask task cancelled
+    write_sweep_files(config, [task], str(out))
+    assert run_render_task(task)["given_up"] and not os.path.exists(task.folder)
+
+
+def test_a_sweep_left_incomplete_is_reported_and_resumed(tmp_path, capsys):
+    """A sweep folder whose earlier run stopped midway (one run folder begun, no
+    complete.json, a temporary file): the dry run and the run name it as left
+    incomplete; the run renders it again and nothing partial is left."""
+    from dopplertof.experiments.sweep import write_sweep_files
+    from dopplertof.experiments.tasks import begin_task
+
+    out = tmp_path / "results"
+    config = tiny_config(grid={"time_sampling_method": ["uniform", "antithetic"]},
+                         reference=None)
+    tasks = plan_sweep(config, out)
+    write_sweep_files(config, tasks, str(out))
+    begin_task(tasks[0].folder)
+    (out / "runs" / tasks[0].name / ".image.x1.tmp.npy").write_bytes(b"partial")
+    config_path = tmp_path / "sweep.toml"
+    config_path.write_text(
+        f"name = 'tiny-test'\nscene = {json.dumps(SCENE)}\n[defines]\nres = 8\n"
+        "max_depth = 3\n[fixed]\nspp = 8\nseed = 0\nhetero_frequency = 1.0\n"
+        "[grid]\ntime_sampling_method = ['uniform', 'antithetic']\n")
+    parser = argparse.ArgumentParser()
+    add_subcommands(parser.add_subparsers(dest="command"))
+    line = (f"  1 left incomplete by an earlier run (stopped or abandoned midway: no "
+            f"complete.json): {tasks[0].name}; ")
+    args = parser.parse_args(["sweep", str(config_path), "-o", str(out), "--dry-run"])
+    assert args.func(args) == 0
+    assert line + "a run renders them again" in capsys.readouterr().out
+    args = parser.parse_args(["sweep", str(config_path), "-o", str(out), "--workers", "1"])
+    assert args.func(args) == 0
+    printed = capsys.readouterr().out
+    assert "2 done now" in printed and line + "rendered again" in printed
+    assert not partial_files(out)
+    assert set(os.listdir(out / "runs" / tasks[0].name)) == RUN_FILES
 
 
 def test_report_calls_runs_of_another_spec_stale(tmp_path, capsys):

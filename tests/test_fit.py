@@ -645,6 +645,37 @@ def test_a_start_that_is_no_velocity_is_one_line_naming_start(capture_dir, tmp_p
     assert check_start_velocity((1, 2, 3), "x") == [1.0, 2.0, 3.0]
 
 
+def test_a_fit_that_takes_no_step_says_its_values_are_the_start(capture_dir, tmp_path,
+                                                                capsys, monkeypatch):
+    """A fit whose bodies are seen but where no damped step lowers the loss from the
+    start (what FT10's 1e30 start met) printed its start as '0 iterations (no damped
+    step lowers the loss)' and the start's velocities with uncertainties, like a fitted
+    answer. Now the summary and a warning (stderr and fit.json) say that no
+    optimisation step was taken and the values are the start's."""
+    from dopplertof.cli import main
+    from dopplertof.diff import fit_solve
+
+    def no_lower(problem, residuals, jacobians, loss, theta, damping, samples):
+        problem.set_values(theta)
+        return np.zeros_like(theta), residuals, float("inf")
+
+    monkeypatch.setattr(fit_solve, "_damped_trials", no_lower)
+    out = tmp_path / "fit"
+    assert main(["fit", capture_dir, "-o", str(out), "--spp", "8", "--iterations", "2",
+                 "--quiet"]) == 0
+    printed = capsys.readouterr()
+    assert "fit: 0 iterations (no damped step lowers the loss)" in printed.out
+    assert "no optimisation step was taken: the values below are the start's" in printed.out
+    assert "dopplertof: warning: no optimisation step was taken" in printed.err
+    saved = json.loads((out / "fit.json").read_text())
+    assert saved["iterations"] == 0 and len(saved["history"]) == 1
+    assert any(w.startswith("no optimisation step was taken") for w in saved["warnings"])
+    # a fit that steps carries no such warning
+    from dopplertof.diff.fit import no_step_warnings
+
+    assert no_step_warnings(1, "plateau") == [] and no_step_warnings(0, "x")
+
+
 def _copy_capture(capture_dir, tmp_path):
     import shutil
 
@@ -703,3 +734,24 @@ def test_an_unknown_covariance_kind_is_refused_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="unknown covariance 'robust'"):
         covariance(((np.zeros(2), np.zeros(2)), (np.eye(2), np.eye(2))), np.ones(2, bool),
                    kind="robust")
+
+
+@pytest.mark.slow  # two fits (about 15 s on 2 loaded cores)
+def test_the_final_state_gives_each_covariance_of_the_same_fit(capture_dir):
+    """result.final (fit_covariance.FinalState) is what the uncertainties came from: the
+    sandwich of it is the fit's reported deviations, its "plain" kind a fit with
+    covariance_kind="plain" (whose steps are the same: the kind is read only at the
+    end); so another model compares on one fit (benchmarks/fit_uncertainty.py)."""
+    from dopplertof.diff.fit import fit
+    from dopplertof.diff.fit_covariance import covariance
+
+    sandwich = fit(capture_dir, spp=8, iterations=1, progress=False)
+    plain = fit(capture_dir, spp=8, iterations=1, progress=False, covariance_kind="plain")
+    final = sandwich.final
+    for result, kind, noise in ((sandwich, "sandwich", final.noise), (plain, "plain", None)):
+        sigma = covariance(final.state, final.seen, final.theta, noise, None, kind)[1]
+        pairs = [(sd, sigma[3 * k + a]) for k, body in enumerate(result.bodies)
+                 for a, sd in enumerate(body["linear_velocity_uncertainty_m_s"])
+                 if sd is not None]  # (None: not constrained, no deviation)
+        assert pairs and all(sd == expected for sd, expected in pairs), (kind, pairs)
+    assert np.array_equal(plain.final.theta, final.theta)

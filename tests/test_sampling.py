@@ -418,3 +418,28 @@ def test_joint_sets_with_counts_and_sizes_not_powers_of_two(width, height, spp):
     film = many.film_2d(mi.UInt32(beyond // 2), mi.UInt32(beyond % 2), spp // 2)
     fx = np.asarray(film.x)
     assert len(set(fx.round(7))) == len(fx) and fx.min() >= 0 and fx.max() < 1
+
+
+def test_a_modality_s_numbers_are_placed_in_its_reserved_slots():
+    """A modality's own numbers (sampling.ModalityDimensions) lie in the slots the layout
+    reserves, apart from the path loop's: the FMCW lidar's beam spot at the lane's
+    dimensions 2-3 and its speckle phases at each bounce's offsets 6-7 (where its
+    spectra have always read them); a declaration that does not fit is refused."""
+    from dopplertof.fmcw.trace import DIMENSIONS
+
+    loop_lane = {sampling.DIM_TIME, sampling.DIM_WAVELENGTH, sampling.DIM_APERTURE,
+                 sampling.DIM_APERTURE + 1}
+    assert DIMENSIONS.lane_dim("beam_film") == 2
+    assert not loop_lane & {2, 3} and sampling.DIM_FIRST_BOUNCE > 3
+    loop_bounce = {sampling.BOUNCE_EMITTER, sampling.BOUNCE_EMITTER + 1,
+                   sampling.BOUNCE_BSDF_LOBE, sampling.BOUNCE_BSDF_DIR,
+                   sampling.BOUNCE_BSDF_DIR + 1, sampling.BOUNCE_RR}
+    for depth in (0, 3):
+        phases = {DIMENSIONS.bounce_dim(depth, "phases", k) for k in (0, 1)}
+        block = sampling.bounce_dim(depth, 0)
+        assert phases == {block + 6, block + 7}
+        assert not phases & {block + offset for offset in loop_bounce}
+    with pytest.raises(ValueError, match="need 3 dimensions; the layout reserves 2"):
+        sampling.ModalityDimensions(bounce=(("a", 2), ("b", 1)))
+    with pytest.raises(ValueError, match="lane numbers"):
+        sampling.ModalityDimensions(lane=(("spot", 3),))

@@ -27,6 +27,7 @@ from .render import render, render_result  # noqa: E402  (light: the pipeline on
 __getattr__, __dir__, _LAZY_NAMES = lazy_exports(__name__, {
     ".params": ("ParameterError", "RenderParams"),
     ".integrators.pipeline": ("RenderResult",),
+    ".tof.capture": ("CaptureSettings",),
     ".scene": ("scene", "Animation", "DopplerScene", "SceneError"),
 })
 
@@ -98,12 +99,13 @@ def load_dict(scene_dict: dict):
     return scene.load_dict(scene_dict)
 
 
-def capture(scene, spp=None, seed=0, **kwargs):
+def capture(scene, spp=None, seed=None, **kwargs):
     """One D-ToF camera frame: every capture, velocity and depth reconstruction and the
     exact truth (see :func:`dopplertof.tof.capture`). ``scene`` is a DopplerScene, a
-    plain ``mi.Scene`` (static) or the path of an XML scene. Returns a CaptureResult
-    (``.velocity``, ``.velocity_gt``, ``.depth``, ``.depth_gt``, ``.captures``,
-    ``.summary``, ``.write(folder)``)."""
+    plain ``mi.Scene`` (static) or the path of an XML scene; ``settings=`` a
+    :class:`CaptureSettings`, or its fields as keyword arguments (``seed`` None: the
+    settings', by default 0). Returns a CaptureResult (``.velocity``, ``.velocity_gt``,
+    ``.depth``, ``.depth_gt``, ``.captures``, ``.summary``, ``.write(folder)``)."""
     import os
 
     from . import arguments

@@ -89,6 +89,27 @@ class CaptureSummary:
         """The path of the file ``name`` in the capture folder."""
         return os.path.join(self.folder, name)
 
+    def array(self, name: str):
+        """The array ``name`` (``NAME.npy``, :mod:`dopplertof.outputs`) of the capture; in
+        a folder written before the array was renamed, its file under the former name
+        (with a FutureWarning)."""
+        import numpy as np
+
+        from .outputs import RENAMED, renamed
+
+        path = self.file(f"{name}.npy")
+        former = [old for (kind, old), new in RENAMED.items()
+                  if kind == self.kind and new == name]
+        old = self.file(f"{former[0]}.npy") if former else None
+        if not os.path.isfile(path) and old and os.path.isfile(old):
+            renamed(self.kind, former[0], self.folder)
+            path = old
+        try:
+            return np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as e:
+            raise CaptureFolderError(f"{path}: cannot be read as an array "
+                                     f"({' '.join(str(e).split())})") from None
+
 
 def read_capture(folder, kind: str | None = None) -> CaptureSummary:
     """The summary of the capture folder ``folder``; with ``kind``, a

@@ -240,10 +240,10 @@ def _check_before_loading(args, where: str) -> None:
     scene load (a usage error in well under a second, not after seconds of start-up);
     the library checks them again against the scene."""
     from .arguments import check_seed
-    from .params import RenderParams
     from .sampling import check_sample_count
+    from .scene.parameters import render_values
 
-    RenderParams.coerced(parse_pairs(args.params, "-P"), where)
+    render_values(parse_pairs(args.params, "-P"), where)
     if args.spp is not None:
         check_sample_count(1, args.spp)
     check_seed(args.seed, "seed", UsageError)  # (all 64 bits key the random streams)
@@ -331,17 +331,15 @@ def _cmd_capture(args) -> int:
         if not args.quiet:
             print(f"  {spec.name:<16} {seconds:6.1f} s", flush=True)
 
-    result = dopplertof.capture(scene, spp=args.spp, seed=args.seed,
-                                params=parse_pairs(args.params, "-P") or None,
-                                hetero_frequency=args.hetero_frequency,
-                                unwrap_frequency=args.unwrap_frequency, noise=noise,
-                                min_signal_fraction=args.min_signal,
-                                progress=False if args.quiet else None, on_capture=report,
-                                mc_batches=args.mc_batches,
-                                max_velocity_std=args.max_velocity_std,
-                                max_depth_std=args.max_depth_std,
-                                keep_mixed_pixels=args.keep_mixed_pixels,
-                                checkpoint=args.checkpoint)
+    settings = dopplertof.CaptureSettings(
+        spp=args.spp, seed=args.seed, params=parse_pairs(args.params, "-P") or None,
+        hetero_frequency=args.hetero_frequency, unwrap_frequency=args.unwrap_frequency,
+        noise=noise, min_signal_fraction=args.min_signal,
+        progress=False if args.quiet else None, on_capture=report,
+        mc_batches=args.mc_batches, max_velocity_std=args.max_velocity_std,
+        max_depth_std=args.max_depth_std, keep_mixed_pixels=args.keep_mixed_pixels,
+        checkpoint=args.checkpoint)
+    result = dopplertof.capture(scene, settings=settings)
     if args.defines:  # dopplertof fit loads the scene again with them
         result.summary["scene_defines"] = parse_pairs(args.defines, "-D")
     result.write(args.output, pointcloud=args.pointcloud)

@@ -4,6 +4,7 @@ the repeatable ``-D``/``-P NAME=VALUE`` options with their one parser."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 
 #: what every command's --help says about its output folder (io.make_output_folder)
@@ -30,10 +31,54 @@ def add_variant_option(p, what: str = "Mitsuba variant") -> None:
                    help=f"{what} (default llvm_ad_rgb)")
 
 
+def add_camera_options(g) -> None:
+    """``--res`` and ``--noiseless`` of a camera preset's frames (``capture --camera``,
+    ``animate --camera``), into the command's camera group ``g``."""
+    g.add_argument("--res", metavar="WIDTHxHEIGHT",
+                   help="with --camera: other resolution, same field of view")
+    g.add_argument("--noiseless", action="store_true",
+                   help="with --camera: no shot or read noise (rounding stays)")
+
+
 def print_warnings(record: dict) -> None:
     """The "warnings" of a render's metadata or a summary, on stderr (also --quiet)."""
     for warning in record.get("warnings", ()):
         print(f"dopplertof: warning: {warning}", file=sys.stderr)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM raised as an interrupt (:func:`sigterm_as_interrupt`)."""
+
+
+#: a command's exit status after SIGTERM (128 + 15, as a shell reports it)
+TERMINATED_EXIT = 143
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """While a command writes its output: SIGTERM raises :class:`Terminated` (a
+    KeyboardInterrupt: the staged folder is removed on the way out as after Ctrl-C, and
+    nothing is committed after it), where it ended the process at once without a word.
+    Only in the main thread over the default action (a caller's handler is left alone);
+    the command prints its one line."""
+    import signal
+    import threading
+
+    from .backend import INTERRUPT_SEEN
+
+    def on_term(signum, frame):
+        INTERRUPT_SEEN.set()  # (outputs are not committed after it, if this raise is lost)
+        raise Terminated
+
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 positive_int = int_at_least(1, "a positive integer")

@@ -13,7 +13,8 @@ import numpy as np
 
 from .io import (atomic_path, check_output_path, json_default, json_ready, write_error,
                  write_npy)
-from .previews import NO_SIGNAL_COLOUR, preview_scalar, robust_limit
+from .previews import (NAN_HATCHED, NO_SIGNAL_COLOUR, NOTHING_HIT, preview_scalar,
+                       robust_limit)
 
 
 def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> None:
@@ -90,7 +91,13 @@ def masked_note(counts: dict) -> str:
     ``counts`` maps a reason to its pixels, e.g. "hatched magenta: NaN, 124 px footprint
     mixes surfaces, 3 px nothing hit" (kinds without pixels left out)."""
     kinds = [f"{n} px {why}" for why, n in counts.items() if n]
-    return "hatched magenta: NaN, " + ", ".join(kinds) if kinds else "no NaN pixels"
+    return f"{NAN_HATCHED}, " + ", ".join(kinds) if kinds else "no NaN pixels"
+
+
+def nothing_hit_note(nothing) -> str:
+    """The caption of a truth map's NaN pixels, ``nothing`` (bool): their pixel-centre
+    rays hit nothing."""
+    return masked_note({NOTHING_HIT: int(np.sum(nothing))})
 
 
 def no_signal_colours(cmap: str):

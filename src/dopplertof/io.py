@@ -248,10 +248,7 @@ def output_folder(folder, name: str):
         if not os.path.exists(os.path.join(staging, manifest_name(name))):
             shutil.rmtree(staging, ignore_errors=True)  # not committed: drop the new files
             _remove_created(created)
-        renamed = _named_in_target(exc, staging, target)
-        if renamed is exc:
-            raise
-        raise renamed from exc
+        _raise_in_target(exc, staging, target)
     finally:
         os.close(owner)
 
@@ -296,10 +293,7 @@ def new_folder(folder):
     except BaseException as exc:
         shutil.rmtree(staging, ignore_errors=True)
         _remove_created(created)
-        renamed = _named_in_target(exc, staging, target)
-        if renamed is exc:
-            raise
-        raise renamed from exc
+        _raise_in_target(exc, staging, target)
     finally:
         os.close(owner)
 
@@ -309,13 +303,15 @@ def _not_empty(target: str, why: str = "") -> OutputError:
                        "overwritten; choose a new folder")
 
 
-def _named_in_target(exc: BaseException, staging: str, target: str) -> BaseException:
-    """``exc`` with a staging path in its message replaced by the output's own path."""
+def _raise_in_target(exc: BaseException, staging: str, target: str):
+    """Raise ``exc`` again (called in its handler), or where its message names a path in
+    the staging folder, the error naming the output's own path instead (from ``exc``)."""
     if isinstance(exc, WriteError) and exc.path.startswith(staging + os.sep):
-        return WriteError(os.path.join(target, os.path.relpath(exc.path, staging)), exc.reason)
+        raise WriteError(os.path.join(target, os.path.relpath(exc.path, staging)),
+                         exc.reason) from exc
     if isinstance(exc, OSError):
-        return write_error(target, exc)
-    return exc
+        raise write_error(target, exc) from exc
+    raise exc
 
 
 def other_sets_files(folder, name: str) -> dict:

@@ -1,5 +1,4 @@
-"""Parameters of a D-ToF render (and of the FMCW lidar's: FMCW_PARAMS): names,
-types, defaults and the derived quantities.
+"""Parameters of a D-ToF render: names, types, defaults and the derived quantities.
 
 Names and defaults follow the published implementation (design.md section 1). The same
 parser serves the XML ``<integrator>`` and ``<sampler>`` elements, Mitsuba's
@@ -11,14 +10,13 @@ error everywhere.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field, fields, replace
 
 from .hints import unknown_name
 from .modulation import FULL_WAVEFORMS, SPEED_OF_LIGHT, WAVEFORMS
 from .pixel_sets import PIXEL_SETS
-from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, FULL_CORRELATION,  # noqa: F401
-                       METHOD_NAMES, auto_sampling)
+from .sampling import (ANALYTIC, ANTITHETIC_MAPPINGS, CLOSED_FORM,  # noqa: F401
+                       FULL_CORRELATION, METHOD_NAMES, auto_sampling)
 
 #: how samples become pixels (integrators/film.py)
 FILM_SAMPLINGS = ("splat", "importance")
@@ -113,16 +111,6 @@ class RenderParams:
     block_size: int = 0  #: no effect: the published scalar variants' tile size
     samples_per_pass: int = -1  #: samples per pixel per pass (-1: set by memory)
     timeout: float = -1.0  #: seconds; stop after the pass it expires in (< 0: none)
-    # ---- The FMCW lidar (the ``fmcw`` command and dopplertof.fmcw only;
-    # docs/fmcw.md). Left out of the repr and at their defaults in image_defining(), so
-    # that the D-ToF renders' and checkpoints' keys (that repr's digests) ignore them ----
-    fmcw_wavelength: float = field(default=1550.0, repr=False)  #: lambda (nm)
-    fmcw_bandwidth: float = field(default=1.0, repr=False)  #: B, one chirp's sweep (GHz)
-    fmcw_chirp_time: float = field(default=10.0, repr=False)  #: T, one chirp (us)
-    fmcw_bins: int = field(default=256, repr=False)  #: M, spectrum bins of width 1/T
-    fmcw_beam: str = field(default="flood", repr=False)  #: "flood" or "collimated"
-    #: a collimated beam's radiant intensity in each pixel's cone (W/sr)
-    fmcw_beam_intensity: float = field(default=1.0, repr=False)
 
     # ---- Parsing ----
 
@@ -144,7 +132,7 @@ class RenderParams:
         for name in values:
             if name not in known:
                 raise ParameterError(f"{where}: {unknown_name('parameter', name, known)}")
-        return {name: _coerce(name, value, _TYPES[name], where)
+        return {name: coerce_parameter(name, value, _TYPES[name], where)
                 for name, value in values.items()}
 
     def validated(self, where: str = "parameters"):
@@ -153,8 +141,7 @@ class RenderParams:
         topic), so that an input with several problems always reports the same one."""
         for check in (self._modulation_problem, self._time_sampling_problem,
                       self._path_problem, self._execution_problem, self._pairing_problem,
-                      self._film_problem, self._motion_mapping_problem,
-                      self._fmcw_problem):
+                      self._film_problem, self._motion_mapping_problem):
             problem = check()
             if problem:
                 raise ParameterError(f"{where}: {problem}")
@@ -193,14 +180,15 @@ class RenderParams:
         if self.time_sampling_method not in METHOD_NAMES:
             return (f"unknown time_sampling_method {self.time_sampling_method!r}: expected "
                     f"one of {', '.join(METHOD_NAMES)}")
-        if self.time_sampling_method == ANALYTIC:  # the published closed form's limits
+        method = self.time_sampling_method
+        if method in CLOSED_FORM:  # the published closed form's limits
             if self.wave_function_type != "sinusoidal":
-                return ("time_sampling_method 'analytic' integrates a sinusoid in closed form: "
-                        "it needs wave_function_type 'sinusoidal', got "
+                return (f"time_sampling_method {method!r} integrates a sinusoid in closed "
+                        "form: it needs wave_function_type 'sinusoidal', got "
                         f"{self.wave_function_type!r}")
             if not self.low_frequency_component_only:
-                return ("time_sampling_method 'analytic' integrates the low-pass correlation: "
-                        "it needs low_frequency_component_only=true")
+                return (f"time_sampling_method {method!r} integrates the low-pass "
+                        "correlation: it needs low_frequency_component_only=true")
         return None
 
     def _path_problem(self) -> str | None:
@@ -274,35 +262,6 @@ class RenderParams:
                     f"path_correlate_number=2 (the pair), got {self.path_correlate_number}")
         return None
 
-    def _fmcw_problem(self) -> str | None:
-        """The FMCW lidar's chirp pair and beam, in the units of the ``fmcw`` command's
-        options (the same ranges as dopplertof.fmcw.Chirp's)."""
-        for name in FMCW_PARAMS:
-            v = getattr(self, name)
-            if name != "fmcw_beam" and not math.isfinite(v):
-                return f"{name} must be finite, got {v}"
-        lo, hi = FMCW_WAVELENGTH_RANGE_NM
-        if not lo <= self.fmcw_wavelength <= hi:
-            return (f"fmcw_wavelength must be within {lo:g} - {hi:g} nm (200 nm - 20 um), "
-                    f"got {self.fmcw_wavelength:g}")
-        for name, unit in (("fmcw_bandwidth", "GHz"), ("fmcw_chirp_time", "us"),
-                           ("fmcw_beam_intensity", "W/sr")):
-            if getattr(self, name) <= 0:
-                return f"{name} must be > 0 {unit}, got {getattr(self, name):g}"
-        problem = (fmcw_chirp_problem(
-            self.fmcw_wavelength / 1e9, self.fmcw_bandwidth * 1e9, self.fmcw_chirp_time / 1e6,
-            {"bandwidth": ("fmcw_bandwidth", "GHz", 1e9),
-             "chirp_time": ("fmcw_chirp_time", "us", 1e-6)})
-            or fmcw_beam_intensity_problem(float(self.fmcw_beam_intensity)))
-        if problem:
-            return problem
-        if self.fmcw_bins < 2:
-            return f"fmcw_bins must be >= 2, got {self.fmcw_bins}"
-        if self.fmcw_beam not in FMCW_BEAMS:
-            return (f"unknown fmcw_beam {self.fmcw_beam!r}: expected one of "
-                    f"{', '.join(FMCW_BEAMS)}")
-        return None
-
     # ---- Derived quantities ----
 
     @property
@@ -312,18 +271,21 @@ class RenderParams:
 
     def image_defining(self) -> "RenderParams":
         """The parameters with the execution ones (which never change an image: pass
-        size, timeout, and those without effect) and the FMCW lidar's (which no D-ToF
-        image reads) at their defaults."""
+        size, timeout, and those without effect) at their defaults."""
         return replace(self, **{f.name: f.default for f in fields(self)
-                                if f.name in EXECUTION_PARAMS + FMCW_PARAMS})
+                                if f.name in EXECUTION_PARAMS})
 
-    def resolved(self, shutter: float) -> "RenderParams":
+    def resolved(self, shutter: float, sampled: bool = False) -> "RenderParams":
         """The parameters with ``time_sampling_method="auto"`` replaced by its choice
-        (which never maps pairs by motion: measured, see docs/benchmarks.md)."""
+        (which never maps pairs by motion: measured, see docs/benchmarks.md);
+        ``sampled``: time sampled in every path (what derivatives need), so never the
+        control variate."""
         if self.time_sampling_method != "auto":
             return replace(self, antithetic_mapping=self.antithetic_mapping or "replay")
         h = self.modulation(shutter).hetero_frequency
-        return replace(self, **auto_sampling(h))
+        closed_form = (not sampled and self.wave_function_type == "sinusoidal"
+                       and self.low_frequency_component_only)
+        return replace(self, **auto_sampling(h, closed_form))
 
     def exposure(self, shutter: float) -> float:
         """Exposure T: ``time`` when given, else the sensor's shutter interval, else 0.0015."""
@@ -378,65 +340,6 @@ class Modulation:
 
 #: parameters that decide how a render runs, never what it computes
 EXECUTION_PARAMS = ("is_doppler_integrator", "block_size", "samples_per_pass", "timeout")
-#: the FMCW lidar's parameters (docs/fmcw.md): the D-ToF renders ignore them
-FMCW_PARAMS = ("fmcw_wavelength", "fmcw_bandwidth", "fmcw_chirp_time", "fmcw_bins",
-               "fmcw_beam", "fmcw_beam_intensity")
-#: the wavelengths an FMCW lidar may have (nm): ultraviolet to far infrared
-FMCW_WAVELENGTH_RANGE_NM = (200.0, 20000.0)
-#: the FMCW lidar's beams (dopplertof.fmcw.beam)
-FMCW_BEAMS = ("flood", "collimated")
-#: the narrowest chirp sweep B (Hz): 1 MHz, a range bin c/(2B) of 150 m
-FMCW_MIN_BANDWIDTH_HZ = 1e6
-#: the widest chirp sweep, as a fraction of the optical carrier c/lambda it sweeps
-FMCW_MAX_SWEEP_OF_CARRIER = 1e-2
-#: a chirp's duration T (s): from 1 ns (the round trip of 15 cm) to 1 s (the scene is
-#: traced at one instant, as a chirp of microseconds allows)
-FMCW_CHIRP_TIME_RANGE_S = (1e-9, 1.0)
-#: the largest beam intensity (W/sr): float32's largest number, that of the spectra
-FMCW_MAX_BEAM_INTENSITY = 3.4028234663852886e38
-
-
-def fmcw_chirp_problem(wavelength: float, bandwidth: float, chirp_time: float,
-                       names: dict) -> str | None:
-    """What is physically wrong with a chirp's sweep ``bandwidth`` (Hz) and duration
-    ``chirp_time`` (s) at ``wavelength`` (m), all finite and > 0, else None: a sweep
-    over a hundredth of the optical carrier or under 1 MHz, a chirp shorter than 1 ns or
-    longer than 1 s (most likely a unit mistake). ``names``: {"bandwidth" and
-    "chirp_time": (name, unit, SI per unit)}, how the message names the value given."""
-    def given(field, si, si_unit):
-        name, unit, per_unit = names[field]
-        value = f"{si / per_unit:g} {unit}" + ("" if per_unit == 1 else f" = {si:g} {si_unit}")
-        return f"{name} is in {unit}: got {value}"
-
-    carrier = SPEED_OF_LIGHT / wavelength
-    if bandwidth > FMCW_MAX_SWEEP_OF_CARRIER * carrier:
-        return (f"{given('bandwidth', bandwidth, 'Hz')}, "
-                f"{'above' if bandwidth > carrier else 'over 1% of'} the optical carrier "
-                f"c/lambda = {carrier / 1e12:.4g} THz: a sweep must stay far below its "
-                f"carrier (under {FMCW_MAX_SWEEP_OF_CARRIER * carrier / 1e9:.4g} GHz)")
-    if bandwidth < FMCW_MIN_BANDWIDTH_HZ:
-        return (f"{given('bandwidth', bandwidth, 'Hz')}, under the 1 MHz minimum (a range "
-                f"bin c/(2B) of {SPEED_OF_LIGHT / (2 * bandwidth):.3g} m resolves nothing)")
-    lo, hi = FMCW_CHIRP_TIME_RANGE_S
-    if chirp_time < lo:
-        return (f"{given('chirp_time', chirp_time, 's')}, under the 1 ns minimum (a chirp "
-                "shorter than the round trip of 15 cm)")
-    if chirp_time > hi:
-        return (f"{given('chirp_time', chirp_time, 's')}, over the 1 s maximum (the scene "
-                "is traced at one instant: a chirp lasts microseconds)")
-    return None
-
-
-def fmcw_beam_intensity_problem(intensity, name: str = "fmcw_beam_intensity") -> str | None:
-    """What is wrong with a collimated beam's radiant intensity (W/sr), else None: not
-    a finite number > 0, or too large for the float32 spectra."""
-    if isinstance(intensity, bool) or not isinstance(intensity, numbers.Real) \
-            or not math.isfinite(intensity) or intensity <= 0:
-        return f"{name} must be > 0 W/sr, got {intensity!r}"
-    if intensity > FMCW_MAX_BEAM_INTENSITY:
-        return (f"{name} must be at most {FMCW_MAX_BEAM_INTENSITY:.4g} W/sr (float32's "
-                f"largest number: the spectra would overflow), got {intensity:g}")
-    return None
 
 _TYPES = {
     "time": float, "w_g": float, "w_s": float, "g_0": float, "g_1": float,
@@ -449,15 +352,15 @@ _TYPES = {
     "pixel_sets": str,
     "path_correlate_number": int, "is_doppler_integrator": bool, "block_size": int,
     "samples_per_pass": int, "timeout": float,
-    "fmcw_wavelength": float, "fmcw_bandwidth": float, "fmcw_chirp_time": float,
-    "fmcw_bins": int, "fmcw_beam": str, "fmcw_beam_intensity": float,
 }
 assert set(_TYPES) == set(RenderParams.names())
 
 _TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "a boolean"}
 
 
-def _coerce(name, value, typ, where):
+def coerce_parameter(name, value, typ, where):
+    """``value`` (typed, or a string to parse) as a ``typ`` (float, int, str or bool),
+    else a ParameterError naming parameter ``name`` (prefixed with ``where``)."""
     def bad():
         return ParameterError(f"{where}: parameter {name!r} must be {_TYPE_NAMES[typ]}, "
                               f"got {value!r}")

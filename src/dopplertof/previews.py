@@ -38,7 +38,11 @@ import numpy as np
 #: "no signal" (NaN) in every preview: black hatching on a magenta that none of the colour
 #: maps used (RdBu, PuOr, viridis, gray, magma) contains, so that it cannot pass for a value
 NO_SIGNAL_COLOUR = "#ff00ff"
-NO_SIGNAL_NOTE = "hatched magenta: NaN (nothing hit or signal too weak)"
+#: how every caption names those pixels
+NAN_HATCHED = "hatched magenta: NaN"
+NO_SIGNAL_NOTE = f"{NAN_HATCHED} (nothing hit or signal too weak)"
+#: why a truth map's pixel is NaN: its pixel-centre ray hits nothing
+NOTHING_HIT = "nothing hit"
 
 #: the colour tables shipped with the package (name -> 256 x 3 uint8)
 COLOUR_TABLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",

@@ -36,6 +36,9 @@ class TimeSampling(str, enum.Enum):
     ANTITHETIC = "antithetic"  #: shifted: t_i = T frac(u + i a) (a = 1/K for K > 2)
     ANTITHETIC_MIRROR = "antithetic_mirror"  #: t_1 = T frac(1 - u + a)
     ANALYTIC = "analytic"  #: integrated over the exposure (integrators/analytic.py; biased)
+    #: the analytic integral as a control variate for one sampled time per path (unbiased;
+    #: integrators/control_variate.py)
+    CONTROL_VARIATE = "control_variate"
     AUTO = "auto"  #: chosen from the beat count (:func:`auto_sampling`)
 
     @property
@@ -51,6 +54,12 @@ METHODS = tuple(m.value for m in (TimeSampling.UNIFORM, TimeSampling.STRATIFIED,
 #: time integrated over the exposure, not sampled (integrators/analytic.py; biased)
 ANALYTIC = TimeSampling.ANALYTIC.value
 
+#: the analytic integral as a control variate (integrators/control_variate.py; unbiased)
+CONTROL_VARIATE = TimeSampling.CONTROL_VARIATE.value
+
+#: the methods built on the closed-form time integral of a low-pass sinusoid
+CLOSED_FORM = (ANALYTIC, CONTROL_VARIATE)
+
 #: accepted time_sampling_method names: the methods, ``analytic`` and ``auto``
 METHOD_NAMES = tuple(m.value for m in TimeSampling)
 
@@ -61,20 +70,58 @@ FULL_CORRELATION = 1 << 16
 ANTITHETIC_MAPPINGS = ("replay", "motion")
 
 # ---- Dimension layout -------------------------------------------------------
+# The path loop's own numbers; a modality's own (what it reads beyond the loop's) go in
+# the slots reserved for modalities, placed by its ModalityDimensions.
 DIM_TIME = 0  #: the time sample
 DIM_WAVELENGTH = 1  #: the wavelengths of the path (spectral variants)
-# (film positions come from CorrelatedStreams.film_2d; the D-ToF renders leave 2 and 3 free)
-DIM_BEAM_FILM = 2  #: FMCW's collimated beam: its spot's film position (2 numbers)
+# (film positions come from CorrelatedStreams.film_2d)
+DIM_MODALITY_LANE = 2  #: the first of a lane's numbers reserved for its modality
+MODALITY_LANE_DIMS = 2  #: how many: dimensions 2 and 3
 DIM_APERTURE = 4  #: lens position (2 numbers)
 DIM_FIRST_BOUNCE = 6  #: the first surface hit's decisions start here
-DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), spare (2)
+DIMS_PER_BOUNCE = 8  #: emitter sample (2), BSDF sample (1 + 2), Russian roulette (1), modality (2)
 
 # Offsets within a bounce's block of dimensions.
 BOUNCE_EMITTER = 0
 BOUNCE_BSDF_LOBE = 2
 BOUNCE_BSDF_DIR = 3
 BOUNCE_RR = 5
-BOUNCE_SPARE = 6  #: the two spare numbers (FMCW's speckle phases)
+BOUNCE_MODALITY = 6  #: the first of a bounce's numbers reserved for the modality
+MODALITY_BOUNCE_DIMS = 2  #: how many: offsets 6 and 7
+
+
+class ModalityDimensions:
+    """The random numbers a modality reads of its own, each group by name with its
+    count: ``lane`` once per lane (stage 0, the camera ray's stream), ``bounce`` at
+    every surface hit (that hit's stage). Placed in declaration order in the slots the
+    layout reserves (DIM_MODALITY_LANE, BOUNCE_MODALITY), so that a modality's numbers
+    never coincide with the path loop's; a declaration that does not fit is refused
+    when it is made. The D-ToF camera reads none."""
+
+    def __init__(self, lane: tuple = (), bounce: tuple = ()):
+        self.lane = _placed(lane, DIM_MODALITY_LANE, MODALITY_LANE_DIMS, "lane")
+        self.bounce = _placed(bounce, BOUNCE_MODALITY, MODALITY_BOUNCE_DIMS, "bounce")
+
+    def lane_dim(self, name: str) -> int:
+        """The first dimension of the lane's numbers ``name``."""
+        return self.lane[name]
+
+    def bounce_dim(self, depth, name: str, k: int = 0):
+        """Dimension of number ``k`` of the group ``name`` at surface hit ``depth``."""
+        return bounce_dim(depth, self.bounce[name] + k)
+
+
+def _placed(groups: tuple, first: int, room: int, what: str) -> dict:
+    """{name: its first dimension} of ``groups`` ((name, count), ...) laid out from
+    ``first``, a ValueError beyond ``room`` numbers."""
+    placed, at = {}, first
+    for name, count in groups:
+        placed[name], at = at, at + count
+    if at - first > room:
+        raise ValueError(f"a modality's {what} numbers {dict(groups)} need {at - first} "
+                         f"dimensions; the layout reserves {room}")
+    return placed
+
 
 # TEA rounds: KEY_ROUNDS (sequences.py) to derive a lane's stream keys (once per path)
 # and 6 for its time numbers; the many numbers along a path use the cheaper integer hash.
@@ -114,26 +161,46 @@ def method_index(name: str) -> int:
         ) from None
 
 
-def auto_sampling(hetero_frequency: float) -> dict:
-    """The sampling ``time_sampling_method="auto"`` stands for, given h = omega_d T / 2 pi.
+#: |h - n| (beats per exposure from the nearest integer n >= 1) within which antithetic
+#: pairs beat the control variate (benchmarks/control_variate.py --beats)
+PAIRS_WINDOW = 0.08
+#: the fewest beats per exposure at which the control variate beats stratified time
+CONTROL_VARIATE_BEATS = 0.5
+
+
+def auto_sampling(hetero_frequency: float, closed_form: bool = False) -> dict:
+    """The sampling ``time_sampling_method="auto"`` stands for, given h = omega_d T / 2 pi
+    and whether the control variate may serve (``closed_form``: a low-pass sinusoid, a
+    render whose derivatives are not taken).
 
     Antithetic pairs with the whole path shared cancel a beat of the heterodyne signal
     when the pair is half a beat apart: near an integer number n >= 1 of beats per
     exposure the shift 1/(2n) (exactly 1/2 at n = 1) makes the pair's time signals
-    cancel (supplementary section 3; the published Cornell box: RMSE ratio about 32 at
-    h = 1; 9.1 against 5.0 for the alternative at h = 0.75, hence the window of 0.3).
-    Far from an integer, and at h = 0 where a pair only duplicates a path (a loss of
-    sqrt 2), correlated pairs do not pay: independent paths, a group's K times in the K
-    parts of the exposure and the strata spread over a pixel's groups, do
-    better (ratio 4.6 at h = 0.5, 3.1 at h = 0.25, 1.0 at h = 0; docs/benchmarks.md).
-    The group size K (``time_correlate_number``) stays the user's: K > 2 antithetic
-    groups are periodic, and cancel a beat as pairs do unless n is a multiple of K.
+    cancel (supplementary section 3). Elsewhere a beat left in the samples dominates
+    their variance, and the analytic integral as a control variate
+    (integrators/control_variate.py), which carries the beat in its model, does better
+    from half a beat on in spite of its three paths per sample: on the published
+    Cornell box at equal time against the better of pairs and stratified time, 1.4x at
+    h = 0.5, 2.1x at 0.75, 1.6x at 2.1, 6.6x at 1.5, 17x at 3.5, even at 1.08, but
+    0.18x at h = 1, 0.32x at 1.05 and 0.23x at 2, where pairs cancel the beat
+    (docs/benchmarks.md). Below half a beat, and at h = 0 where a pair only duplicates
+    a path (a loss of sqrt 2), independent paths with a group's K times in the K parts
+    of the exposure, the strata spread over a pixel's groups, do best. The group size K
+    (``time_correlate_number``) stays the user's: K > 2 antithetic groups are
+    periodic, and cancel a beat as pairs do unless n is a multiple of K.
+    Without the control variate (other waveforms, derivatives) pairs keep the window of
+    0.3 measured against stratified time (ratio 9.1 against 5.0 at h = 0.75).
     """
     h = abs(hetero_frequency)
     n = round(h)
-    if n >= 1 and abs(h - n) <= 0.3:
+    window = PAIRS_WINDOW if closed_form else 0.3
+    if n >= 1 and abs(h - n) <= window:
         return dict(time_sampling_method="antithetic", antithetic_shift=0.5 / n,
                     path_correlation_depth=FULL_CORRELATION,
+                    use_stratified_sampling_for_each_interval=True,
+                    antithetic_mapping="replay")
+    if closed_form and h >= CONTROL_VARIATE_BEATS:
+        return dict(time_sampling_method=CONTROL_VARIATE, path_correlation_depth=0,
                     use_stratified_sampling_for_each_interval=True,
                     antithetic_mapping="replay")
     return dict(time_sampling_method="stratified", path_correlation_depth=0,

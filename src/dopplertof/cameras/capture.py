@@ -176,7 +176,17 @@ def _radiometry_summary(preset: CameraPreset, result: CameraResult, ambient: flo
             "illuminator_intensity_W_sr": radiometry.radiant_intensity(preset.illuminator),
             "ambient_irradiance_uW_cm2_nm": ambient,
             "signal_electrons_p50": light.electrons_percentile(readout, preset, 50),
-            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99)}
+            "signal_electrons_p99": light.electrons_percentile(readout, preset, 99),
+            **_shutter_summary(readout)}
+
+
+def _shutter_summary(readout) -> dict:
+    """The pixels that took each shutter of a sensor with several (none: {})."""
+    if readout.shutter is None:
+        return {}
+    fractions, counts = np.unique(readout.shutter, return_counts=True)
+    return {"pixels_per_shutter": {f"{f:.6g}": int(n) for f, n in zip(fractions[::-1],
+                                                                      counts[::-1])}}
 
 
 def _intrinsics(scene) -> dict:
@@ -197,6 +207,8 @@ class PixelLight:
     unmodulated: np.ndarray  #: (H, W) g0 R
     ambient_photons: np.ndarray | None  #: (H, W) photons/s
     photons_per_unit: float | None  #: K (None: auto exposure)
+    #: (H, W) bool: outside the illuminator's field (:func:`unlit_pixels`), or None
+    unlit: np.ndarray | None = None
 
     def read(self, preset, noise_seed: int | None, mixed=None):
         """(Readout, CameraReconstruction): the sensor's readout (shot and read noise
@@ -209,14 +221,17 @@ class PixelLight:
                                             preset.sensor, preset.contrast, rng,
                                             photons_per_unit=self.photons_per_unit,
                                             ambient_photons=self.ambient_photons)
-        return readout, reconstruct(readout, preset, mixed)
+        return readout, reconstruct(readout, preset, mixed, self.unlit)
 
     def electrons_percentile(self, readout, preset, q: float) -> float:
         """A percentile of the unmodulated signal electrons (both taps) of the longest
-        frame, over the lit pixels."""
+        frame, at each pixel's shutter, over the lit pixels."""
         longest = max(f.integration_s for f in preset.frames)
         per = preset.sensor["quantum_efficiency"] * readout.photons_per_unit * longest
-        values = per * self.unmodulated[np.isfinite(self.unmodulated) & (self.unmodulated > 0)]
+        if readout.shutter is not None:
+            per = per * readout.shutter
+        lit = np.isfinite(self.unmodulated) & (self.unmodulated > 0)
+        values = (per * self.unmodulated)[lit]
         return float(np.percentile(values, q)) if values.size else 0.0
 
 
@@ -252,7 +267,32 @@ def _light_at_pixels(preset, rendered, unmodulated, scene, params, ambient, cosi
     if ambient > 0:
         albedo = np.nan_to_num(surface_albedo(scene, params), nan=0.0)
         photons = radiometry.ambient_photon_rate(preset, ambient, albedo) * falloff
-    return PixelLight(rendered * falloff, unmodulated * falloff, photons, photons_per_unit)
+    return PixelLight(rendered * falloff, unmodulated * falloff, photons, photons_per_unit,
+                      unlit_pixels(scene, preset))
+
+
+def unlit_pixels(scene, preset: CameraPreset) -> np.ndarray | None:
+    """(H, W) bool: the pixels wholly outside the field of the preset's illuminator
+    (:func:`radiometry.outside_field`) where the scene's only light is that illuminator,
+    confined to its field (the spot light :func:`with_illuminator` adds when the field
+    does not hold the view), at the lens of an undistorted pinhole; None otherwise (the
+    scene's own lights; an illuminator beside the lens or a distorting lens, whose lit
+    field depends on the depth: the low-signal masks alone)."""
+    from ..scene.scene import CAMERA_ILLUMINATOR_ID
+    from ..tof.geometry import intrinsics
+
+    emitters = list(scene.static.emitters())
+    if (preset.illuminator is None or any(preset.illuminator["offset_m"])
+            or any(scene.lens_distortion or ()) or len(emitters) != 1
+            or emitters[0].id() != CAMERA_ILLUMINATOR_ID
+            or emitters[0].class_name() != "SpotLight"):
+        return None
+    found = intrinsics(scene)
+    if found["K"] is None:
+        return None
+    reach = max(0.5, float(scene.sensor.film().rfilter().radius()))
+    return radiometry.outside_field(preset.illuminator["fov_deg"], found["K"],
+                                    *found["resolution"], reach)
 
 
 def scene_light_intensity(scene, preset: CameraPreset) -> float:
@@ -342,7 +382,7 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
         "variant": require_variant().variant(), "resolution": [width, height],
         "spp_per_frame": int(spp), "seed": int(seed),
         "noise": {"shot_and_read_noise": bool(noise), "seed": int(noise_seed),
-                  "photons_per_unit": readout.photons_per_unit,
+                  "exposure": preset.exposure, "photons_per_unit": readout.photons_per_unit,
                   "saturated_pixels": int(recon.saturated.sum())},
         "frames": records,
         "sequence_s": [scene.shutter_open + first, scene.shutter_open + last],

@@ -46,14 +46,13 @@ def add_subcommand(sub) -> None:
 
 def add_capture_options(c) -> None:
     """``capture``'s camera group."""
+    from ..cli_options import add_camera_options
+
     g = c.add_argument_group("real camera (a preset: its raw frames, sensor and depth)")
     g.add_argument("--camera", metavar="NAME|FILE.toml",
                    help="capture the preset's raw frame sequence, each frame in its own time "
                    "window (dopplertof cameras lists them)")
-    g.add_argument("--res", metavar="WIDTHxHEIGHT",
-                   help="with --camera: other resolution, same field of view")
-    g.add_argument("--noiseless", action="store_true",
-                   help="with --camera: no shot or read noise (rounding stays)")
+    add_camera_options(g)
     g.add_argument("--keep-view", action="store_true",
                    help="with --camera: keep the scene's field of view (its framing) with "
                    "the preset's sensor, instead of the preset's field of view")

@@ -1,4 +1,5 @@
-"""Files of a camera frame: raw DN, depth, amplitude, masks, truth, previews, summary.
+"""Files of a camera frame: raw DN, depth, amplitude, masks, truth, previews, summary
+(each declared in :data:`dopplertof.outputs.CAMERA`).
 
 All writes are atomic (:mod:`dopplertof.io`).
 """
@@ -11,23 +12,11 @@ from .. import io
 
 from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
+from ..outputs import CAMERA, CAPTURE_MASKS
+from ..previews import NOTHING_HIT
 from ..tof import figures
 from ..tof.geometry import write_camera_files
 from ..tof.output import prepare_folder
-
-#: the masks written, file stem -> (attribute of the reconstruction, what it means)
-MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at an end"),
-         "mask_low_confidence": ("low_confidence", "amplitude below min_amplitude_dn, or "
-                                 "phase noise above 1 / min_snr"),
-         "mask_unwrap_failed": ("unwrap_failed", "a wrong wrap nearly as likely as the best, "
-                                "or the frequencies disagree beyond their noise"),
-         "mask_out_of_range": ("out_of_range", "nearer than min_range_m (by 3 sigma) or "
-                               "beyond max_range_m"),
-         "mask_edge": ("edge", "the edge filter: the 3 x 3 neighbourhood's depths span more "
-                       "than edge_range_m"),
-         "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
-                                  "sequence (from the scene's geometry; NaN in the maps "
-                                  "unless kept: --keep-mixed-pixels)")}
 
 
 def write_camera_result(result, folder, pointcloud: bool = False) -> list:
@@ -46,17 +35,18 @@ def _write_camera_files(result, path) -> None:
     """The files of :func:`write_camera_result`, each at ``path(name)``."""
     recon, readout, summary = result.reconstruction, result.readout, result.summary
     camera = summary["camera"]["name"]
-    arrays = {"raw": readout.raw, "raw_ideal": readout.raw_ideal.astype(np.float32),
+    arrays = {"raw": readout.raw, "raw_ideal": readout.raw_ideal,
               "depth": recon.depth, "depth_z": recon.depth_z, "amplitude": recon.amplitude,
               "depth_std": np.sqrt(recon.depth_variance), "depth_gt": result.depth_gt,
               "depth_gt_z": result.depth_gt_z}
     if recon.velocity is not None:
         arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
+    arrays.update({name: _mask(result, attribute)
+                   for name, (attribute, _) in CAPTURE_MASKS.items()})
+    if readout.shutter is not None:
+        arrays["shutter"] = readout.shutter
     for name, data in arrays.items():
-        io.write_npy(path(f"{name}.npy"),
-                     data if data.dtype.kind in "iu" else data.astype(np.float32))
-    for name, (attribute, _) in MASKS.items():
-        io.write_npy(path(f"{name}.npy"), _mask(result, attribute))
+        io.write_npy(path(CAMERA[name].npy), CAMERA[name].array(data))
     _write_previews(result, path, camera)
     write_summary(path(SUMMARY_JSON), "camera", summary)
 
@@ -78,14 +68,14 @@ def masked_caption(recon, truth=None) -> str:
     counts = dict(recon.describe()["masked_pixels"])
     if truth is not None:
         # (the depth is NaN where a mask is: those are counted by their masks)
-        counts["nothing hit"] = int(np.sum(~np.isfinite(truth) & np.isfinite(recon.depth)))
+        counts[NOTHING_HIT] = int(np.sum(~np.isfinite(truth) & np.isfinite(recon.depth)))
     return image_files.masked_note(counts)
 
 
 def _write_previews(result, path, camera: str) -> None:
     """depth, truth, error, amplitude (and velocity) maps and the raw frames' grid."""
     recon = result.reconstruction
-    nothing = image_files.masked_note({"nothing hit": int(np.sum(~np.isfinite(result.depth_gt)))})
+    nothing = image_files.nothing_hit_note(~np.isfinite(result.depth_gt))
     finite = np.concatenate([a[np.isfinite(a)] for a in (recon.depth, result.depth_gt)])
     lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
               if finite.size else (None, None))

@@ -9,9 +9,10 @@ dark current, ADC bits, gain, offset, ambient light) and its own depth reconstru
 threshold). ``docs/cameras.md`` describes the format; the packaged presets live in
 ``presets/*.toml``, each number with its source in a comment.
 
-Every key is required unless :data:`OPTIONAL` gives it a default; an unknown or
+Every key is required unless :data:`SCHEMA` gives it a default; an unknown or
 misspelt key, a missing key or a value of the wrong type or range is one line naming
-the key and the file (:class:`PresetError`).
+the key and the file (:class:`PresetError`, through the package's one TOML validator,
+toml_schema.py).
 """
 
 from __future__ import annotations
@@ -20,9 +21,10 @@ import math
 import os
 from dataclasses import dataclass, field
 
-from ..hints import did_you_mean, unknown_key
+from ..hints import did_you_mean
 from ..io import read_toml
 from ..modulation import WAVEFORMS
+from ..toml_schema import Key, section, table
 
 #: the folder of the packaged presets
 PRESET_FOLDER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets")
@@ -41,7 +43,7 @@ class PresetError(ValueError):
     """A preset that cannot be used; the message names the file and the key."""
 
 
-# ---- The schema: section -> key -> (type, check, what it means) --------------------------
+# ---- The schema -----------------------------------------------------------------------
 
 def _positive(x):
     return x > 0
@@ -64,95 +66,113 @@ def _finite_list(n, check=None):
     return ok
 
 
-SCHEMA = {
-    "": {"name": (str, None, "the preset's name"),
-         "description": (str, None, "one line"),
-         "sources": (list, None, "the documents its numbers come from"),
-         "noise_calibration": (str, None, "what its noise is fitted to (a published figure "
-                               "or a measured table); absent: not calibrated"),
-         "frame_rate_hz": (float, lambda x: 0 < x <= 1e5, "depth frames per second, the "
-                           "rate of a stream (dopplertof animate --camera)")},
-    "optics": {"resolution": (list, None, "[width, height] pixels"),
-               "fov_deg": (float, lambda x: 0.1 <= x <= 160, "a pinhole's horizontal field "
-                           "of view, 0.1 to 160 degrees (a wider lens is no pinhole)"),
-               "pixel_pitch_um": (float, lambda x: 0.1 <= x <= 1000, "micrometres, 0.1 to "
-                                  "1000 (sensor pixels are about 1 to 100)"),
-               "f_number": (float, lambda x: 0.3 <= x <= 64, "the lens's f-number N"),
-               "transmission": (float, _fraction, "lens and band-pass filter transmission at "
-                                "the illuminator's wavelength"),
-               "filter_width_nm": (float, lambda x: 0.1 <= x <= 1000, "the band-pass "
-                                   "filter's width (nm): the ambient light it lets through"),
-               "fill_factor": (float, _fraction, "light-sensitive fraction of a pixel "
-                               "(microlenses included)"),
-               "binning": (int, lambda x: 1 <= x <= 8, "pixels summed per side (NFOV binned: 2)"),
-               "distortion": (list, _finite_list(5, lambda v: abs(v) < 10),
-                              "Brown-Conrady [k1, k2, p1, p2, k3] (OpenCV's order)")},
-    "illuminator": {"power_w": (float, lambda x: 0 < x <= 100, "mean optical power (W)"),
-                    "wavelength_nm": (float, lambda x: 300 <= x <= 2000, "nm"),
-                    "fov_deg": (list, _finite_list(2, lambda v: MIN_ILLUMINATOR_FOV_DEG <= v
-                                                   < 180),
-                                f"[horizontal, vertical] full angles lit, degrees, "
-                                f"{MIN_ILLUMINATOR_FOV_DEG:g} to 180 (radians are no "
-                                "degrees: 1.31 rad = 75 deg)"),
-                    "offset_m": (list, _finite_list(3, lambda v: abs(v) < 1),
-                                 "[x, y, z] of the emitter from the lens centre, camera axes "
-                                 "(m)")},
-    "conditions": {"ambient_irradiance_uw_cm2_nm": (float, lambda x: 0 <= x <= 1000,
-                                                    "the maker's ambient light condition "
-                                                    "(uW/cm^2/nm at the wavelength)")},
-    "modulation": {"waveform": (str, lambda x: x in WAVEFORMS, "one of " + ", ".join(WAVEFORMS)),
-                   "contrast": (float, lambda x: 0.01 <= x <= 1,
-                                "demodulation contrast in [0.01, 1]")},
-    "sensor": {"quantum_efficiency": (float, _fraction, "electrons per photon"),
-               "full_well_electrons": (float, _positive, "electrons per tap"),
-               "read_noise_electrons": (float, lambda x: 0 <= x <= 1e4,
-                                        "electrons rms per tap, 0 to 10000"),
-               "dark_current_electrons_per_s": (float, lambda x: 0 <= x <= 1e9,
-                                                "per tap, 0 to 1e9"),
-               "adc_bits": (int, lambda x: 1 <= x <= 24, "ADC resolution"),
-               "gain_electrons_per_dn": (float, lambda x: 1e-3 <= x <= 1e4,
-                                         "electrons per DN, 0.001 to 10000"),
-               "offset_dn": (float, _non_negative, "DN of a zero differential signal"),
-               "well_fill": (float, _fraction, "auto photon scale: the brightest unmodulated "
-                             "signal fills this fraction of the full well"),
-               "ambient_photons_per_s": (float, _non_negative, "per pixel (auto exposure "
-                                         "only: an absolute preset takes the ambient "
-                                         "irradiance)"),
-               "auto_exposure": (bool, None, "true: the photon scale is chosen per capture "
-                                 "(well_fill); false: absolute radiometry from the "
-                                 "[illuminator] and the optics")},
-    "reconstruction": {"unwrapping": (str, lambda x: x in UNWRAPPING,
-                                      "one of " + ", ".join(UNWRAPPING)),
-                       "max_range_m": (float, lambda x: 0.05 <= x <= 1e4,
-                                       "the range the camera reports (m)"),
-                       "min_range_m": (float, lambda x: 0 <= x < 1e4,
-                                       "the nearest depth the camera reports (m)"),
-                       "min_snr": (float, lambda x: 0 <= x <= 1e3,
-                                   "invalid below this amplitude-to-noise ratio"),
-                       "edge_range_m": (float, lambda x: 0 <= x <= 1e3,
-                                        "edge filter: invalid where the 3 x 3 "
-                                        "neighbourhood's depths span more (0: off)"),
-                       "wiggling_calibration": (bool, None, "whether the camera removes the "
-                                                "wiggling error with a calibration table"),
-                       "min_amplitude_dn": (float, _non_negative, "confidence threshold")},
-    "frames": {"frequency_mhz": (float, lambda x: 0.1 <= x <= 2000,
-                                 "modulation frequency, 0.1 to 2000 MHz"),
-               "phase_deg": (float, lambda x: math.isfinite(x), "sensor phase step"),
-               "integration_s": (float, lambda x: 1e-7 <= x <= 1,
-                                 "integration time, 0.1 us to 1 s"),
-               "start_s": (float, lambda x: 0 <= x <= 10, "start within the depth frame"),
-               "hetero_frequency": (float, lambda x: math.isfinite(x),
-                                    "beat periods per integration (0: homodyne)")},
-}
+def _shutter_list(x):
+    """1, then strictly shorter fractions in (0, 1), at most 16."""
+    return (1 <= len(x) <= 16 and _finite_list(len(x), _fraction)(x) and x[0] == 1
+            and all(a > b for a, b in zip(x, x[1:])))
 
-#: keys with a default
-OPTIONAL = {("", "frame_rate_hz"): None, ("frames", "hetero_frequency"): 0.0, ("sensor", "auto_exposure"): True,
-            ("optics", "f_number"): None, ("optics", "transmission"): None,
-            ("optics", "filter_width_nm"): None, ("optics", "fill_factor"): None,
-            ("optics", "binning"): 1, ("optics", "distortion"): [0.0] * 5,
-            ("reconstruction", "min_range_m"): 0.0, ("reconstruction", "min_snr"): 0.0,
-            ("reconstruction", "edge_range_m"): 0.0,
-            ("conditions", "ambient_irradiance_uw_cm2_nm"): 0.0, ("", "noise_calibration"): ""}
+
+#: section -> key -> Key (toml_schema.py: kind, meaning, range check, default)
+SCHEMA = {
+    "": {
+        "name": Key("string", "the preset's name"),
+        "description": Key("string", "one line"),
+        "sources": Key("list", "the documents its numbers come from"),
+        "noise_calibration": Key("string", "what its noise is fitted to (a published figure "
+                                 "or a measured table); absent: not calibrated", default=""),
+        "frame_rate_hz": Key("float", "depth frames per second, the rate of a stream "
+                             "(dopplertof animate --camera)", lambda x: 0 < x <= 1e5,
+                             default=None),
+    },
+    "optics": {
+        "resolution": Key("list", "[width, height] pixels"),
+        "fov_deg": Key("float", "a pinhole's horizontal field of view, 0.1 to 160 degrees "
+                       "(a wider lens is no pinhole)", lambda x: 0.1 <= x <= 160),
+        "pixel_pitch_um": Key("float", "micrometres, 0.1 to 1000 (sensor pixels are about 1 "
+                              "to 100)", lambda x: 0.1 <= x <= 1000),
+        "f_number": Key("float", "the lens's f-number N", lambda x: 0.3 <= x <= 64,
+                        default=None),
+        "transmission": Key("float", "lens and band-pass filter transmission at the "
+                            "illuminator's wavelength", _fraction, default=None),
+        "filter_width_nm": Key("float", "the band-pass filter's width (nm): the ambient light "
+                               "it lets through", lambda x: 0.1 <= x <= 1000, default=None),
+        "fill_factor": Key("float", "light-sensitive fraction of a pixel (microlenses "
+                           "included)", _fraction, default=None),
+        "binning": Key("integer", "pixels summed per side (NFOV binned: 2)",
+                       lambda x: 1 <= x <= 8, default=1),
+        "distortion": Key("list", "Brown-Conrady [k1, k2, p1, p2, k3] (OpenCV's order)",
+                          _finite_list(5, lambda v: abs(v) < 10), default=[0.0] * 5),
+    },
+    "illuminator": {
+        "power_w": Key("float", "mean optical power (W)", lambda x: 0 < x <= 100),
+        "wavelength_nm": Key("float", "nm", lambda x: 300 <= x <= 2000),
+        "fov_deg": Key("list", f"[horizontal, vertical] full angles lit, degrees, "
+                       f"{MIN_ILLUMINATOR_FOV_DEG:g} to 180 (radians are no degrees: 1.31 "
+                       "rad = 75 deg)",
+                       _finite_list(2, lambda v: MIN_ILLUMINATOR_FOV_DEG <= v < 180)),
+        "offset_m": Key("list", "[x, y, z] of the emitter from the lens centre, camera axes "
+                        "(m)", _finite_list(3, lambda v: abs(v) < 1)),
+    },
+    "conditions": {
+        "ambient_irradiance_uw_cm2_nm": Key("float", "the maker's ambient light condition "
+                                            "(uW/cm^2/nm at the wavelength)",
+                                            lambda x: 0 <= x <= 1000, default=0.0),
+    },
+    "modulation": {
+        "waveform": Key("string", "one of " + ", ".join(WAVEFORMS), lambda x: x in WAVEFORMS),
+        "contrast": Key("float", "demodulation contrast in [0.01, 1]",
+                        lambda x: 0.01 <= x <= 1),
+    },
+    "sensor": {
+        "quantum_efficiency": Key("float", "electrons per photon", _fraction),
+        "full_well_electrons": Key("float", "electrons per tap", _positive),
+        "read_noise_electrons": Key("float", "electrons rms per tap, 0 to 10000",
+                                    lambda x: 0 <= x <= 1e4),
+        "dark_current_electrons_per_s": Key("float", "per tap, 0 to 1e9",
+                                            lambda x: 0 <= x <= 1e9),
+        "adc_bits": Key("integer", "ADC resolution", lambda x: 1 <= x <= 24),
+        "gain_electrons_per_dn": Key("float", "electrons per DN, 0.001 to 10000",
+                                     lambda x: 1e-3 <= x <= 1e4),
+        "offset_dn": Key("float", "DN of a zero differential signal", _non_negative),
+        "well_fill": Key("float", "auto photon scale: the brightest unmodulated signal "
+                         "fills this fraction of the full well; with several shutters, the "
+                         "fill a pixel's shutter keeps it under", _fraction),
+        "shutters": Key("list", "the dynamic-range scheme: fractions of each frame's "
+                        "integration, longest first, from 1 (each pixel integrates for the "
+                        "longest that keeps its taps under well_fill of the well); [1.0]: "
+                        "one shutter", _shutter_list, default=[1.0]),
+        "ambient_photons_per_s": Key("float", "per pixel (auto exposure only: an absolute "
+                                     "preset takes the ambient irradiance)", _non_negative),
+        "auto_exposure": Key("bool", "true: the photon scale is chosen per capture "
+                             "(well_fill); false: absolute radiometry from the [illuminator] "
+                             "and the optics", default=True),
+    },
+    "reconstruction": {
+        "unwrapping": Key("string", "one of " + ", ".join(UNWRAPPING),
+                          lambda x: x in UNWRAPPING),
+        "max_range_m": Key("float", "the range the camera reports (m)",
+                           lambda x: 0.05 <= x <= 1e4),
+        "min_range_m": Key("float", "the nearest depth the camera reports (m)",
+                           lambda x: 0 <= x < 1e4, default=0.0),
+        "min_snr": Key("float", "invalid below this amplitude-to-noise ratio",
+                       lambda x: 0 <= x <= 1e3, default=0.0),
+        "edge_range_m": Key("float", "edge filter: invalid where the 3 x 3 neighbourhood's "
+                            "depths span more (0: off)", lambda x: 0 <= x <= 1e3, default=0.0),
+        "wiggling_calibration": Key("bool", "whether the camera removes the wiggling error "
+                                    "with a calibration table"),
+        "min_amplitude_dn": Key("float", "confidence threshold", _non_negative),
+    },
+    "frames": {
+        "frequency_mhz": Key("float", "modulation frequency, 0.1 to 2000 MHz",
+                             lambda x: 0.1 <= x <= 2000),
+        "phase_deg": Key("float", "sensor phase step"),
+        "integration_s": Key("float", "integration time, 0.1 us to 1 s",
+                             lambda x: 1e-7 <= x <= 1),
+        "start_s": Key("float", "start within the depth frame", lambda x: 0 <= x <= 10),
+        "hetero_frequency": Key("float", "beat periods per integration (0: homodyne)",
+                                default=0.0),
+    },
+}
 #: the optics keys absolute radiometry needs
 RADIOMETRIC_OPTICS = ("f_number", "transmission", "filter_width_nm", "fill_factor")
 
@@ -225,6 +245,17 @@ class CameraPreset:
     @property
     def heterodyne(self) -> bool:
         return any(not f.homodyne for f in self.frames)
+
+    @property
+    def exposure(self) -> str:
+        """How a capture's photons are scaled, for summary.json's noise.exposure."""
+        if self.absolute:
+            return ("absolute: photons from the illuminator's power, the lens and the pixel"
+                    + (" (a shutter per pixel: sensor.shutters)"
+                       if len(self.sensor["shutters"]) > 1 else ""))
+        return ("auto: every capture scaled so that its brightest pixel fills "
+                "sensor.well_fill of the well, whatever the distance, albedo and ambient "
+                "light: the noise is relative, not the camera's")
 
     @property
     def noise_calibrated(self) -> bool:
@@ -310,15 +341,18 @@ def load_preset(name_or_path) -> CameraPreset:
 
 def _preset_from(data: dict, path: str) -> CameraPreset:
     """The checked preset of a parsed TOML document."""
-    top = _section(data, "", path, extra=("optics", "modulation", "sensor",
-                                          "reconstruction", "frames", "illuminator",
-                                          "conditions"))
-    sections = {name: _section(_table(data, name, path), name, path)
+    def checked(values, name, label=None, extra=()):
+        return section(values, SCHEMA[name], path, PresetError,
+                       name if label is None else label, extra)
+
+    top = checked(data, "", extra=("optics", "modulation", "sensor", "reconstruction",
+                                   "frames", "illuminator", "conditions"))
+    sections = {name: checked(table(data, name, path, PresetError), name)
                 for name in ("optics", "modulation", "sensor", "reconstruction")}
     illuminator = (None if "illuminator" not in data else
-                   _section(_table(data, "illuminator", path), "illuminator", path))
-    conditions = _section(_table(data, "conditions", path) if "conditions" in data else {},
-                          "conditions", path)
+                   checked(table(data, "illuminator", path, PresetError), "illuminator"))
+    conditions = checked(table(data, "conditions", path, PresetError, required=False),
+                         "conditions")
     frames = data.get("frames")
     if not isinstance(frames, list) or not frames:
         raise PresetError(f"{path}: frames: a non-empty array of raw frames is required "
@@ -327,8 +361,7 @@ def _preset_from(data: dict, path: str) -> CameraPreset:
         if not isinstance(frame, dict):
             raise PresetError(f"{path}: frames[{i}] must be a table ([[frames]]), got "
                               f"{frame!r}")
-    raw = tuple(RawFrame(**_section(f, "frames", path, where=f"frames[{i}]"))
-                for i, f in enumerate(frames))
+    raw = tuple(RawFrame(**checked(f, "frames", f"frames[{i}]")) for i, f in enumerate(frames))
     optics = sections["optics"]
     resolution = _resolution(optics["resolution"], path)
     _check_sources(top["sources"], path)
@@ -373,47 +406,6 @@ def sequence_too_long(preset: CameraPreset, fps: float) -> str | None:
             f"overlap (at most {1.0 / (last - first):.6g} fps)")
 
 
-def _table(data: dict, name: str, path: str, where: str | None = None) -> dict:
-    value = data.get(name)
-    if not isinstance(value, dict):
-        what = "missing" if value is None else f"a {type(value).__name__}, not a table"
-        raise PresetError(f"{path}: [{where or name}] is {what}")
-    return value
-
-
-def _section(values: dict, section: str, path: str, extra=(), where: str | None = None) -> dict:
-    """The keys of one section checked against :data:`SCHEMA` (``extra``: sub-tables
-    allowed beside them); defaults filled in."""
-    schema = SCHEMA[section]
-    label = where or section
-    prefix = f"{label}." if label else ""
-    problem = unknown_key(values, list(schema) + list(extra), prefix)
-    if problem:
-        raise PresetError(f"{path}: {problem}")
-    out = {}
-    for key, (kind, check, meaning) in schema.items():
-        if key not in values:
-            if (section, key) in OPTIONAL:
-                out[key] = OPTIONAL[(section, key)]
-                continue
-            raise PresetError(f"{path}: missing key {prefix}{key} ({meaning})")
-        out[key] = _typed(values[key], kind, check, f"{path}: {prefix}{key}", meaning)
-    return out
-
-
-def _typed(value, kind, check, where: str, meaning: str):
-    """``value`` as ``kind`` (an int is a float too; a bool is no number)."""
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-        raise PresetError(f"{where} must be a {kind.__name__} ({meaning}), got {value!r}")
-    if kind is float and not math.isfinite(value):
-        raise PresetError(f"{where} must be finite, got {value!r}")
-    if check is not None and not check(value):
-        raise PresetError(f"{where} out of range ({meaning}), got {value!r}")
-    return value
-
-
 def _resolution(value, path: str) -> tuple:
     if (len(value) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0
                                    for v in value)):
@@ -448,7 +440,7 @@ def _check_radiometry(preset: CameraPreset) -> None:
                           "section (power_w, wavelength_nm, fov_deg, offset_m)")
     for key in RADIOMETRIC_OPTICS:
         if preset.optics.get(key) is None:
-            meaning = SCHEMA["optics"][key][2]
+            meaning = SCHEMA["optics"][key].meaning
             raise PresetError(f"{path}: missing key optics.{key} ({meaning}; "
                               "sensor.auto_exposure = false needs it)")
 
@@ -548,7 +540,10 @@ def format_preset(preset: CameraPreset) -> str:
              f"{s['full_well_electrons']:g} e-, read noise {s['read_noise_electrons']:g} e-, "
              f"dark current {s['dark_current_electrons_per_s']:g} e-/s, {s['adc_bits']} bits at "
              f"{s['gain_electrons_per_dn']:g} e-/DN, offset {s['offset_dn']:g} DN, ambient "
-             f"{s['ambient_photons_per_s']:g} photons/s",
+             f"{s['ambient_photons_per_s']:g} photons/s"
+             + (f", {len(s['shutters'])} shutters per pixel from 1 to {s['shutters'][-1]:g} "
+                f"of each frame (under {s['well_fill']:g} of the well)"
+                if len(s["shutters"]) > 1 else ""),
              f"  reconstruction: unwrapping {r['unwrapping']}, range {r['max_range_m']:g} m, "
              f"wiggling calibration {'on' if r['wiggling_calibration'] else 'off'}, "
              f"confidence above {r['min_amplitude_dn']:g} DN",

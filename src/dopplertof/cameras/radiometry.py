@@ -126,6 +126,24 @@ def confined_field(preset, view, offset=(0.0, 0.0, 0.0)):
     return None if covers else [h, v]
 
 
+def outside_field(field_deg, K, width: int, height: int, reach: float = 0.5) -> np.ndarray:
+    """(H, W) bool: the pixels of a pinhole of intrinsics ``K`` (OpenCV's: pixel (u, v)
+    covers [u, u + 1] x [v, v + 1]) whose whole footprint, the square of half side
+    ``reach`` pixels about its centre (the reconstruction filter's radius; 1/2 for a
+    box), lies outside the rectangle of directions of full angles ``field_deg`` = [h, v]
+    about the axis: pixels an illuminator at the lens confined to that field
+    (:func:`confined_field`) never lights."""
+    K = np.asarray(K, np.float64)
+    tan_h, tan_v = (math.tan(math.radians(float(a)) / 2) for a in field_deg)
+
+    def beyond(count: int, centre: float, focal: float, limit: float) -> np.ndarray:
+        nearest = (np.abs(np.arange(count) + 0.5 - centre) - reach) / focal
+        return nearest > limit
+
+    return (beyond(width, K[0, 2], K[0, 0], tan_h)[None, :]
+            | beyond(height, K[1, 2], K[1, 1], tan_v)[:, None])
+
+
 def light_xml(intensity: float, field_deg, placement: str, ident: str | None = None) -> str:
     """A light of radiant intensity ``intensity`` (W/sr) riding with the camera
     (``placement``: its to_world transform element, the camera's axes): a point light

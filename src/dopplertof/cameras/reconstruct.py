@@ -7,8 +7,9 @@ camera does; two frequencies or more are unwrapped (:mod:`.unwrap`). Masks: satu
 (any frame of the pixel), low confidence (the smallest amplitude below the preset's
 ``min_amplitude_dn``), unwrapping failed, and the footprints that mix surfaces (given by
 the capture: :func:`dopplertof.tof.ground_truth.mixed_footprints`, the reason
-``tof.reconstruct.MIXED_FOOTPRINT`` of dopplertof's capture); the depth is NaN under any
-of them. Heterodyne
+``tof.reconstruct.MIXED_FOOTPRINT`` of dopplertof's capture) and the pixels outside the
+illuminator's field (given by the capture: no light of the camera's own reaches them); the
+depth is NaN under any of them. Heterodyne
 frames give velocity as dopplertof's capture does (:mod:`dopplertof.tof.reconstruct`).
 
 The predicted depth variance (first order, from the sensor's predicted variance of each
@@ -27,6 +28,10 @@ from ..tof import reconstruct as tof_rec
 from . import demodulate
 from .sensor import to_rendered_units
 from .unwrap import LIKELIHOOD_GAP, unwrap_likelihood
+
+
+#: summary.json's name of the pixels outside the illuminator's field
+UNLIT = "outside the illuminator's field"
 
 
 @dataclass
@@ -64,6 +69,9 @@ class CameraReconstruction:
     #: (H, W) bool: the camera's edge filter (reconstruction.edge_range_m): the depths
     #: around the pixel span more than that (flying pixels between two surfaces)
     edge: np.ndarray | None = None
+    #: (H, W) bool: pixels wholly outside the field the camera's illuminator lights
+    #: (radiometry.outside_field): no light of its own reaches them
+    unlit: np.ndarray | None = None
 
     @property
     def masked(self) -> np.ndarray:
@@ -73,6 +81,8 @@ class CameraReconstruction:
             masked = masked | self.edge
         if self.out_of_range is not None:
             masked = masked | self.out_of_range
+        if self.unlit is not None:
+            masked = masked | self.unlit
         return masked if self.mixed is None else masked | self.mixed
 
     def describe(self) -> dict:
@@ -87,6 +97,7 @@ class CameraReconstruction:
                                   else int(self.edge.sum()),
                                   "outside the range": 0 if self.out_of_range
                                   is None else int(self.out_of_range.sum()),
+                                  UNLIT: 0 if self.unlit is None else int(self.unlit.sum()),
                                   tof_rec.reason_name(tof_rec.MIXED_FOOTPRINT): mixed},
                 "units": "radial range in m from the camera centre (depth_z.npy: along the "
                          "optical axis); amplitude in DN"}
@@ -114,9 +125,10 @@ def frequency_phase(readout, preset, frequency_mhz: float) -> FrequencyPhase:
                           per_radian**2 * phase_variance)
 
 
-def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
+def reconstruct(readout, preset, mixed=None, unlit=None) -> CameraReconstruction:
     """The camera's depth (and velocity with heterodyne frames) from its readout;
-    ``mixed`` ((H, W) bool or None): the footprints that mix surfaces, masked too."""
+    ``mixed`` ((H, W) bool or None): the footprints that mix surfaces, masked too;
+    ``unlit`` likewise: the pixels outside the illuminator's field."""
     groups = [frequency_phase(readout, preset, f) for f in preset.frequencies_mhz]
     max_range = preset.reconstruction["max_range_m"]
     saturated = readout.saturated.any(axis=0)
@@ -150,7 +162,8 @@ def reconstruct(readout, preset, mixed=None) -> CameraReconstruction:
     mixed = np.zeros(saturated.shape, bool) if mixed is None else np.asarray(mixed, bool)
     result = CameraReconstruction(depth, amplitude, saturated, low_confidence, failed,
                                   variance, groups, float(range_m), method, gap,
-                                  mixed=mixed)
+                                  mixed=mixed, unlit=None if unlit is None
+                                  else np.asarray(unlit, bool))
     # nearer than the operating range by more than three predicted standard deviations
     nearest = preset.reconstruction["min_range_m"] - 3 * np.sqrt(variance)
     # a depth that no other mask explains is NaN where no wrap count lies within the range

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import sys
 
-from ..cli_options import FOLDER_HELP
+from ..cli_options import FOLDER_HELP, TERMINATED_EXIT, Terminated, sigterm_as_interrupt
 
 
 def add_subcommand(subparsers) -> None:
@@ -140,7 +140,15 @@ def cmd_export(args) -> int:
 
     if args.export_format is None:
         raise DatasetError(f"dataset export needs --format ({', '.join(FORMATS)})")
-    info = export_dataset(args.folder, args.export_format, args.output, args.skip_missing)
+    try:
+        with sigterm_as_interrupt():
+            info = export_dataset(args.folder, args.export_format, args.output,
+                                  args.skip_missing)
+    except Terminated:
+        print(f"dopplertof: dataset export interrupted (SIGTERM): {args.output} was not "
+              f"written; the dataset {args.folder} and every earlier output are intact",
+              file=sys.stderr)
+        return TERMINATED_EXIT
     print(f"exported {info['samples']} samples as {info['format']} -> {args.output}")
     if info.get("missing_samples"):
         from .shards import index_span

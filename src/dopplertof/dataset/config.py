@@ -2,8 +2,8 @@
 
 Every section and key is listed in :data:`SCHEMA` with its type, range and meaning; an
 unknown or misspelt key is one line naming the file and the key (with the nearest known
-name), as the camera presets' loader says it. A range is ``[low, high]`` and a sample
-draws uniformly in it; ``[x, x]`` fixes the value. ``examples/dataset.toml`` is the
+name), by the package's one TOML validator (toml_schema.py), the camera presets' too. A
+range is ``[low, high]`` and a sample draws uniformly in it; ``[x, x]`` fixes the value. ``examples/dataset.toml`` is the
 commented reference; docs/dataset.md describes what each key does to a scene.
 """
 
@@ -14,8 +14,9 @@ import os
 from dataclasses import dataclass
 
 from ..arguments import check_seed
-from ..hints import unknown_key
+from .. import toml_schema
 from ..io import read_toml
+from ..toml_schema import Key
 
 #: shapes a configuration may draw ("mesh": a file of [objects] mesh_folder)
 SHAPES = ("sphere", "cube", "rectangle", "mesh")
@@ -55,67 +56,85 @@ def _positive(x):
     return x > 0
 
 
-#: section -> key -> (type, check, meaning, default or REQUIRED)
-REQUIRED = object()
+#: section -> key -> Key (toml_schema.py: kind, meaning, range check, default)
 SCHEMA = {
-    "": {"name": (str, None, "the dataset's name", "dataset"),
-         "samples": (int, _positive, "how many samples", REQUIRED),
-         "seed": (int, None, "the seed every sample's own is derived from", 0),
-         "samples_per_shard": (int, _positive, "samples in one HDF5 shard", 8),
-         "clip_frames": (int, _positive, "depth frames per sample: a clip of consecutive "
-                         "frames of one scene whose bodies keep moving (1: one frame)", 1),
-         "fps": (float, _positive, "a clip's frames per second (default: the camera "
-                 "preset's frame_rate_hz)", None)},
-    "render": {"resolution": ("ints", lambda v: len(v) == 2 and min(v) >= 1,
-                              "[width, height] pixels", REQUIRED),
-               "spp": (int, _positive, "samples per pixel per raw frame", REQUIRED),
-               "max_depth": (int, lambda x: x >= 2, "path length of the full and ideal "
-                             "splits (2: direct light only)", 5),
-               "camera": (str, None, "a camera preset's name or a preset .toml file "
-                          "(dopplertof cameras --list)", "paper-dtof"),
-               "light_intensity": ("range", lambda v: _range(0)(v) and v[0] > 0,
-                                   "point light, W/sr, > 0", [20.0, 20.0]),
-               "grazing_deg": (float, lambda x: 0 < x <= 90, "incidence angle beyond which "
-                               "a pixel's depth and velocity truth is flagged grazing", 80.0)},
-    "backdrop": {"kind": (str, lambda x: x in BACKDROPS, "one of " + ", ".join(BACKDROPS),
-                          "room"),
-                 "size": ("floats", lambda v: len(v) == 3 and min(v) > 0,
-                          "[width, height, depth] m of the room (the wall: width, height "
-                          "and its distance)", [6.0, 4.0, 8.0]),
-                 "albedo": ("range", _range(0, 1), "diffuse albedo", [0.3, 0.8])},
-    "objects": {"count": ("ints", _range(0), "[fewest, most] objects", [1, 3]),
-                "shapes": ("names", lambda v: set(v) <= set(SHAPES),
-                           "drawn from " + ", ".join(SHAPES), ["sphere", "cube"]),
-                "mesh_folder": (str, None, "folder of .obj/.ply meshes (each fits the "
-                                "cube [-1, 1]^3 and reaches past MESH_LEAST_REACH of it; "
-                                "scaled by size)", ""),
-                "materials": ("names", lambda v: set(v) <= set(MATERIALS),
-                              "drawn from " + ", ".join(MATERIALS), ["diffuse"]),
-                "size": ("range", _range(1e-3), "radius or half-size, m", [0.2, 0.5]),
-                "distance": ("range", _range(1e-2), "from the camera along its view, m",
-                             [2.0, 4.0]),
-                "spread": (float, lambda x: 0 <= x <= 1, "lateral placement: fraction of "
-                           "the half field of view", 0.6),
-                "albedo": ("range", _range(0, 1), "diffuse albedo", [0.2, 0.9]),
-                "roughness": ("range", _range(1e-3, 1), "alpha of conductors and plastics",
-                              [0.05, 0.4])},
-    "motion": {"speed": ("range", _range(0), "objects' linear speed, m/s, random direction",
-                         [0.0, 10.0]),
-               "angular_speed": ("range", _range(0), "objects' spin, rad/s, random axis",
-                                 [0.0, 50.0])},
-    "camera": {"position": ("range", _range(), "each coordinate's jitter about the origin, m",
-                            [0.0, 0.0]),
-               "yaw_deg": ("range", _range(-90, 90), "turn about +y from looking down -z",
-                           [0.0, 0.0]),
-               "pitch_deg": ("range", _range(-60, 60), "tilt up (+) or down", [0.0, 0.0]),
-               "speed": ("range", _range(0), "ego-motion, m/s, random direction", [0.0, 0.0]),
-               "angular_speed": ("range", _range(0), "ego-rotation, rad/s, random axis",
-                                 [0.0, 0.0])},
-    "light": {"placement": (str, lambda x: x in LIGHT_PLACEMENTS,
-                            "one of " + ", ".join(LIGHT_PLACEMENTS), "camera"),
-              "offset": ("floats", lambda v: len(v) == 3, "[x, y, z] m in the camera's frame "
-                         "(x right, y down, z forward) for placement = 'offset'",
-                         [0.0, 0.0, 0.0])},
+    "": {
+        "name": Key("string", "the dataset's name", default="dataset"),
+        "samples": Key("integer", "how many samples", _positive),
+        "seed": Key("integer", "the seed every sample's own is derived from", default=0),
+        "samples_per_shard": Key("integer", "samples in one HDF5 shard", _positive,
+                                 default=8),
+        "clip_frames": Key("integer", "depth frames per sample: a clip of consecutive "
+                           "frames of one scene whose bodies keep moving (1: one frame)",
+                           _positive, default=1),
+        "fps": Key("float", "a clip's frames per second (default: the camera preset's "
+                   "frame_rate_hz)", _positive, default=None),
+    },
+    "render": {
+        "resolution": Key("ints", "[width, height] pixels",
+                          lambda v: len(v) == 2 and min(v) >= 1),
+        "spp": Key("integer", "samples per pixel per raw frame", _positive),
+        "max_depth": Key("integer", "path length of the full and ideal splits (2: direct "
+                         "light only)", lambda x: x >= 2, default=5),
+        "camera": Key("string", "a camera preset's name or a preset .toml file (dopplertof "
+                      "cameras --list)", default="paper-dtof"),
+        "light_intensity": Key("range", "point light, W/sr, > 0",
+                               lambda v: _range(0)(v) and v[0] > 0, default=[20.0, 20.0]),
+        "grazing_deg": Key("float", "incidence angle beyond which a pixel's depth and "
+                           "velocity truth is flagged grazing", lambda x: 0 < x <= 90,
+                           default=80.0),
+    },
+    "backdrop": {
+        "kind": Key("string", "one of " + ", ".join(BACKDROPS), lambda x: x in BACKDROPS,
+                    default="room"),
+        "size": Key("floats", "[width, height, depth] m of the room (the wall: width, height "
+                    "and its distance)", lambda v: len(v) == 3 and min(v) > 0,
+                    default=[6.0, 4.0, 8.0]),
+        "albedo": Key("range", "diffuse albedo", _range(0, 1), default=[0.3, 0.8]),
+    },
+    "objects": {
+        "count": Key("ints", "[fewest, most] objects", _range(0), default=[1, 3]),
+        "shapes": Key("names", "drawn from " + ", ".join(SHAPES),
+                      lambda v: set(v) <= set(SHAPES), default=["sphere", "cube"]),
+        "mesh_folder": Key("string", "folder of .obj/.ply meshes (each fits the cube "
+                           "[-1, 1]^3 and reaches past MESH_LEAST_REACH of it; scaled by "
+                           "size)", default=""),
+        "materials": Key("names", "drawn from " + ", ".join(MATERIALS),
+                         lambda v: set(v) <= set(MATERIALS), default=["diffuse"]),
+        "size": Key("range", "radius or half-size, m", _range(1e-3), default=[0.2, 0.5]),
+        "distance": Key("range", "from the camera along its view, m", _range(1e-2),
+                        default=[2.0, 4.0]),
+        "spread": Key("float", "lateral placement: fraction of the half field of view",
+                      lambda x: 0 <= x <= 1, default=0.6),
+        "albedo": Key("range", "diffuse albedo", _range(0, 1), default=[0.2, 0.9]),
+        "roughness": Key("range", "alpha of conductors and plastics", _range(1e-3, 1),
+                         default=[0.05, 0.4]),
+    },
+    "motion": {
+        "speed": Key("range", "objects' linear speed, m/s, random direction", _range(0),
+                     default=[0.0, 10.0]),
+        "angular_speed": Key("range", "objects' spin, rad/s, random axis", _range(0),
+                             default=[0.0, 50.0]),
+    },
+    "camera": {
+        "position": Key("range", "each coordinate's jitter about the origin, m", _range(),
+                        default=[0.0, 0.0]),
+        "yaw_deg": Key("range", "turn about +y from looking down -z", _range(-90, 90),
+                       default=[0.0, 0.0]),
+        "pitch_deg": Key("range", "tilt up (+) or down", _range(-60, 60),
+                         default=[0.0, 0.0]),
+        "speed": Key("range", "ego-motion, m/s, random direction", _range(0),
+                     default=[0.0, 0.0]),
+        "angular_speed": Key("range", "ego-rotation, rad/s, random axis", _range(0),
+                             default=[0.0, 0.0]),
+    },
+    "light": {
+        "placement": Key("string", "one of " + ", ".join(LIGHT_PLACEMENTS),
+                         lambda x: x in LIGHT_PLACEMENTS, default="camera"),
+        "offset": Key("floats", "[x, y, z] m in the camera's frame (x right, y down, z "
+                      "forward) for placement = 'offset'", lambda v: len(v) == 3,
+                      default=[0.0, 0.0, 0.0]),
+    },
 }
 
 
@@ -177,62 +196,14 @@ def config_from_mapping(data: dict, source: str = "<config>",
                         base_dir: str = ".") -> DatasetConfig:
     """The checked configuration of parsed TOML ``data``."""
     sections = [s for s in SCHEMA if s]
-    values = {"": _section(data, "", source, extra=sections)}
-    for section in sections:
-        table = data.get(section, {})
-        if not isinstance(table, dict):
-            raise DatasetError(f"{source}: [{section}] must be a table, got {table!r}")
-        values[section] = _section(table, section, source)
+    values = {"": toml_schema.section(data, SCHEMA[""], source, DatasetError,
+                                      extra=sections)}
+    for name in sections:
+        table = toml_schema.table(data, name, source, DatasetError, required=False)
+        values[name] = toml_schema.section(table, SCHEMA[name], source, DatasetError, name)
     check_seed(values[""]["seed"], f"{source}: seed", DatasetError)
     _check_together(values, source, base_dir)
     return DatasetConfig(values, source, os.path.abspath(base_dir))
-
-
-def _section(table: dict, section: str, source: str, extra=()) -> dict:
-    """One section's keys checked against :data:`SCHEMA`, defaults filled in."""
-    schema = SCHEMA[section]
-    prefix = f"{section}." if section else ""
-    problem = unknown_key(table, list(schema) + list(extra), prefix)
-    if problem:
-        raise DatasetError(f"{source}: {problem}")
-    out = {}
-    for key, (kind, check, meaning, default) in schema.items():
-        if key not in table:
-            if default is REQUIRED:
-                raise DatasetError(f"{source}: missing key {prefix}{key} ({meaning})")
-            out[key] = default
-            continue
-        out[key] = _typed(table[key], kind, check, f"{source}: {prefix}{key}", meaning)
-    return out
-
-
-def _number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
-#: what each kind of value must be, and how it is said
-_KINDS = {str: (lambda v: isinstance(v, str), "a string"),
-          int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
-          float: (_number, "a number"),
-          "range": (lambda v: isinstance(v, list) and all(map(_number, v)), "[low, high]"),
-          "floats": (lambda v: isinstance(v, list) and all(map(_number, v)), "a list of numbers"),
-          "ints": (lambda v: isinstance(v, list) and all(isinstance(x, int) and not
-                                                        isinstance(x, bool) for x in v),
-                   "a list of integers"),
-          "names": (lambda v: isinstance(v, list) and v and all(isinstance(x, str) for x in v),
-                    "a non-empty list of names")}
-
-
-def _typed(value, kind, check, where: str, meaning: str):
-    """``value`` checked as ``kind`` (numbers of a range or list as floats)."""
-    is_kind, said = _KINDS[kind]
-    if not is_kind(value):
-        raise DatasetError(f"{where} must be {said} ({meaning}), got {value!r}")
-    if kind in ("range", "floats") or kind is float:
-        value = [float(x) for x in value] if isinstance(value, list) else float(value)
-    if check is not None and not check(value):
-        raise DatasetError(f"{where} out of range ({meaning}), got {value!r}")
-    return value
 
 
 #: the most samples one dataset folder plans: its dataset.json lists every sample (about

@@ -38,9 +38,10 @@ DATASET_JSON = "dataset.json"
 #: dataset.json's key holding the SHA-256 of its other keys (:func:`json_digest`)
 JSON_DIGEST = "sha256"
 #: format of the folder (2: with the camera's outputs, incidence, grazing and
-#: truth_valid, redrawn samples); a reader reads READABLE_LAYOUTS
-LAYOUT_VERSION = 2
-READABLE_LAYOUTS = (1, 2)
+#: truth_valid, redrawn samples; 3: camera_depth_std and velocity_point, formerly
+#: camera_confidence and velocity_along_ray); a reader reads READABLE_LAYOUTS
+LAYOUT_VERSION = 3
+READABLE_LAYOUTS = (1, 2, 3)
 #: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
 SPLITS = {"full": "raw", "ideal": "raw_ideal", "direct": "raw_direct"}
 
@@ -291,9 +292,9 @@ def given_up(task: ShardTask) -> bool:
     """Whether ``task``'s run gave it up: its Dask task was cancelled (the client's Ctrl-C)
     or its output folder is gone (deleted after the run was stopped): then it writes
     nothing (a shard written then, or the folder created again, outlived the run)."""
-    from ..experiments.cluster import task_abandoned
+    from ..experiments.tasks import run_given_up
 
-    return task_abandoned() or not os.path.isdir(os.path.dirname(task.path))
+    return run_given_up(os.path.dirname(task.path))
 
 
 def run_shard_task(task: ShardTask) -> dict:

@@ -186,6 +186,7 @@ def _export_torf(ds, staging: str) -> dict:
     and cams/, a view per frame (a clip's frames 0000, 0001...; TöRF's scans are
     sequences)."""
     from .. import io
+    from ..outputs import TORF
 
     scans = []
     for item in range(len(ds)):
@@ -212,8 +213,11 @@ def _export_torf(ds, staging: str) -> dict:
             files[f"cams/{kind}_intrinsics.npy"] = np.asarray(first["K"], np.float32)
             files[f"cams/{kind}_extrinsics.npy"] = extrinsics.astype(np.float32)
             files[f"cams/{kind}_light_extrinsics.npy"] = lights.astype(np.float32)
-        for name, array in files.items():
-            io.write_npy(os.path.join(scan, name), array)
+        for name in TORF:  # (a view's file, tof/0000.npy...: every view's)
+            folder, base = os.path.split(name)
+            for one in ([f"{folder}/{v:04d}.npy" for v in range(len(views))]
+                        if base == "0000.npy" else [name]):
+                io.write_npy(os.path.join(scan, one), files[one])
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 

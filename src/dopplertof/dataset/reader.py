@@ -11,6 +11,7 @@ import numpy as np
 from ..arguments import check_choice, check_index, check_path
 from .config import DatasetError
 from .driver import SPLITS, load_dataset_json
+from ..outputs import RENAMED, renamed
 from .sample import CAMERA_OUTPUTS, CAMERA_SPLITS
 from .shards import DamagedSample, index_span, read_group, sample_group, shard_state
 
@@ -56,7 +57,14 @@ class Dataset:
         on_damage = check_choice(on_damage, ON_DAMAGE, "on_damage", DatasetError)
         self.folder, self.split = folder, split
         self.info = load_dataset_json(folder)
-        self.units = dict(self.info["units"])
+        #: a key written under a name that changed since (an older layout) -> its name
+        self._renamed = {old: _new_name(old) for old in self.info["units"]
+                         if _new_name(old) is not None}
+        if self._renamed:
+            warnings.warn(f"{folder}: written with the former names of "
+                          f"{', '.join(f'{v} ({k})' for k, v in self._renamed.items())}: "
+                          "read under their present names", FutureWarning, stacklevel=2)
+        self.units = {self._renamed.get(k, k): v for k, v in self.info["units"].items()}
         self._where, self.failed, self.missing_shards = [], [], []
         for shard in self.info["shards"]:
             shard_path = os.path.join(self.folder, shard["file"])
@@ -98,6 +106,7 @@ class Dataset:
 
     def __getitem__(self, item: int) -> dict:
         sample, attributes = self._read(item)
+        sample = Sample({self._renamed.get(k, k): v for k, v in sample.items()})
         sample["raw"] = sample[SPLITS[self.split]]
         suffix = CAMERA_SPLITS[self.split]
         for name in CAMERA_OUTPUTS if suffix else ():  # the split's camera outputs
@@ -134,3 +143,24 @@ class Dataset:
                            source=f"{self.folder}: sample {item}, frame {frame}",
                            base_dir=self.folder)
 
+
+
+def _new_name(key: str, source: str | None = None) -> str | None:
+    """The present name of a sample's ``key`` written under a name that changed since
+    (None: not renamed); with ``source``, a FutureWarning names the change."""
+    suffix = next((s for s in CAMERA_SPLITS.values() if s and key.endswith(s)), "")
+    base = key[:len(key) - len(suffix)]
+    if ("dataset", base) not in RENAMED:
+        return None
+    return (renamed("dataset", base, source) if source else RENAMED[("dataset", base)]) + suffix
+
+
+class Sample(dict):
+    """A sample's arrays by key; a key's former name (:data:`dopplertof.outputs.RENAMED`)
+    reads it too, with a FutureWarning naming the present one."""
+
+    def __missing__(self, key):
+        new = _new_name(key) if isinstance(key, str) else None
+        if new is None or new not in self:
+            raise KeyError(key)
+        return self[_new_name(key, "a dataset sample")]  # (with the warning)

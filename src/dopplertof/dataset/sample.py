@@ -17,37 +17,14 @@ import json
 import numpy as np
 
 from ..io import json_ready
+from ..outputs import CAMERA_SPLITS, MASKS, SAMPLE, SAMPLE_CAMERA
 from .config import DatasetConfig
 from .generate import camera_pose, draw_scene
 from .scene_text import scene_xml
 
-#: the key suffix of each split's camera outputs (``camera_depth`` is the full split's,
-#: ``camera_depth_ideal`` the ideal one's...; the reader's split picks them as it picks raw)
-CAMERA_SPLITS = {"full": "", "ideal": "_ideal", "direct": "_direct"}
-#: what the camera reports from one split's raw frames: name -> unit, stored as
-#: ``camera_<name><suffix>``; the masks are :data:`dopplertof.cameras.output.MASKS`'
-CAMERA_OUTPUTS = {"depth": "m", "depth_z": "m", "amplitude": "DN", "confidence": "m",
-                  "phase": "rad", "radial_velocity": "m/s", "valid": "1",
-                  "mask_saturated": "1", "mask_low_confidence": "1",
-                  "mask_unwrap_failed": "1", "mask_out_of_range": "1", "mask_edge": "1",
-                  "mask_mixed_footprint": "1"}
-#: camera outputs a preset may not give (velocity: heterodyne frames only); the camera's
-#: velocity is camera_radial_velocity (camera_velocity is the ego-motion, layout 1)
-OPTIONAL_OUTPUTS = ("radial_velocity",)
-
-#: every array of a sample: key -> unit (an HDF5 attribute of each dataset); a sample of a
-#: preset without heterodyne frames has no ``camera_radial_velocity*``
-UNITS = {
-    "raw": "DN", "raw_ideal": "DN", "raw_direct": "DN", "raw_variance": "DN^2",
-    "depth": "m", "depth_z": "m", "velocity_gt": "m/s", "velocity_along_ray": "m/s",
-    "flow": "px", "scene_flow": "m", "instance": "1", "mask": "1", "normals": "1",
-    "albedo": "1", "incidence": "deg", "grazing": "1", "truth_valid": "1", "K": "px",
-    "pose": "m", "pose_start": "m", "pose_end": "m",
-    "camera_velocity": "m/s", "camera_angular_velocity": "rad/s",
-    "camera_frequencies": "MHz",
-    **{f"camera_{name}{suffix}": unit for suffix in CAMERA_SPLITS.values()
-       for name, unit in CAMERA_OUTPUTS.items()},
-}
+#: the splits' camera outputs (name -> unit) and every array's unit, declared in
+#: :mod:`dopplertof.outputs`
+CAMERA_OUTPUTS, UNITS = SAMPLE_CAMERA, SAMPLE
 
 
 def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict, dict]:
@@ -179,7 +156,8 @@ def _raw_frames(scene, preset, spp: int, description: dict) -> tuple[dict, dict]
     direct_readout = read_frames(direct.rendered, unmodulated,
                                  [f.integration_s for f in preset.frames], preset.sensor,
                                  preset.contrast, None,
-                                 photons_per_unit=full.readout.photons_per_unit)
+                                 photons_per_unit=full.readout.photons_per_unit,
+                                 shutter=full.readout.shutter)
     readings = {"full": full.reconstruction, "ideal": full.read_again(None)[1],
                 "direct": reconstruct(direct_readout, preset, full.mixed_footprints)}
     return ({"raw": full.readout.raw, "raw_ideal": full.readout.raw_ideal.astype(np.float32),
@@ -192,13 +170,11 @@ def camera_outputs(readings: dict, preset, cosine: np.ndarray) -> dict:
     """``camera_*`` arrays of every split (:data:`CAMERA_OUTPUTS`) from each split's
     reconstruction; ``cosine``: (H, W) each pixel's ray with the optical axis (the truth's
     depth_z / depth: NaN where the ray hits nothing, and so is camera_depth_z)."""
-    from ..cameras.output import MASKS
-
     out = {"camera_frequencies": np.asarray(preset.frequencies_mhz, np.float64)}
     for split, recon in readings.items():
         suffix = CAMERA_SPLITS[split]
         arrays = {"depth": recon.depth, "depth_z": recon.depth * cosine,
-                  "amplitude": recon.amplitude, "confidence": np.sqrt(recon.depth_variance),
+                  "amplitude": recon.amplitude, "depth_std": np.sqrt(recon.depth_variance),
                   "phase": np.stack([g.phase for g in recon.frequencies])}
         if recon.velocity is not None:
             arrays["radial_velocity"] = recon.velocity
@@ -235,7 +211,7 @@ def sample_truth(scene, description: dict, grazing_deg: float = 80.0) -> dict:
     z = truth.direction @ pose[:3, 2]
     half = 0.5 * (times["end"] - times["start"])
     out = {"depth": truth.depth, "depth_z": truth.depth * z, "velocity_gt": truth.velocity,
-           "velocity_along_ray": truth.velocity_point, "flow": flow,
+           "velocity_point": truth.velocity_point, "flow": flow,
            "scene_flow": scene_flow, "normals": np.where(hit[..., None], normals, np.nan),
            "albedo": _albedo(instance, description), "incidence": incidence,
            "K": K, "pose": pose,

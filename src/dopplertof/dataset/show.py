@@ -165,7 +165,7 @@ def dataset_statistics(ds, indices) -> dict:
             wrap = unambiguous_range(frequencies.reshape(-1, frequencies.shape[-1])[0] * 1e6)
             error = (sample[f"camera_depth{suffix}"] - sample["depth"])[valid]
             stats["error"][split].append(np.abs(error - wrap * np.round(error / wrap)))
-            stats["std"][split].append(sample[f"camera_confidence{suffix}"][valid])
+            stats["std"][split].append(sample[f"camera_depth_std{suffix}"][valid])
     return stats
 
 

@@ -222,8 +222,9 @@ def check_path_replay(mi, setup) -> None:
     problems = []
     if mi.is_spectral or mi.is_polarized:
         problems.append(f"an RGB variant (not {mi.variant()})")
-    if setup.analytic:
-        problems.append("sampled time (not time_sampling_method='analytic')")
+    if setup.analytic or setup.control_variate:
+        problems.append(f"sampled time (not time_sampling_method="
+                        f"'{setup.params.time_sampling_method}')")
     shapes = list(setup.scene.static.shapes()) + [
         shape for body in setup.scene.bodies for shape in body.scene.shapes()]
     if any(mi.has_flag(shape.bsdf().flags(), mi.BSDFFlags.Delta) for shape in shapes
@@ -239,11 +240,11 @@ def gradient_params(dscene, params=None):
     scene's own film (``params`` over them), no adaptive sampling, a finite depth."""
     from ..params import RenderParams
 
-    base = dscene.scene.params.resolved(dscene.scene.shutter_interval)
+    base = dscene.scene.params.resolved(dscene.scene.shutter_interval, sampled=True)
     p = replace(dscene.params, film_sampling=base.film_sampling)
     if params:
         p = RenderParams.from_mapping(dict(params), where="gradient params", base=p)
-        p = p.resolved(dscene.scene.shutter_interval)
+        p = p.resolved(dscene.scene.shutter_interval, sampled=True)
         if p.antithetic_mapping == "motion":
             p = replace(p, antithetic_mapping="replay")
     if p.max_depth < 1:

@@ -61,7 +61,7 @@ from .fit_capture import (FIT_CAPTURES, REFLECTANCE_CAPTURES, CaptureData, FitEr
                           load_capture)
 from .fit_noise import capture_noise
 from .fit_output import FitResult, format_fit, write_fit
-from .fit_covariance import COVARIANCES, covariance, fixed_combinations
+from .fit_covariance import COVARIANCES, FinalState, covariance, fixed_combinations
 from .fit_solve import PLATEAU, _fit_progress, _FitProblem, _gauss_newton, _method_notes
 from .motion import VelocityMotion
 from .symmetry import symmetry_notes
@@ -120,10 +120,11 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
     _check_seen(problem, history[0])
 
     # ---- Uncertainties from the final Jacobian; an unfitted rotation's evidence ----
-    cov, sigma, noise, fixed = _uncertainties(data, problem, spp, state, theta,
-                                              covariance_kind)
+    cov, sigma, noise, fixed, final = _uncertainties(data, problem, spp, state, theta,
+                                                     covariance_kind)
     bodies = problem.body_entries(theta, cov, sigma, history[0], closed_form, truths, fixed)
-    warnings = (symmetry_notes(data.scene, motions, t_mid, bodies, angular)
+    warnings = (no_step_warnings(done, stop)
+                + symmetry_notes(data.scene, motions, t_mid, bodies, angular)
                 + ([] if angular else problem.rotation_warnings(state, bodies)))
     settings = {"capture": os.path.abspath(os.fspath(folder)),
                 **_settings(problem, spp, jacobian_spp, seed, block, angular, start),
@@ -131,7 +132,17 @@ def fit(folder, start=None, spp: int = FIT_SPP, seed: int | None = None,
                 **_unconstrained(problem.names, theta, history[0], sigma, fixed[0]),
                 "seconds": round(_time.perf_counter() - started, 3)}
     return FitResult(bodies, done, loss, history, settings,
-                     problem.reflectance_entries(theta, sigma), warnings)
+                     problem.reflectance_entries(theta, sigma), warnings, final)
+
+
+def no_step_warnings(done: int, stop: str) -> list:
+    """fit.json's warning of a fit that took no step ([] after one or more): every value
+    it reports is its start's, with the uncertainty there, not an optimum found."""
+    if done:
+        return []
+    return [f"no optimisation step was taken ({stop}): every velocity reported is its "
+            "start, with the uncertainty at the start, not a fitted value; give another "
+            "start (--start, or none: the closed form) or more samples (--spp)"]
 
 
 def _check_seen(problem, first: dict) -> None:
@@ -170,17 +181,19 @@ def _check_kind(covariance_kind: str) -> None:
 
 
 def _uncertainties(data, problem, spp: int, state, theta, kind: str = "sandwich"):
-    """(cov, sigma, fit.json's settings.noise, fixed) at the end of the fit: the sandwich
-    covariance with the capture's noise as its folder gives it (:mod:`.fit_noise`);
-    ``fixed``: the combinations the captures do not constrain and the mask of the
-    parameters weighing on them (:func:`.fit_covariance.fixed_combinations`), which have no
-    uncertainty (``cov`` keeps them: a radial velocity that does not depend on a fixed
-    combination has its variance from them all)."""
+    """(cov, sigma, fit.json's settings.noise, fixed, the FinalState they come from) at
+    the end of the fit: the ``kind`` covariance with the capture's noise as its folder
+    gives it (:mod:`.fit_noise`); ``fixed``: the combinations the captures do not
+    constrain and the mask of the parameters weighing on them
+    (:func:`.fit_covariance.fixed_combinations`), which have no uncertainty (``cov``
+    keeps them: a radial velocity that does not depend on a fixed combination has its
+    variance from them all)."""
     capture = capture_noise(data, problem, spp)
     noise = {"capture_noise": capture.describe()}
     cov, sigma = covariance(state, problem.seen, theta, capture, noise, kind)
     fixed = fixed_combinations(state, problem.seen)
-    return cov, np.where(fixed[1], np.inf, sigma), noise, fixed
+    final = FinalState(state, problem.seen, theta, capture)
+    return cov, np.where(fixed[1], np.inf, sigma), noise, fixed, final
 
 
 def _combinations(names, directions) -> list:

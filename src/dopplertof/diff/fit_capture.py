@@ -54,6 +54,7 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
     the fit, which take precedence)."""
     from ..capture_summary import CaptureFolderError, read_capture
     from ..params import RenderParams
+    from ..scene.parameters import parsed
 
     try:
         summary = read_capture(folder, kind="dtof")
@@ -62,8 +63,9 @@ def load_capture(folder, defines=None, fitted=FIT_CAPTURES) -> CaptureData:
         params = summary["render_params"]
     except CaptureFolderError as e:
         raise FitError(str(e)) from None
-    base = RenderParams.from_mapping({k: v for k, v in params.items() if v is not None},
-                                     where=f"{summary.path} render_params")
+    # (older summaries list the FMCW lidar's fmcw_* settings among them: parsed, unused)
+    base = parsed({k: v for k, v in params.items() if v is not None},
+                  f"{summary.path} render_params", RenderParams())[0]
     captures = {name: _capture_image(summary, records, name, width_height)
                 for name in fitted}
     vpath = summary.file("velocity.npy")

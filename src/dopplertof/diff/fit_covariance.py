@@ -6,6 +6,8 @@ uncertainty. See :mod:`dopplertof.diff.fit`."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .fit_noise import sandwich
@@ -108,6 +110,19 @@ def covariance(state, seen, theta=None, noise=None, report=None, kind: str = "sa
         cov[:, absurd] = 0.0
         sigma[absurd] = np.inf
     return cov, sigma
+
+
+@dataclass(frozen=True)
+class FinalState:
+    """What a fit's uncertainties are computed from, kept on its FitResult (``final``)
+    so that other covariance models can be computed on the same fit:
+    ``covariance(final.state, final.seen, final.theta, final.noise, report, kind)``
+    (benchmarks/fit_uncertainty.py compares them)."""
+
+    state: tuple  #: (residuals, Jacobians) of the two seeds at the end of the fit
+    seen: np.ndarray  #: the parameters the captures see (bool per parameter)
+    theta: np.ndarray  #: the fitted parameters
+    noise: object  #: the capture's noise (.fit_noise.CaptureNoise)
 
 
 #: a parameter whose unit direction (columns scaled) weighs at least this on a combination

@@ -19,6 +19,9 @@ class FitResult:
     settings: dict = field(default_factory=dict)
     reflectances: dict = field(default_factory=dict)  #: key -> value, uncertainty (fitted)
     warnings: list = field(default_factory=list)  #: e.g. a body's unfitted rotation
+    #: what the uncertainties were computed from (.fit_covariance.FinalState), to compute
+    #: another covariance model on the same fit; not written to fit.json
+    final: object = None
 
     def as_json(self) -> dict:
         out = {"bodies": self.bodies, "iterations": self.iterations, "loss": self.loss,
@@ -84,6 +87,9 @@ def format_fit(result: FitResult) -> str:
     with uncertainties and its median radial velocity against the capture's truth."""
     lines = [f"fit: {result.iterations} iterations ({result.settings.get('stopped', '')}), "
              f"final loss {result.loss:.4g}, {result.settings.get('seconds', 0):.1f} s"]
+    if not result.iterations:
+        lines[0] += ("\n  no optimisation step was taken: the values below are the start's, "
+                     "not fitted ones")
     for b in result.bodies:
         lines.append(f"  {b['name']}: linear velocity "
                      + _vector(b["linear_velocity_m_s"], b["linear_velocity_uncertainty_m_s"],

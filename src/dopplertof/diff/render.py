@@ -85,7 +85,7 @@ class DifferentiableScene:
             p = RenderParams.from_mapping(dict(p), where="render parameters",
                                           base=scene.params)
         # importance film (differentiable accumulation), pairs by replay
-        p = replace(p.resolved(scene.shutter_interval), film_sampling="importance",
+        p = replace(p.resolved(scene.shutter_interval, sampled=True), film_sampling="importance",
                     adaptive_sampling=False)
         if p.antithetic_mapping == "motion":
             p = replace(p, antithetic_mapping="replay")

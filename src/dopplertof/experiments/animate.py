@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..capture_summary import SUMMARY_JSON, write_summary
+from ..outputs import DTOF
 from .cluster import DEFAULT_RETRIES, run_in_folder
 from .config import ConfigError, check_render_settings, load_scene_facts
 from .tasks import (PARAMS_JSON, begin_task, check_unchanged, finish_task, is_complete,
@@ -35,7 +36,8 @@ ANIMATION_JSON = "animation.json"
 VELOCITY_GIF = "velocity.gif"
 
 #: arrays every frame folder holds (the captures' own .npy files come with them)
-FRAME_ARRAYS = ("velocity.npy", "velocity_gt.npy", "depth.npy", "depth_gt.npy", "radiance.npy")
+FRAME_ARRAYS = tuple(DTOF[name].npy for name in ("velocity", "velocity_gt", "depth",
+                                                 "depth_gt", "radiance"))
 FRAME_FILES = FRAME_ARRAYS + ("velocity.exr", SUMMARY_JSON, PARAMS_JSON)
 
 
@@ -133,11 +135,10 @@ def run_frame_task(task: FrameTask) -> dict:
         for name, image in result.captures.items():
             io.write_npy(os.path.join(task.folder, f"{name}.npy"), image)
         arrays = {"velocity": result.velocity, "velocity_gt": result.velocity_gt,
-                  "depth": result.depth, "depth_gt": result.depth_gt}
+                  "depth": result.depth, "depth_gt": result.depth_gt,
+                  "radiance": result.radiance}
         for name, array in arrays.items():
-            io.write_npy(os.path.join(task.folder, f"{name}.npy"),
-                         np.asarray(array, dtype=np.float32))
-        io.write_npy(os.path.join(task.folder, "radiance.npy"), result.radiance)
+            io.write_npy(os.path.join(task.folder, DTOF[name].npy), DTOF[name].array(array))
         write_summary(os.path.join(task.folder, SUMMARY_JSON), "dtof", result.summary)
     image_files.write_exr(os.path.join(task.folder, "velocity.exr"),
                  np.asarray(result.velocity, dtype=np.float32),

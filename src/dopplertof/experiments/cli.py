@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
-                           non_negative_int, parse_pairs, positive_int)
+from ..cli_options import (FOLDER_HELP, add_camera_options, add_defines_option,
+                           add_params_option, non_negative_int, parse_pairs, positive_int)
 from ..sampling import SEED_LIMIT
 
 
@@ -117,10 +117,7 @@ def _stream_options(a) -> None:
     g.add_argument("--trajectory", metavar="FILE",
                    help="with --camera: the camera's poses, TUM RGB-D format (timestamp tx "
                    "ty tz qx qy qz qw), its first stamp at the scene's shutter_open")
-    g.add_argument("--res", metavar="WIDTHxHEIGHT",
-                   help="with --camera: other resolution, same field of view")
-    g.add_argument("--noiseless", action="store_true",
-                   help="with --camera: no shot or read noise (rounding stays)")
+    add_camera_options(g)
     g.add_argument("--noise-seed", type=non_negative_int, metavar="S",
                    help="with --camera: the sensor noise's seed (default 0; each frame "
                    "draws its own from it)")
@@ -164,7 +161,7 @@ def _sweep_config(args):
 
 
 def cmd_sweep(args) -> int:
-    from .sweep import check_output_folder, pending_count, run_sweep
+    from .sweep import check_output_folder, partial_tasks, pending_count, run_sweep
 
     config = _sweep_config(args)
     if args.dry_run:
@@ -173,6 +170,7 @@ def cmd_sweep(args) -> int:
         print(f"sweep {config.name}: {len(tasks)} tasks "
               f"(references: {sum(t.kind == 'reference' for t in tasks)}), "
               f"{len(pending)} to run, {len(tasks) - len(pending)} complete")
+        _print_partial(partial_tasks(tasks), "a run renders them again")
         for task in pending[:20]:
             print(f"  {task.kind}: {task.name}")
         if len(pending) > 20:
@@ -184,9 +182,18 @@ def cmd_sweep(args) -> int:
         print(f"sweep {config.name}: {summary.total} tasks: {summary.done} done now, "
               f"{summary.skipped} already complete, {len(summary.failed)} failed "
               f"({summary.seconds:.1f} s) -> {summary.output}")
+        _print_partial(summary.partial, "rendered again")
     for name, error in summary.failed:
         print(f"dopplertof: task failed: {name}: {error}", file=sys.stderr)
     return 0 if summary.ok else 1
+
+
+def _print_partial(names: list, what: str) -> None:
+    """The sweep's line on the task folders an earlier run left incomplete."""
+    if names:
+        shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+        print(f"  {len(names)} left incomplete by an earlier run (stopped or abandoned "
+              f"midway: no complete.json): {shown}; {what}")
 
 
 def cmd_report(args) -> int:

@@ -297,22 +297,6 @@ def task_key(task, run: str) -> str:
     return f"dopplertof-{task.name}-{spec_hash([task.hash, run])[:16]}"
 
 
-def task_abandoned() -> bool:
-    """Whether the Dask task this code runs in was given up by its run: the scheduler
-    released its key (the client cancelled it on Ctrl-C, or went away), so its result
-    would be thrown away; a task then stops before it writes. False outside a Dask task
-    (or where this distributed cannot tell)."""
-    try:
-        from distributed import get_worker
-
-        worker = get_worker()
-        key = worker.get_current_task()
-        state = worker.state.tasks.get(key)
-    except (ImportError, ValueError, AttributeError, KeyError):  # (not on a worker)
-        return False
-    return state is None or state.state in ("cancelled", "released", "forgotten")
-
-
 def run_tasks(client, function, tasks, *, retries: int = DEFAULT_RETRIES, progress=None,
               description: str = "tasks", already_done: int = 0,
               no_worker_timeout: float | None = None, run: str | None = None) -> RunOutcome:

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..capture_summary import SUMMARY_JSON, read_capture
+from ..outputs import CAMERA, CAMERA_JSON
 from ..scene.inputs import file_sha256
 from .animate import AnimationSummary, frames_past_keyframes
 from .cluster import DEFAULT_RETRIES, run_in_folder
@@ -48,8 +49,8 @@ GROUNDTRUTH_TXT = "groundtruth.txt"
 #: the stream's video (.mp4 or .gif: dopplertof.videos) and its --previews contact sheet
 STREAM_VIDEO, CONTACT_SHEET = "video", "contact_sheet.png"
 #: files every complete frame folder holds
-FRAME_FILES = (SUMMARY_JSON, "camera.json", "raw.npy", "depth.npy", "depth_gt.npy",
-               "velocity_gt.npy", PARAMS_JSON)
+FRAME_FILES = (SUMMARY_JSON, CAMERA_JSON.name, *(CAMERA[name].npy for name in (
+    "raw", "depth", "depth_gt", "velocity_gt")), PARAMS_JSON)
 
 
 @dataclass(frozen=True)
@@ -128,9 +129,9 @@ def run_stream_frame_task(task: StreamFrameTask) -> dict:
                                 noise_seed=task.noise_seed, progress=False,
                                 ambient_irradiance=task.ambient_irradiance)
     written = [os.path.basename(p) for p in result.write(task.folder)]
-    if "velocity_gt.npy" not in written:  # (a preset without velocity: the truth still)
-        io.write_npy(os.path.join(task.folder, "velocity_gt.npy"),
-                     np.asarray(result.velocity_gt, np.float32))
+    truth = CAMERA["velocity_gt"]
+    if truth.npy not in written:  # (a preset without velocity: the truth still)
+        io.write_npy(os.path.join(task.folder, truth.npy), truth.array(result.velocity_gt))
     seconds = time.perf_counter() - started
     io.write_json(os.path.join(task.folder, PARAMS_JSON), {
         "frame": task.index, "frame_start_s": task.shutter_open,
@@ -314,11 +315,12 @@ def write_stream_video(path, plan: StreamPlan, entries, sheet: bool) -> list:
 
     folders = [os.path.join(os.path.dirname(plan.tasks[0].folder), e["folder"])
                for e in entries]
-    load = lambda name: np.stack([np.load(os.path.join(f, name)) for f in folders])  # noqa: E731
-    measured = os.path.isfile(os.path.join(folders[0], "velocity.npy"))
-    maps = depth_velocity_amplitude(load("depth.npy"),
-                                    load("velocity.npy" if measured else "velocity_gt.npy"),
-                                    load("amplitude.npy"), not measured, load("depth_gt.npy"))
+    load = lambda name: np.stack([np.load(os.path.join(f, CAMERA[name].npy))  # noqa: E731
+                                  for f in folders])
+    measured = os.path.isfile(os.path.join(folders[0], CAMERA["velocity"].npy))
+    maps = depth_velocity_amplitude(load("depth"), load("velocity" if measured else
+                                                        "velocity_gt"),
+                                    load("amplitude"), not measured, load("depth_gt"))
     times = [f"frame {e['index']}, t = {e['truth_time_s']:.4f} s" for e in entries]
     names = [STREAM_VIDEO + video_extension()]
     write_video(path(names[0]), draw_frames(maps, [f"{plan.camera}: {t}" for t in times]),

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 from .cluster import DEFAULT_RETRIES, WORKER_LOG, dask_client, run_tasks
 from .config import (SweepConfig, check_render_settings, load_scene_facts,
                      measurement_key, point_name, split_point)
-from .tasks import RenderTask, is_complete, remove_partial_files, run_render_task
+from .tasks import (COMPLETE_MARKER, RenderTask, is_complete, remove_partial_files,
+                    run_render_task)
 
 SWEEP_JSON = "sweep.json"
 SUMMARY_JSON = "summary.json"
@@ -34,6 +35,9 @@ class SweepSummary:
     total: int
     skipped: int  #: complete before this run
     done: int  #: completed by this run
+    #: task folders an earlier run left without their completion marker (stopped or
+    #: abandoned midway), rendered again by this run
+    partial: list = field(default_factory=list)
     failed: list = field(default_factory=list)  #: (task name, error)
     seconds: float = 0.0
     output: str = ""
@@ -45,6 +49,7 @@ class SweepSummary:
 
     def to_json(self) -> dict:
         return {"total": self.total, "skipped": self.skipped, "done": self.done,
+                "partial_before": list(self.partial),
                 "failed": [{"task": n, "error": e} for n, e in self.failed],
                 "seconds": round(self.seconds, 3), "output": self.output,
                 "worker_log": self.worker_log or None}
@@ -108,6 +113,14 @@ def pending_tasks(tasks, clean: bool = True) -> list:
     return pending
 
 
+def partial_tasks(tasks) -> list:
+    """The names of the tasks whose folder an earlier run began and did not complete
+    (no completion marker: a run stopped, killed or abandoned midway; a marker of other
+    settings is a stale task, not a partial one); a run renders them again."""
+    return [t.name for t in tasks if os.path.isdir(t.folder)
+            and not os.path.isfile(os.path.join(t.folder, COMPLETE_MARKER))]
+
+
 def pending_count(config: SweepConfig, output) -> tuple[list, list]:
     """(every task, the tasks a run would start): checks everything, writes nothing."""
     tasks = plan_sweep(config, check_output_folder(os.fspath(output)))
@@ -151,9 +164,10 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     output = check_output_folder(os.fspath(output))
     tasks = plan_sweep(config, output)
     write_sweep_files(config, tasks, output)
+    partial = partial_tasks(tasks)
     pending = pending_tasks(tasks)
     summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
-                           output=output)
+                           output=output, partial=partial)
     summary_path = os.path.join(output, SUMMARY_JSON)
     if pending:
         reserve_summary(summary_path, summary, len(pending))

@@ -131,6 +131,33 @@ def finish_task(folder: str, task_hash: str, outputs, seconds: float) -> None:
     })
 
 
+# ---- A run that gave its task up ---------------------------------------------------
+
+def task_abandoned() -> bool:
+    """Whether the Dask task this code runs in was given up by its run: the scheduler
+    released its key (the client cancelled it on Ctrl-C, or went away), so its result
+    would be thrown away; a task then stops before it writes. False outside a Dask task
+    (or where this distributed cannot tell)."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+        key = worker.get_current_task()
+        state = worker.state.tasks.get(key)
+    except (ImportError, ValueError, AttributeError, KeyError):  # (not on a worker)
+        return False
+    return state is None or state.state in ("cancelled", "released", "forgotten")
+
+
+def run_given_up(output: str) -> bool:
+    """Whether the run a task belongs to gave it up: its Dask task was cancelled (the
+    client's Ctrl-C: :func:`task_abandoned`) or the run's output folder ``output`` is
+    gone (deleted after the run was stopped). A task then writes nothing: a file written
+    then, or the folder made again, would outlive the run."""
+    return task_abandoned() or not os.path.isdir(output)
+
+
+
 # ---- Worker environment ------------------------------------------------------------
 
 def package_versions() -> dict:
@@ -190,17 +217,25 @@ def check_unchanged(path: str, scene, sha256: str, what: str) -> None:
 # ---- The sweep task -----------------------------------------------------------------
 
 def run_render_task(task: RenderTask) -> dict:
-    """Render one sweep point into its folder (runs on a worker)."""
+    """Render one sweep point into its folder (runs on a worker); nothing written where
+    the sweep gave the task up (its Dask task cancelled, or the sweep's folder deleted:
+    :func:`run_given_up`, asked before the render and before the writes)."""
     import dopplertof
     from .. import image_files, io
 
     started = time.perf_counter()
+    sweep_folder = os.path.dirname(os.path.dirname(task.folder))  # (runs/NAME, reference/NAME)
+    given_up = {"task": task.name, "seconds": 0.0, "given_up": True}
+    if run_given_up(sweep_folder):
+        return given_up
     begin_task(task.folder)
     with RENDER_LOCK:
         prepare_worker(task.variant, task.threads)
         scene = cached_scene(task.scene, task.scene_sha256, task.defines, task.variant)
         result = dopplertof.render_result(scene, spp=task.spp, seed=task.seed,
                                           params=dict(task.params), progress=False)
+    if run_given_up(sweep_folder):
+        return given_up
     image = result.image
     io.write_npy(os.path.join(task.folder, IMAGE_NPY), image)
     image_files.write_exr(os.path.join(task.folder, IMAGE_EXR), image, result.metadata)

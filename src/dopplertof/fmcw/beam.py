@@ -8,7 +8,7 @@ camera centre restricted to the pixel's cone. Its light reaches the pixel direct
 first surface the pixel sees, lit at I cos / r^2: the direct return, path length twice its
 distance) or through a first bounce off a point x_s of the footprint, which each lane draws
 on its own: a beam ray through its own uniform film position in the pixel (stream
-dimension sampling.DIM_BEAM_FILM), independent of the lane's path. Seen from a vertex x_k of
+numbers trace.DIMENSIONS' "beam_film"), independent of the lane's path. Seen from a vertex x_k of
 the path (the first surface included) x_s is a small source of radiant intensity
 I a cos^3(theta) f_r(x_s) |cos_w| toward w, its irradiance I cos_s / r_s^2 times the
 footprint's area per pixel r_s^2 a cos^3(theta) / cos_s (a = f^-2, a pixel's area on the
@@ -24,11 +24,8 @@ from __future__ import annotations
 
 import drjit as dr
 
-from .. import sampling
-from ..params import FMCW_BEAMS, fmcw_beam_intensity_problem
 from ..scene.bodies import nearest_hit, surface_interaction
-
-BEAMS = FMCW_BEAMS
+from ..fmcw_settings import BEAMS, beam_intensity_problem
 
 
 class Beam:
@@ -42,7 +39,7 @@ class Beam:
 
         if kind not in BEAMS:
             raise ValueError(f"beam must be one of {', '.join(BEAMS)}, got {kind!r}")
-        problem = fmcw_beam_intensity_problem(intensity, "beam intensity")
+        problem = beam_intensity_problem(intensity, "beam intensity")
         if problem:
             raise ValueError(problem)
         self.mi = mi
@@ -60,14 +57,16 @@ class Beam:
             self.forward = mi.Vector3f(*map(float, camera_forward(
                 scene, scene.sensor_motion, time)))
 
-    def start(self, mi, setup, layout, streams, time, frames, fields):
-        """Each lane's spot x_s (None when the beam floods): its interaction (wi toward
-        the camera), velocity, the beam leg's length and rate, and the footprint's power
-        per unit of f_r |cos|, I a cos^3(theta), zero where the beam ray hits nothing."""
+    def start(self, mi, setup, layout, streams, dim: int, time, frames, fields):
+        """Each lane's spot x_s (None when the beam floods), through its uniform film
+        position in the pixel (the lane's numbers at dimension ``dim``): its interaction
+        (wi toward the camera), velocity, the beam leg's length and rate, and the
+        footprint's power per unit of f_r |cos|, I a cos^3(theta), zero where the beam
+        ray hits nothing."""
         if not self.collimated:
             return None
         width, height = setup.scene.sensor.film().crop_size()
-        u = streams.get_2d(0, sampling.DIM_BEAM_FILM)
+        u = streams.get_2d(0, dim)
         pos = mi.Point2f((mi.Float(layout.pixel % width) + u.x) / width,
                          (mi.Float(layout.pixel // width) + u.y) / height)
         ray, _, offset = setup.camera.ray(pos, time, mi.Point2f(0.5))

@@ -4,10 +4,12 @@ the up and down peaks, the exact truth and the errors (docs/fmcw.md).
 The output folder (the set "fmcw" of :func:`dopplertof.io.output_folder`, all or
 nothing, as a capture's): spectrum.npy (H, W, 2, M) float32, up chirp first;
 frequencies.npy (M,) Hz; range.npy and velocity.npy (H, W) m and m/s, NaN where a
-pixel's spectra have no peak; range_gt.npy and velocity_gt.npy; points.npy, the point
-cloud with velocity (K, 5: x, y, z, radial velocity, peak height); with more than one
-return per pixel, returns_range.npy and returns_velocity.npy (H, W, N); with speckle,
-speckle.npy (H, W, 2, M); previews of the four maps (.png); summary.json.
+pixel's spectra have no peak; range_gt.npy and velocity_point.npy (the truth: the hit
+point's velocity along the ray); points.npy, the point cloud with velocity (K, 5: x, y, z,
+radial velocity, peak height); with more than one return per pixel, returns_range.npy
+and returns_velocity.npy (H, W, N); with speckle, speckle.npy (H, W, 2, M); previews of
+the four maps (.png); summary.json. Each file is declared in
+:data:`dopplertof.outputs.FMCW`.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from .. import io
 from ..capture_summary import SUMMARY_JSON, write_summary
+from ..outputs import FMCW, files, renamed
 from ..tof.summary import STATIC_SURFACES, error_stats
 from ..tof.ground_truth import ground_truth, light_colocation
 from ..arguments import is_integer
@@ -27,11 +30,7 @@ from .chirp import Chirp, FMCWError
 
 
 #: every file an FMCW frame may write into its folder (the set "fmcw")
-OUTPUT_FILES = tuple(f"{name}.npy" for name in (
-    "spectrum", "frequencies", "range", "velocity", "range_gt", "velocity_gt", "points",
-    "returns_range", "returns_velocity", "speckle", "ambiguous")) + tuple(
-    f"{name}.png" for name in ("range", "velocity", "range_gt", "velocity_gt")) + (
-    "summary.json",)
+OUTPUT_FILES = files(FMCW)
 
 
 @dataclass
@@ -44,7 +43,7 @@ class FMCWResult:
     velocity: np.ndarray  #: (H, W) float64, m/s, > 0 receding
     range_gt: np.ndarray  #: (H, W) the truth's depth along the pixel-centre ray, m
     #: (H, W) the truth's hit point velocity along the ray, relative to the camera, m/s
-    velocity_gt: np.ndarray
+    velocity_point: np.ndarray
     peaks: np.ndarray  #: (H, W, 2) the strongest up and down peaks, Hz (NaN: none)
     summary: dict = field(default_factory=dict)
     #: (H, W, N) range and velocity of the N strongest returns (the first: range, velocity)
@@ -60,22 +59,24 @@ class FMCWResult:
     #: (:func:`folding`); their range and velocity are one of two readings
     ambiguous: np.ndarray | None = None
 
+    @property
+    def velocity_gt(self) -> np.ndarray:
+        """:attr:`velocity_point` under its former name (with a FutureWarning)."""
+        renamed("fmcw", "velocity_gt", "FMCWResult")
+        return self.velocity_point
+
     def write(self, folder) -> list:
         """Every file into ``folder`` (created if missing), all or nothing; returns the
         paths written."""
         with io.output_folder(io.check_output_set(folder, "fmcw", OUTPUT_FILES),
                               "fmcw") as staged:
             path = staged.path
-            for name in ("spectrum", "frequencies", "range", "velocity", "range_gt",
-                         "velocity_gt", "points"):
-                io.write_npy(path(f"{name}.npy"), getattr(self, name))
-            if self.returns_range.shape[-1] > 1:
-                io.write_npy(path("returns_range.npy"), self.returns_range)
-                io.write_npy(path("returns_velocity.npy"), self.returns_velocity)
-            if self.speckle is not None:
-                io.write_npy(path("speckle.npy"), self.speckle)
-            if self.ambiguous is not None:
-                io.write_npy(path("ambiguous.npy"), self.ambiguous)
+            several = self.returns_range.shape[-1] > 1
+            for output in FMCW.values():
+                data = getattr(self, output.name, None)
+                if output.dtype and data is not None and (several or not
+                                                          output.name.startswith("returns_")):
+                    io.write_npy(path(output.npy), output.array(data))
             self._write_previews(path)
             write_summary(path(SUMMARY_JSON), "fmcw", self.summary)
         return staged.written
@@ -91,13 +92,13 @@ class FMCWResult:
         finite = np.concatenate([a[np.isfinite(a)] for a in (self.range, self.range_gt)])
         lo, hi = ((float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5)))
                   if finite.size else (None, None))
-        limit = figures.truth_limit(self.velocity_gt, self.velocity)
+        limit = figures.truth_limit(self.velocity_point, self.velocity)
         for name, title in (("range", f"FMCW range, strongest return ({chirp})"),
                             ("range_gt", "true distance along the pixel-centre ray")):
             figures.write_map(path(f"{name}.png"), getattr(self, name), title, "m",
                               vmin=lo, vmax=hi)
         for name, title in (("velocity", f"FMCW radial velocity ({chirp})"),
-                            ("velocity_gt", "true velocity along the ray u.d")):
+                            ("velocity_point", "true velocity along the ray u.d")):
             figures.write_map(path(f"{name}.png"), getattr(self, name), title,
                               "m/s (+ receding, - approaching)", cmap="RdBu_r", vmax=limit,
                               symmetric=True)
@@ -205,16 +206,16 @@ def _arguments(scene, chirp, spp, seed, params, returns, beam, beam_intensity, s
     if not is_integer(returns) or returns < 1:
         raise FMCWError(f"returns must be an integer >= 1, got {returns!r}")
     returns, speckle = int(returns), check_flag(speckle, "speckle")
-    params = fmcw_params(scene, check_params(params))
-    chirp = Chirp.of_params(params) if chirp is None else chirp
+    params, settings = fmcw_params(scene, check_params(params))
+    chirp = Chirp.of_settings(settings) if chirp is None else chirp
     if not isinstance(chirp, Chirp):
         raise TypeError(f"chirp must be a dopplertof.fmcw.Chirp, got {type(chirp).__name__}")
-    beam = params.fmcw_beam if beam is None else beam
+    beam = settings.beam if beam is None else beam
     warnings = []
     if beam_intensity is not None and beam == "flood":  # (the command refuses it)
         warnings.append(f"beam_intensity {beam_intensity!r} is a collimated beam's: the "
                         "flood beam (the scene's lights) ignores it")
-    beam_intensity = params.fmcw_beam_intensity if beam_intensity is None else beam_intensity
+    beam_intensity = settings.beam_intensity if beam_intensity is None else beam_intensity
     return scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings
 
 
@@ -229,8 +230,8 @@ def fmcw(scene, chirp: Chirp | None = None, spp: int | None = None, seed: int = 
     ``beam_intensity`` W/sr, None: the scene's fmcw_beam_intensity; :mod:`.beam`);
     ``speckle`` adds the spectra of random path phases summed coherently
     (:attr:`FMCWResult.speckle`). ``params`` (a mapping or RenderParams) override the
-    scene's integrator parameters, the fmcw_* ones included; an argument given here
-    overrides both."""
+    scene's integrator parameters, a mapping the fmcw_* ones too (the scene's
+    ``modality_settings["fmcw"]``); an argument given here overrides both."""
     from .trace import render_spectra
 
     scene, chirp, spp, seed, params, returns, beam, beam_intensity, speckle, warnings = \

@@ -18,7 +18,8 @@ positive receding as in the rest of the project.
 
 No Mitsuba here: the command line checks its options with this module before the
 scene loads. A scene carries its chirp as the integrator's fmcw_* parameters
-(:meth:`Chirp.of_params`; docs/fmcw.md section 4).
+(:class:`..fmcw_settings.FMCWSettings`, :meth:`Chirp.of_settings`; docs/fmcw.md
+section 4).
 """
 
 from __future__ import annotations
@@ -30,11 +31,11 @@ import numpy as np
 
 from ..arguments import is_integer, is_number
 from ..modulation import SPEED_OF_LIGHT
-from ..params import FMCW_WAVELENGTH_RANGE_NM, fmcw_chirp_problem
+from ..fmcw_settings import WAVELENGTH_RANGE_NM, FMCWSettings, chirp_problem
 
 #: the wavelengths an FMCW lidar may have here (m): ultraviolet to far infrared (the
-#: scene's fmcw_wavelength's range, params.FMCW_WAVELENGTH_RANGE_NM)
-WAVELENGTH_RANGE = tuple(nm / 1e9 for nm in FMCW_WAVELENGTH_RANGE_NM)
+#: scene's fmcw_wavelength's range, fmcw_settings.WAVELENGTH_RANGE_NM)
+WAVELENGTH_RANGE = tuple(nm / 1e9 for nm in WAVELENGTH_RANGE_NM)
 
 
 class FMCWError(ValueError):
@@ -60,7 +61,7 @@ class Chirp:
 
     def problem(self, names: dict | None = None) -> str | None:
         """What is wrong with these parameters, else None; ``names`` (as
-        :func:`..params.fmcw_chirp_problem`'s) name the bandwidth and the chirp time as
+        :func:`..fmcw_settings.chirp_problem`'s) name the bandwidth and the chirp time as
         they were given (default: these fields, SI)."""
         lo, hi = WAVELENGTH_RANGE
         for name, value in (("wavelength", self.wavelength), ("bandwidth", self.bandwidth),
@@ -74,7 +75,7 @@ class Chirp:
             return f"bandwidth B must be > 0 Hz, got {self.bandwidth:g}"
         if self.chirp_time <= 0:
             return f"chirp_time T must be > 0 s, got {self.chirp_time:g}"
-        problem = fmcw_chirp_problem(
+        problem = chirp_problem(
             float(self.wavelength), float(self.bandwidth), float(self.chirp_time),
             names or {"bandwidth": ("bandwidth B", "Hz", 1.0),
                       "chirp_time": ("chirp_time T", "s", 1.0)})
@@ -85,15 +86,17 @@ class Chirp:
         return None
 
     @classmethod
-    def of_params(cls, params, names: dict | None = None, **given) -> "Chirp":
-        """The chirp of ``params`` (RenderParams: the scene's fmcw_wavelength (nm),
-        fmcw_bandwidth (GHz), fmcw_chirp_time (us) and fmcw_bins, XML or defaults) with
-        the values of ``given`` (SI, as the fields; None: the params') over them;
-        ``names`` (:meth:`problem`'s) name a sweep or a duration out of its range as it
-        was given."""
-        values = {"wavelength": params.fmcw_wavelength / 1e9,
-                  "bandwidth": params.fmcw_bandwidth * 1e9,
-                  "chirp_time": params.fmcw_chirp_time / 1e6, "bins": params.fmcw_bins}
+    def of_settings(cls, settings: FMCWSettings | None = None, names: dict | None = None,
+                    **given) -> "Chirp":
+        """The chirp of ``settings`` (a scene's ``modality_settings["fmcw"]``: its
+        fmcw_wavelength (nm), fmcw_bandwidth (GHz), fmcw_chirp_time (us) and fmcw_bins,
+        XML or defaults; None: the defaults) with the values of ``given`` (SI, as the
+        fields; None: the settings') over them; ``names`` (:meth:`problem`'s) name a
+        sweep or a duration out of its range as it was given."""
+        settings = settings or FMCWSettings()
+        values = {"wavelength": settings.wavelength / 1e9,
+                  "bandwidth": settings.bandwidth * 1e9,
+                  "chirp_time": settings.chirp_time / 1e6, "bins": settings.bins}
         values.update({k: v for k, v in given.items() if v is not None})
         if names is not None:
             unchecked = object.__new__(cls)  # (its fields set, not yet validated)

@@ -76,10 +76,9 @@ PRECEDENCE = ("The chirp pair and the beam, each parameter on its own: the optio
               "us, fmcw_bins, fmcw_beam, fmcw_beam_intensity in W/sr), else the default.")
 
 
-def chirp_of(args, params=None):
-    """The chirp of the options over ``params``' (RenderParams: the scene's; None: the
+def chirp_of(args, settings=None):
+    """The chirp of the options over ``settings``' (FMCWSettings: the scene's; None: the
     defaults); an FMCWError, one line, when a value is out of range."""
-    from ..params import RenderParams
     from .chirp import Chirp
 
     given = (args.wavelength, args.bandwidth, args.chirp_time)
@@ -90,15 +89,15 @@ def chirp_of(args, params=None):
                            "GHz", 1e9),
              "chirp_time": ("--chirp-time" if args.chirp_time is not None
                             else "fmcw_chirp_time", "us", 1e-6)}
-    return Chirp.of_params(params or RenderParams(), names=names, wavelength=wavelength,
+    return Chirp.of_settings(settings, names=names, wavelength=wavelength,
                            bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins)
 
 
 def run_fmcw(args) -> int:
-    from ..params import RenderParams
+    from ..scene.parameters import coerced
 
     chirp_of(args)  # (the options given, before anything loads)
-    RenderParams.coerced(parse_pairs(args.params, "-P"), "fmcw parameters")
+    coerced(parse_pairs(args.params, "-P"), "fmcw parameters")
     if not os.path.isfile(args.scene):
         raise ValueError(f"scene file not found: {args.scene}")
     import dopplertof
@@ -114,12 +113,13 @@ def run_fmcw(args) -> int:
     beam = args.beam or parse_pairs(args.params, "-P").get("fmcw_beam")
     scene = load_file(args.scene, parse_pairs(args.defines, "-D"),  # (a beam lights it)
                       params={"fmcw_beam": beam} if beam else None)
-    params = fmcw_params(scene, parse_pairs(args.params, "-P") or None)
-    if args.beam_intensity is not None and (args.beam or params.fmcw_beam) != "collimated":
+    given = parse_pairs(args.params, "-P") or None  # (D-ToF and fmcw_* names)
+    settings = fmcw_params(scene, given)[1]
+    if args.beam_intensity is not None and (args.beam or settings.beam) != "collimated":
         raise ValueError("--beam-intensity is a collimated beam's: the flood beam (the "
                          "scene's lights) ignores it; add --beam collimated or leave it out")
-    result = fmcw(scene, chirp_of(args, params), spp=args.spp, seed=args.seed,
-                  params=params, returns=args.returns, beam=args.beam,
+    result = fmcw(scene, chirp_of(args, settings), spp=args.spp, seed=args.seed,
+                  params=given, returns=args.returns, beam=args.beam,
                   beam_intensity=args.beam_intensity, speckle=args.speckle)
     result.write(args.output)
     print(format_summary(result.summary, args.output))

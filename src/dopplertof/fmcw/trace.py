@@ -30,6 +30,7 @@ import drjit as dr
 import numpy as np
 
 from .. import sampling
+from ..fmcw_settings import FMCWSettings
 from ..integrators.path_loop import Modality, trace_path_loop
 from ..integrators.path_steps import (CameraSample, PassLayout, _as_colour, film_position,
                                       lane_streams)
@@ -37,6 +38,7 @@ from ..modulation import SPEED_OF_LIGHT
 from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames, nearest_hit, surface_interaction
+from ..scene.parameters import parsed
 from ..tof.ground_truth import camera_origin, mid_exposure, velocity_field
 from .beam import Beam
 
@@ -140,12 +142,19 @@ def _grey(mi, value, wavelengths):
     return sum(colour[i] for i in range(len(colour))) * (1.0 / len(colour))
 
 
+#: the random numbers the FMCW lidar reads of its own: a collimated beam's spot (its
+#: film position, per lane: beam.py) and the speckle phases of a hit's two
+#: contributions (per bounce)
+DIMENSIONS = sampling.ModalityDimensions(lane=(("beam_film", 2),),
+                                         bounce=(("phases", 2),))
+
+
 def path_phases(streams, depth):
     """The random phases (fractions of a turn) of the two contributions at surface hit
     ``depth``: the emitter hit or direct return, and the light sample or the beam's spot
-    (the hit's two spare stream dimensions)."""
+    (:data:`DIMENSIONS`' "phases")."""
     stage = depth + 1
-    return tuple(streams.get_1d(stage, sampling.bounce_dim(depth, sampling.BOUNCE_SPARE + k))
+    return tuple(streams.get_1d(stage, DIMENSIONS.bounce_dim(depth, "phases", k))
                  for k in (0, 1))
 
 
@@ -183,7 +192,8 @@ def trace_spectra(mi, setup, layout: PassLayout, fields: VelocityFields, splat: 
     ray, ray_weight, offset, frames, light_frames = lane_start(mi, setup, layout, streams, t0)
     start = CameraSample(ray=ray, ray_weight=ray_weight, camera_offset=offset, active=True,
                          frames=frames, light_frames=light_frames)
-    spot = beam.start(mi, setup, layout, streams, ray.time, frames, fields)  # (collimated)
+    spot = beam.start(mi, setup, layout, streams, DIMENSIONS.lane_dim("beam_film"),
+                      ray.time, frames, fields)  # (collimated)
     trace_path_loop(mi, setup, layout, streams, start,
                     Spectra(mi, setup.scene.static, splat, fields, beam, spot, streams,
                             layout.pixel, ray.wavelengths))
@@ -195,6 +205,7 @@ class Spectra(Modality):
     from the velocity fields: the loop state with the last vertex's velocity)."""
 
     label = "dopplertof_fmcw"
+    dimensions = DIMENSIONS
 
     def __init__(self, mi, static, splat, fields, beam, spot, streams, pixel, wavelengths):
         self.mi, self.static, self.splat, self.fields = mi, static, splat, fields
@@ -232,16 +243,20 @@ class Spectra(Modality):
         return rate_hit, u_here
 
 
-def fmcw_params(scene, params=None) -> RenderParams:
-    """The scene's parameters with ``params`` (a mapping or RenderParams) over them, set
-    for FMCW: independent samples, each its own film position (no time is sampled)."""
-    base = scene.params
-    if params is not None:
-        base = params if isinstance(params, RenderParams) else RenderParams.from_mapping(
-            dict(params), where="render parameters", base=base)
+def fmcw_params(scene, params=None) -> tuple[RenderParams, FMCWSettings]:
+    """The scene's render parameters and FMCW settings with ``params`` over them (a
+    mapping of either's names, fmcw_* included, or RenderParams), the render parameters
+    set for FMCW: independent samples, each its own film position (no time is sampled)."""
+    base, settings = scene.params, scene.modality_settings["fmcw"]
+    if isinstance(params, RenderParams):
+        base = params
+    elif params is not None:
+        base, parsed_settings = parsed(dict(params), "render parameters", base,
+                                       scene.modality_settings)
+        settings = parsed_settings["fmcw"]
     return replace(base, time_correlate_number=1, time_sampling_method="uniform",
                    path_correlate_number=None, antithetic_mapping=None,
-                   adaptive_sampling=False, samples_per_pass=-1)
+                   adaptive_sampling=False, samples_per_pass=-1), settings
 
 
 def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str = "flood",
@@ -253,7 +268,7 @@ def render_spectra(scene, chirp, spp: int, seed: int = 0, params=None, beam: str
     from ..integrators.dtof_path import integrator_class
     from ..integrators.pipeline import DEFAULT_MAX_LANES, _resolve
 
-    mi, p, spp, seed = _resolve(scene, spp, seed, fmcw_params(scene, params))
+    mi, p, spp, seed = _resolve(scene, spp, seed, fmcw_params(scene, params)[0])
     width, height = (int(v) for v in scene.sensor.film().crop_size())
     if width * height * 2 * chirp.bins > MAX_SPECTRUM_VALUES:
         raise ValueError(f"{width}x{height} pixels x 2 chirps x {chirp.bins} bins is "

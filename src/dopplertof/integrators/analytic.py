@@ -82,6 +82,16 @@ class IntegratedWeight:
         return self.half_g1 * (self.to_float32(mean_cos)
                                + (ratio - 1.0) * self.to_float32(first_moment))
 
+    def at(self, length_start, length_end, ratio, fraction):
+        """The weight itself at the exposure fraction ``fraction`` in [0, 1] (what
+        ``__call__`` averages): g1/2 cos(theta) (1 + (rho - 1) s), theta linear in s."""
+        F = self.F
+        x = self.beat + self.k_length * (F(length_end) - F(length_start))
+        b = self.k_length * F(length_start) + self.psi
+        s = F(fraction)
+        return self.half_g1 * self.to_float32(dr.cos(x * s + b)) * (1.0 + (ratio - 1.0)
+                                                                     * self.to_float32(s))
+
 
 def _ratio(value_end, value_start):
     """rho per channel: zero where the start contributes nothing (nothing to scale)."""

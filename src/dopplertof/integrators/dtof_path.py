@@ -25,9 +25,11 @@ from ..params import RenderParams
 from ..scene import lights
 from ..scene.bodies import BodyFrames
 from ..scene.motion import opaque_tree
+from ..scene.parameters import parsed
 from ..scene.scene import DTOF_INTEGRATORS, loaded, require_light
 from . import pipeline
 from .analytic import trace_analytic_pass
+from .control_variate import trace_control_variate_pass
 from .camera import Camera, LensDistortion, PinholeProjection, is_pinhole, rest_forward
 from .film import FilmSampler, SplatFilter
 from .path_loop import Modality, trace_path_loop
@@ -59,9 +61,11 @@ def _define_class(mi):
             props = mi.Properties() if props is None else props
             super().__init__(props)
             self.mi = mi
-            #: the plugin's parameters (a DopplerScene's own are used for it instead)
-            self.params = RenderParams.from_mapping(
-                {name: props[name] for name in props.keys()}, where="integrator dopplertof")
+            #: the plugin's parameters (a DopplerScene's own are used for it instead),
+            #: and the other modalities' settings it carries ({modality: settings})
+            self.params, self.modality_settings = parsed(
+                {name: props[name] for name in props.keys()}, "integrator dopplertof",
+                RenderParams())
 
         # ---- Mitsuba's interface ----
 
@@ -70,7 +74,7 @@ def _define_class(mi):
             sensor), with this plugin's parameters."""
             if not isinstance(sensor, int) and sensor is not scene.sensors()[0]:
                 raise ValueError("dopplertof renders the scene's first sensor only")
-            dscene = loaded(mi, scene, self.params)
+            dscene = loaded(mi, scene, self.params, settings=self.modality_settings)
             result = self.render_result(dscene, spp=spp or None, seed=int(seed),
                                         progress=False)
             return mi.TensorXf(result.image)
@@ -113,13 +117,7 @@ def _define_class(mi):
             low, high = sampling.seed_words(seed)
             self.seed = dr.opaque(mi.UInt32, low)
             self.seed_high = None if high is None else dr.opaque(mi.UInt32, high)
-            # Kp = 1: every sample its own path stream, whatever the depth (independent paths)
-            # (analytic: a sample's two paths share everything, and samples nothing)
-            self.correlation_depth = dr.opaque(
-                mi.UInt32, 0 if params.path_group_size == 1 or analytic
-                else min(params.path_correlation_depth, 1 << 30))
-            self.method = dr.opaque(mi.UInt32, 0 if analytic  #: the kernel's method number
-                                    else sampling.method_index(params.time_sampling_method))
+            self.correlation_depth, self.method = _kernel_sampling(mi, params)
             self.antithetic_shift = dr.opaque(self.modulation_weight.F, mod.antithetic_shift)
             self.group_size: int = params.time_correlate_number  #: K
             self.groups_per_pixel: int = spp // params.time_correlate_number
@@ -156,6 +154,9 @@ def _define_class(mi):
             self.hide_emitters: bool = params.hide_emitters
             #: time integrated, not sampled (analytic.trace_analytic_pass traces it)
             self.analytic: bool = analytic
+            #: the analytic integral as a control variate (control_variate's pass)
+            self.control_variate: bool = (
+                params.time_sampling_method == sampling.CONTROL_VARIATE)
 
         def sample_camera(self, layout: PassLayout, streams) -> CameraSample:
             """Each lane's time, film position, lens point and camera ray (sampling stage 0),
@@ -211,6 +212,8 @@ def _define_class(mi):
             VISIBILITY_BITS_MAX_DEPTH)."""
             if self.analytic:
                 return trace_analytic_pass(mi, self, layout)
+            if self.control_variate:
+                return trace_control_variate_pass(mi, self, layout)
             streams = lane_streams(mi, self, layout)
             return _trace_paths(mi, self, layout, streams, self.sample_camera(layout, streams),
                                 length_derivative)
@@ -233,6 +236,21 @@ def _define_class(mi):
 
     DopplerToFPath.__qualname__ = "DopplerToFPath"  # (not _define_class.<locals>...)
     return DopplerToFPath
+
+
+def _kernel_sampling(mi, params):
+    """The kernel's path correlation depth and time-sampling method number (opaque)."""
+    method = params.time_sampling_method
+    # Kp = 1: every sample its own path stream, whatever the depth (independent paths);
+    # the closed forms: a sample's paths share everything, and samples nothing (the
+    # control variate's one time per sample is stratified)
+    closed_form = method in sampling.CLOSED_FORM
+    depth = (0 if params.path_group_size == 1 or closed_form
+             else min(params.path_correlation_depth, 1 << 30))
+    number = (0 if method == sampling.ANALYTIC else sampling.method_index(
+        sampling.TimeSampling.STRATIFIED.value if method == sampling.CONTROL_VARIATE
+        else method))
+    return dr.opaque(mi.UInt32, depth), dr.opaque(mi.UInt32, number)
 
 
 def _trace_paths(mi, setup, layout: PassLayout, streams, start: CameraSample,

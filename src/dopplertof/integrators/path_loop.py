@@ -13,6 +13,8 @@ A modality is a plain object (not a dataclass: Dr.Jit's loop transform would tak
 dataclass read in the loop for loop state) with these hooks:
 
 - ``label``: the loop's name in Dr.Jit's kernel history;
+- ``dimensions``: the random numbers it reads of its own (:class:`..sampling.
+  ModalityDimensions`: per lane and per bounce, in the slots the layout reserves);
 - ``F``: the path length's type (the D-ToF full-waveform mode: float64);
 - ``state()``: its loop state at the camera ray (no Bool: the loop's reverse-mode replay
   stores its state, and Dr.Jit 1.5 reads a stored Bool back as the wrong type);
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import drjit as dr
 
+from ..sampling import ModalityDimensions
 from ..scene.bodies import intersect
 from .path_steps import (CameraSample, PassLayout, advance, loop_settings, shade, survive,
                          vertex_numbers)
@@ -38,6 +41,7 @@ class Modality:
 
     label = "dopplertof_path"
     F = None  #: the path length's type (None: the variant's Float)
+    dimensions = ModalityDimensions()  #: none of its own
 
     def state(self) -> tuple:
         return ()

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from ..params import CAPTURE_HETERO_FREQUENCY, ParameterError, RenderParams
+from .parameters import default_settings, parsed
 
 
 #: the integrator types of a D-ToF scene (the second is the published name)
@@ -93,9 +94,11 @@ class DopplerScene:
       renders without the moving bodies);
     - ``bodies``: one MovingBody per animation: ``.scene`` (an ``mi.Scene`` of its
       shapes at the first keyframe's pose), ``.motion`` and ``.names`` (the shape ids);
-    - ``params`` (RenderParams), ``spp``, ``variant``, ``source``, ``sensor_motion``,
-      ``light_motions``, ``notes``, ``fingerprint``; ``sensor``, ``shutter_open`` and
-      ``shutter_interval`` are the sensor's.
+    - ``params`` (RenderParams, the D-ToF camera's), ``modality_settings`` (the other
+      modalities' settings, by modality: ``["fmcw"]`` the FMCW lidar's), ``spp``,
+      ``variant``, ``source``, ``sensor_motion``, ``light_motions``, ``notes``,
+      ``fingerprint``; ``sensor``, ``shutter_open`` and ``shutter_interval`` are the
+      sensor's.
     """
 
     static: object  #: mi.Scene with the static shapes, the sensor and the emitters
@@ -116,6 +119,9 @@ class DopplerScene:
     #: Brown-Conrady (k1, k2, p1, p2, k3) of the lens, OpenCV's order (None: a pinhole;
     #: set by a camera preset, integrators.camera.LensDistortion)
     lens_distortion: tuple | None = None
+    #: {modality: settings} of the modalities besides the D-ToF camera, from the
+    #: <integrator>'s prefixed parameters (parameters.MODALITY_SETTINGS)
+    modality_settings: dict = field(default_factory=default_settings)
 
     @property
     def sensor(self):
@@ -164,9 +170,10 @@ class DopplerScene:
         return replace(self, shutter_window=(float(open_s), float(interval_s)))
 
     def with_params(self, **changes) -> "DopplerScene":
-        """A copy with integrator parameters changed (validated)."""
-        params = RenderParams.from_mapping(changes, where="parameters", base=self.params)
-        return replace(self, params=params)
+        """A copy with integrator parameters changed (validated), the D-ToF camera's or
+        another modality's (``fmcw_bins=64``)."""
+        params, settings = parsed(changes, "parameters", self.params, self.modality_settings)
+        return replace(self, params=params, modality_settings=settings)
 
 
 #: the least share of an exposure its keyframes should cover: below it, a render or
@@ -239,6 +246,8 @@ class SceneDescription:
     #: (where, {name: value}) of the correlated sampler and the integrator, in that order
     parameters: list = field(default_factory=list)
     params: RenderParams = field(default_factory=RenderParams)  #: what they override
+    #: {modality: settings} they override (parameters.default_settings())
+    settings: dict = field(default_factory=default_settings)
     sensor_keyframes: object = None  #: Keyframes of the camera (None: static)
     #: (emitter id, Keyframes or "sensor") of each moving light; "sensor": on the camera
     light_keyframes: list = field(default_factory=list)
@@ -256,6 +265,19 @@ class SceneDescription:
     other_integrator: str | None = None
 
 
+def _parameters(d: SceneDescription) -> tuple:
+    """(RenderParams, {modality: settings}) of the description: the sampler's, then the
+    integrator's, over its ``params`` and ``settings``; a SceneError naming the first
+    problem."""
+    params, settings = d.params, d.settings
+    for where, values in d.parameters:
+        try:
+            params, settings = parsed(values, where, params, settings)
+        except ParameterError as e:
+            raise SceneError(str(e)) from None
+    return params, settings
+
+
 def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     """Validate ``description`` (what may move, the parameters, the sensor and the
     lights), load its parts with ``load_part(part, what)`` -> (mi.Scene, text) and
@@ -268,13 +290,7 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     # ---- What may move ----
     for claim in d.motions:
         check_motion(claim)
-    # ---- The parameters: the sampler's, then the integrator's ----
-    params = d.params
-    for where, values in d.parameters:
-        try:
-            params = RenderParams.from_mapping(values, where=where, base=params)
-        except ParameterError as e:
-            raise SceneError(str(e)) from None
+    params, settings = _parameters(d)
 
     # ---- Load the static scene and each body ----
     static, text = _load_checked(mi, load_part, d.static, "scene", source)
@@ -295,7 +311,7 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
                 f"{source}: environment emitters are not modulated sources of a ToF camera; "
                 "remove it (ambient light belongs to the sensor noise model)"
             )
-    require_light(static, source, params.fmcw_beam == "collimated")
+    require_light(static, source, any(s.lights_the_scene for s in settings.values()))
     _check_sensor(sensors[0], source, d.shutter_given, params)
     spp = int(sensors[0].sampler().sample_count())
     sensor_motion = Motion(d.sensor_keyframes) if d.sensor_keyframes is not None else None
@@ -315,7 +331,8 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
     notes = () if d.has_integrator else (default_integrator_note(source,
                                                                  d.other_integrator),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
-                        sensor_motion, tuple(light_motions), notes, tuple(d.inputs))
+                        sensor_motion, tuple(light_motions), notes, tuple(d.inputs),
+                        modality_settings=settings)
 
 
 def _check_sensor(sensor, source: str, shutter_given: str | None,
@@ -371,9 +388,11 @@ def _load_checked(mi, load_part, part, what: str, source: str):
 
 
 def loaded(mi, scene, params: RenderParams, source: str = "<mitsuba scene>",
-           has_integrator: bool = True) -> DopplerScene:
-    """A DopplerScene of a static scene Mitsuba has loaded already (the plugin's)."""
+           has_integrator: bool = True, settings: dict | None = None) -> DopplerScene:
+    """A DopplerScene of a static scene Mitsuba has loaded already (the plugin's, with
+    its parameters and other modalities' ``settings``; None: the defaults)."""
     return build(mi, SceneDescription(source, scene, params=params,
+                                      settings=settings or default_settings(),
                                       has_integrator=has_integrator),
                  lambda part, what: (part, ""))
 
@@ -390,6 +409,8 @@ def as_doppler_scene(scene):
     mi = sys.modules.get("mitsuba")
     if mi is None or mi.variant() is None or not isinstance(scene, mi.Scene):
         return scene
-    params = getattr(scene.integrator(), "params", None)
+    integrator = scene.integrator()
+    params = getattr(integrator, "params", None)
     own = isinstance(params, RenderParams)
-    return loaded(mi, scene, params if own else RenderParams(), has_integrator=own)
+    return loaded(mi, scene, params if own else RenderParams(), has_integrator=own,
+                  settings=getattr(integrator, "modality_settings", None) if own else None)

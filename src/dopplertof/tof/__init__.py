@@ -9,8 +9,8 @@
 See docs/camera.md for the conventions and formulas.
 """
 
-from .capture import (CaptureError, CaptureResult, CaptureSpec, Reconstruction, capture,
-                      plan_captures)
+from .capture import (CaptureError, CaptureResult, CaptureSettings, CaptureSpec,
+                      Reconstruction, capture, plan_captures)
 from .ground_truth import GroundTruth, ground_truth, light_colocation
 from .noise import NoiseError, NoiseModel, apply_noise
 from .output import OutputFolderError, prepare_folder
@@ -18,7 +18,7 @@ from .reconstruct import CaptureModel, ReconstructionError
 from .summary import error_stats, format_summary
 
 __all__ = [
-    "capture", "CaptureResult", "CaptureSpec", "CaptureError", "Reconstruction",
+    "capture", "CaptureSettings", "CaptureResult", "CaptureSpec", "CaptureError", "Reconstruction",
     "plan_captures", "format_summary", "error_stats", "GroundTruth", "ground_truth",
     "light_colocation", "NoiseModel", "NoiseError", "apply_noise", "CaptureModel",
     "ReconstructionError", "OutputFolderError", "prepare_folder",

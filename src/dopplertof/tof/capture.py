@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from ..arguments import check_params, check_scene, check_seed, check_spp
+from ..hints import did_you_mean
 from ..params import CAPTURE_HETERO_FREQUENCY, RenderParams, frequency_problem
 from . import reconstruct as rec
 from .geometry import camera_geometry
@@ -190,45 +191,84 @@ def check_spp_seed(base, spp, seed):
 
 # ---- The pipeline --------------------------------------------------------------------
 
-def capture(scene, spp: int | None = None, seed: int = 0, *, params=None,
-            hetero_frequency: float | None = None, unwrap_frequency: float | None = None,
-            noise: NoiseModel | bool | None = None, min_signal_fraction: float | None = None,
-            velocity_calibration: str = "auto", common_random_numbers: bool = True,
-            progress: bool | None = None, on_capture=None, mc_batches: int | None = None,
-            max_velocity_std: float | None = None, max_depth_std: float | None = None,
-            keep_mixed_pixels: bool = False, checkpoint=None) -> CaptureResult:
+@dataclass(frozen=True)
+class CaptureSettings:
+    """What :func:`capture` is asked to do besides the scene: built by the command line
+    and the Python API (``capture(scene, spp=64, noise=True)`` builds one of its keyword
+    arguments) and passed through as it is; checked against the scene when the capture
+    starts (a CaptureError or PrecisionError names the first bad value)."""
+
+    spp: int | None = None  #: samples per pixel per capture (None: the scene's)
+    seed: int = 0
+    #: integrator parameter overrides (a dict or RenderParams), applied before the
+    #: per-capture ones
+    params: object = None
+    #: beat periods per exposure of the heterodyne captures (a non-zero integer; None:
+    #: the scene's, else 1)
+    hetero_frequency: float | None = None
+    #: a second modulation frequency (MHz) for depth unwrapping
+    unwrap_frequency: float | None = None
+    noise: object = None  #: a NoiseModel (True: the default one; None or False: none)
+    #: pixels whose homodyne signal is below this fraction of the image's 99th
+    #: percentile are NaN (None: 0.01)
+    min_signal_fraction: float | None = None
+    #: "none" (exact E/H inversion), "inverse-square" (also the brightness change of a
+    #: surface under a colocated point light; uses each pixel's depth) or "auto"
+    #: (inverse-square for non-sinusoidal waveforms, none for the sinusoid)
+    velocity_calibration: str = "auto"
+    #: the same seed for every capture, rather than seed + capture index
+    common_random_numbers: bool = True
+    progress: bool | None = None  #: a progress bar (None: on a terminal)
+    on_capture: object = None  #: called as on_capture(spec, seconds) after each render
+    #: B renders of each capture (the first the capture itself) for per-pixel standard
+    #: deviations (result.uncertainty, summary "precision", its "cost")
+    mc_batches: int | None = None
+    #: NaN where the predicted standard deviation is larger (implies mc_batches=8)
+    max_velocity_std: float | None = None
+    max_depth_std: float | None = None
+    keep_mixed_pixels: bool = False  #: silhouettes reconstructed, not NaN (reason 5)
+    #: a folder keeping every render (:mod:`.checkpoint`): run again, only the missing
+    #: ones render, bitwise
+    checkpoint: object = None
+
+    @classmethod
+    def of(cls, settings=None, **options) -> "CaptureSettings":
+        """``settings`` (a CaptureSettings; None: the defaults) with ``options``
+        (:func:`capture`'s keyword arguments, named as the fields) over it; a TypeError
+        for anything else."""
+        if settings is not None and not isinstance(settings, cls):
+            raise TypeError(f"settings must be a CaptureSettings, got "
+                            f"{type(settings).__name__} {settings!r}")
+        known = [f.name for f in fields(cls)]
+        for name in options:
+            if name not in known:
+                raise TypeError(f"capture() got an unexpected keyword argument "
+                                f"{name!r}{did_you_mean(name, known)}")
+        return replace(settings or cls(), **options)
+
+
+def capture(scene, spp: int | None = None, seed: int | None = None, *,
+            settings: CaptureSettings | None = None, **options) -> CaptureResult:
     """Render every capture of one D-ToF frame, reconstruct velocity and depth, and
     compare them with the exact truth.
 
-    scene: a DopplerScene. spp: samples per pixel per capture (default: the scene's).
-    params: integrator parameter overrides (dict), applied before the per-capture ones.
-    hetero_frequency: beat periods per exposure of the heterodyne captures (a non-zero
-    integer; default the scene's, else 1). unwrap_frequency: a second modulation
-    frequency in MHz for depth unwrapping. noise: a NoiseModel (True: the default one).
-    min_signal_fraction: pixels whose homodyne signal is below this fraction of the
-    image's 99th percentile are NaN (default 0.01). velocity_calibration: "none" (exact
-    E/H inversion), "inverse-square" (also the brightness change of a surface under a
-    colocated point light; uses each pixel's depth) or "auto" (inverse-square for
-    non-sinusoidal waveforms, none for the sinusoid). common_random_numbers: the same seed
-    for every capture (default) rather than seed + capture index. on_capture: called
-    as on_capture(spec, seconds) after each render. mc_batches: B renders of each capture
-    (the first the capture itself) for per-pixel standard deviations (result.uncertainty,
-    summary "precision", its "cost"). max_velocity_std, max_depth_std: NaN where the
-    predicted standard deviation is larger (implies mc_batches=8). keep_mixed_pixels:
-    silhouettes reconstructed, not NaN (reason 5). checkpoint: a folder keeping every
-    render (:mod:`.checkpoint`): run again, only the missing ones render, bitwise."""
+    scene: a DopplerScene. ``settings`` (a :class:`CaptureSettings`; None: the
+    defaults) says how; ``spp``, ``seed`` (None: the settings') and the keyword
+    arguments, named as its fields (``params``, ``hetero_frequency``,
+    ``unwrap_frequency``, ``noise``, ``min_signal_fraction``, ``velocity_calibration``,
+    ``common_random_numbers``, ``progress``, ``on_capture``, ``mc_batches``,
+    ``max_velocity_std``, ``max_depth_std``, ``keep_mixed_pixels``, ``checkpoint``),
+    override it: ``capture(scene, spp=64, noise=True)``."""
+    given = {name: value for name, value in (("spp", spp), ("seed", seed))
+             if value is not None}
+    asked = CaptureSettings.of(settings, **given, **options)
     started = _time.perf_counter()
-    settings = _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency,
-                               noise, min_signal_fraction, velocity_calibration,
-                               common_random_numbers, mc_batches, max_velocity_std,
-                               max_depth_std, keep_mixed_pixels)
+    settings = _check_settings(scene, asked)
     base, model, unwrap = settings.base, settings.model, settings.unwrap
 
     # ---- Render every capture ----
     rendered, records, radiance, batches = _render_captures(
-        scene, base, plan_captures(base.w_g, model.hetero_frequency, unwrap),
-        int(settings.spp), settings.seed, settings.common_random_numbers,
-        settings.mc_batches, progress, on_capture, checkpoint)
+        scene, plan_captures(base.w_g, model.hetero_frequency, unwrap), settings, asked)
 
     # ---- The truth; reconstruct (mixed footprints NaN), with sensor noise when asked ----
     truth = ground_truth(scene, base)
@@ -274,13 +314,12 @@ class _Settings:
         return None if self.keep_mixed_pixels else truth.mixed
 
 
-def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency, noise,
-                    min_signal_fraction, velocity_calibration, common_random_numbers,
-                    mc_batches, max_velocity_std, max_depth_std,
-                    keep_mixed_pixels=False) -> _Settings:
-    """:func:`capture`'s arguments checked and resolved, in the order of its error
-    messages (a CaptureError or PrecisionError names the first bad one)."""
+def _check_settings(scene, asked: CaptureSettings) -> _Settings:
+    """:func:`capture`'s settings checked against ``scene`` and resolved, in the order
+    of its error messages (a CaptureError or PrecisionError names the first bad one)."""
     check_scene(scene, "scene")
+    params, spp, seed, mc_batches = asked.params, asked.spp, asked.seed, asked.mc_batches
+    keep_mixed_pixels = asked.keep_mixed_pixels
     base = scene.params
     if check_params(params):
         base = (params if isinstance(params, RenderParams) else
@@ -288,14 +327,14 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
     spp = scene.spp if spp is None else spp
     check_spp_seed(base, spp, seed)
     exposure = base.exposure(scene.shutter_interval)
-    h = _resolve_hetero_frequency(base, exposure, hetero_frequency)
+    h = _resolve_hetero_frequency(base, exposure, asked.hetero_frequency)
     model = rec.CaptureModel.of(base.modulation(scene.shutter_interval), h)
-    unwrap = _check_unwrap(unwrap_frequency, base.w_g)
-    calibration = rec.resolve_calibration(velocity_calibration, model.waveform)
-    noise = _check_noise(noise)
-    min_signal_fraction = _check_signal_fraction(min_signal_fraction)
-    limits = (prec.check_limit("max_velocity_std", max_velocity_std),
-              prec.check_limit("max_depth_std", max_depth_std))
+    unwrap = _check_unwrap(asked.unwrap_frequency, base.w_g)
+    calibration = rec.resolve_calibration(asked.velocity_calibration, model.waveform)
+    noise = _check_noise(asked.noise)
+    min_signal_fraction = _check_signal_fraction(asked.min_signal_fraction)
+    limits = (prec.check_limit("max_velocity_std", asked.max_velocity_std),
+              prec.check_limit("max_depth_std", asked.max_depth_std))
     if mc_batches is None and any(limits):
         mc_batches = prec.DEFAULT_MC_BATCHES
     if mc_batches is not None:
@@ -303,7 +342,7 @@ def _check_settings(scene, spp, seed, params, hetero_frequency, unwrap_frequency
     if not isinstance(keep_mixed_pixels, (bool, np.bool_)):
         raise CaptureError(f"keep_mixed_pixels must be True or False, got {keep_mixed_pixels!r}")
     return _Settings(base, spp, seed, model, unwrap, calibration, noise,
-                     min_signal_fraction, common_random_numbers, limits, mc_batches,
+                     min_signal_fraction, asked.common_random_numbers, limits, mc_batches,
                      bool(keep_mixed_pixels))
 
 
@@ -376,25 +415,28 @@ def _check_signal_fraction(min_signal_fraction):
     return min_signal_fraction
 
 
-def _render_captures(scene, base, specs, spp: int, seed, common_random_numbers: bool,
-                     mc_batches, progress, on_capture, checkpoint=None):
-    """Every capture of ``specs`` (the frame loop, :mod:`.frames`): the captures (mean
-    of channels, float32), their records for the summary, the radiance image, and
-    (mc_batches) each capture's batch stack's channel mean. ``checkpoint``: a folder
-    that keeps every render (:mod:`.checkpoint`)."""
+def _render_captures(scene, specs, settings: _Settings, asked: CaptureSettings):
+    """Every capture of ``specs`` (the frame loop, :mod:`.frames`) at the checked
+    ``settings`` (with ``asked``'s progress, on_capture and checkpoint): the captures
+    (mean of channels, float32), their records for the summary, the radiance image, and
+    (mc_batches) each capture's batch stack's channel mean."""
     from .frames import FrameRender, render_frames
+
+    base, spp, seed, mc_batches = (settings.base, int(settings.spp), settings.seed,
+                                   settings.mc_batches)
+    on_capture = asked.on_capture
 
     # ---- Every capture's seed, checked before the first render (all below 2^64; the
     # batch seeds, prec.batch_seeds, are below 2^64 by construction) ----
-    capture_seeds = [check_seed(int(seed) + (0 if common_random_numbers else index),
+    capture_seeds = [check_seed(int(seed) + (0 if settings.common_random_numbers else index),
                                 "seed + capture index", CaptureError)
                      for index in range(len(specs))]
     renders = [FrameRender(spec.name, scene, spec.params(base), capture_seed)
                for spec, capture_seed in zip(specs, capture_seeds)]
     by_name = {spec.name: spec for spec in specs}
     results = render_frames(
-        scene, renders, spp, batches=mc_batches or 0, progress=progress,
-        checkpoint=checkpoint, what="renders" if mc_batches else "captures",
+        scene, renders, spp, batches=mc_batches or 0, progress=asked.progress,
+        checkpoint=asked.checkpoint, what="renders" if mc_batches else "captures",
         on_render=None if on_capture is None else
         lambda r, done: on_capture(by_name[r.name], done.seconds))
     rendered, records, radiance, batches = {}, [], None, {}

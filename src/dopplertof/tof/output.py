@@ -1,5 +1,6 @@
 """Files of a capture: arrays (.npy), previews (.png), the comparison figure, camera.json
-(and pointcloud.ply when asked: :mod:`.geometry`), summary.json.
+(and pointcloud.ply when asked: :mod:`.geometry`), summary.json (each declared in
+:data:`dopplertof.outputs.DTOF`).
 
 All writes are atomic (:mod:`dopplertof.io`), and the folder's files are replaced all or
 nothing (the output set "capture" of :func:`dopplertof.io.output_folder`).
@@ -12,6 +13,8 @@ import os
 import numpy as np
 
 from .. import io, previews
+from ..outputs import DTOF, STD_MAPS
+from ..previews import NOTHING_HIT
 
 from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
@@ -64,10 +67,6 @@ def _write_geometry(result, path, pointcloud: bool) -> None:
                        recon.velocity, result.truth.velocity)
 
 
-#: why a pixel of a truth map is NaN: its pixel-centre ray hits nothing
-NOTHING_HIT = "nothing hit"
-
-
 def masked_caption(reasons, truth, with_truth: bool = False) -> str:
     """The caption of a map's NaN pixels, each by its reason (rec.INVALID_REASONS): a
     weak signal where the pixel-centre ray hits nothing (``truth.body``) is "nothing
@@ -84,7 +83,7 @@ def masked_caption(reasons, truth, with_truth: bool = False) -> str:
 
 def truth_caption(truth) -> str:
     """The caption of a truth map's NaN pixels (their rays hit nothing)."""
-    return image_files.masked_note({NOTHING_HIT: int(np.sum(truth.body == -2))})
+    return image_files.nothing_hit_note(truth.body == -2)
 
 
 def _write_captures(result, path, noisy: str) -> None:
@@ -119,7 +118,7 @@ def _write_velocity_maps(recon, truth, path, noisy: str) -> None:
          truth_caption(truth)),
     )
     for name, data, title, note in velocity_maps:
-        io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
+        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
                           cmap="RdBu_r", vmax=v_limit, symmetric=True, note=note)
     error = recon.velocity - truth.velocity
@@ -146,7 +145,7 @@ def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
              beyond),
             ("depth_gt", truth.depth, "ground truth depth, mid-exposure",
              f"not wrapped; {truth_caption(truth)}", None)):
-        io.write_npy(path(f"{name}.npy"), data.astype(np.float32))
+        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
                           vmin=d_lo, vmax=d_hi, note=note, marked=marked)
@@ -166,24 +165,14 @@ def beyond_range(depth_gt, depth_info: dict):
     return beyond, f"; white cross-hatch: {count} px beyond it, shown wrapped"
 
 
-_STD_TITLES = {
-    "velocity_std_mc": ("velocity: predicted standard deviation, Monte Carlo", "m/s"),
-    "depth_std_mc": ("depth: predicted standard deviation, Monte Carlo", "m"),
-    "velocity_std_sensor": ("velocity: predicted standard deviation, sensor noise", "m/s"),
-    "depth_std_sensor": ("depth: predicted standard deviation, sensor noise", "m"),
-    "velocity_std": ("velocity: predicted standard deviation, total", "m/s"),
-    "depth_std": ("depth: predicted standard deviation, total", "m"),
-}
-
-
 def write_uncertainty(uncertainty, path, recon=None, truth=None) -> None:
     """The predicted standard deviations (.npy) and their log-scale previews (.png);
     ``path(name)`` gives a file's path in the output folder; ``recon`` and ``truth``
     (the reconstruction whose NaN pixels the maps share) caption the NaN pixels by
     their reasons."""
     for name, data in uncertainty.maps().items():
-        title, unit = _STD_TITLES[name]
-        io.write_npy(path(f"{name}.npy"), data)
+        title, unit = STD_MAPS[name]
+        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         if np.any(np.isfinite(data) & (data > 0)):
             masked = (previews.NO_SIGNAL_NOTE if recon is None else masked_caption(
                 getattr(recon, f"{name.split('_')[0]}_reasons"), truth))
