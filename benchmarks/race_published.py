@@ -60,7 +60,7 @@ def race_ours(fixtures: str, spp: int, seed: int):
     dopplertof.set_variant()
     scene = dopplertof.load_file(os.path.join(fixtures, "cornell_box_moving.xml"))
     params = dict(time_sampling_method="auto", adaptive_sampling=True)
-    dopplertof.render(scene, spp=64, seed=0, params=params)  # (kernels compiled)
+    dopplertof.render(scene, spp=128, seed=0, params=params)  # (kernels compiled)
     started = time.perf_counter()
     image = dopplertof.render(scene, spp=spp, seed=seed, params=params)
     return np.asarray(image, np.float64), time.perf_counter() - started

@@ -233,6 +233,36 @@ def test_an_interrupted_stream_resumes_bitwise(stream, tmp_path):
         (stream / "out" / "groundtruth.txt").read_text()
 
 
+def test_a_stream_has_a_video_and_with_previews_a_contact_sheet(stream, tmp_path, monkeypatch):
+    """The fixture's stream wrote its video (MP4 or GIF: whichever this installation
+    writes) of its 3 frames; rerun with --previews and without imageio-ffmpeg (the frames
+    complete: nothing is rendered) it writes a GIF and the contact sheet instead."""
+    import sys
+
+    from PIL import Image
+
+    from dopplertof.cli import main
+    from dopplertof.videos import video_extension
+
+    index = json.loads((stream / "out" / "stream.json").read_text())
+    assert index["video"] == "video" + video_extension()
+    assert (stream / "out" / index["video"]).stat().st_size > 0
+    out = tmp_path / "out"
+    shutil.copytree(stream / "out", out)
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)
+    code = main(["animate", str(stream / "scene.xml"), "--camera", "azure-kinect", "--frames",
+                 "3", "--res", "8x6", "--spp", "4", "--trajectory",
+                 str(stream / "trajectory.txt"), "--workers", "1", "--quiet", "--previews",
+                 "-o", str(out)])
+    assert code == 0
+    index = json.loads((out / "stream.json").read_text())
+    assert index["video"] == "video.gif" and index["last_run"]["done"] == 0
+    gif = Image.open(out / "video.gif")
+    assert gif.n_frames == 3 and gif.info["duration"] == 30  # (1/30 s in GIF's 10 ms)
+    assert not (out / "video.mp4").exists() and (out / "contact_sheet.png").is_file()
+    assert Image.open(out / "contact_sheet.png").width > 3 * 160
+
+
 # ---- A turning camera --------------------------------------------------------------------------
 
 def test_a_rotating_trajectory_slerps_as_the_closed_form_rotation(tmp_path):

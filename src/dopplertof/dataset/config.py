@@ -60,6 +60,11 @@ SCHEMA = {
         "seed": Key("integer", "the seed every sample's own is derived from", default=0),
         "samples_per_shard": Key("integer", "samples in one HDF5 shard", _positive,
                                  default=8),
+        "clip_frames": Key("integer", "depth frames per sample: a clip of consecutive "
+                           "frames of one scene whose bodies keep moving (1: one frame)",
+                           _positive, default=1),
+        "fps": Key("float", "a clip's frames per second (default: the camera preset's "
+                   "frame_rate_hz)", _positive, default=None),
     },
     "render": {
         "resolution": Key("ints", "[width, height] pixels",
@@ -151,8 +156,30 @@ class DatasetConfig:
     def shard_size(self) -> int:
         return self.values[""]["samples_per_shard"]
 
+    @property
+    def clip_frames(self) -> int:
+        return self.values[""]["clip_frames"]
+
     def to_json(self) -> dict:
-        return {s or "dataset": dict(v) for s, v in self.values.items()}
+        """The configuration as written to dataset.json and hashed; a clip's keys left
+        out at their defaults (one frame: the same hash as before clips existed)."""
+        out = {s or "dataset": dict(v) for s, v in self.values.items()}
+        for key, default in CLIP_DEFAULTS.items():
+            if out["dataset"].get(key) == default:
+                del out["dataset"][key]
+        return out
+
+
+#: the clip keys' defaults, left out of :meth:`DatasetConfig.to_json` (a dataset of one
+#: frame per sample hashes as one made before clips existed)
+CLIP_DEFAULTS = {"clip_frames": 1, "fps": None}
+
+
+def clip_fps(config_values: dict, preset) -> float | None:
+    """A clip's frames per second: the configuration's ``fps``, else the preset's
+    frame_rate_hz (None: neither)."""
+    fps = config_values[""]["fps"]
+    return preset.frame_rate_hz if fps is None else fps
 
 
 def load_config(path) -> DatasetConfig:
@@ -214,8 +241,25 @@ def _check_together(values: dict, source: str, base_dir: str) -> None:
     except PresetError as e:
         raise DatasetError(f"{source}: render.camera: {e}") from None
     _check_spins(values, preset, source)
+    _check_clip(values, preset, source)
     _check_size(values["render"], source)
-    _check_time(values["render"], len(preset.frames), source)
+    _check_time(values["render"], len(preset.frames) * values[""]["clip_frames"], source)
+
+
+def _check_clip(values: dict, preset, source: str) -> None:
+    """A clip of several frames has a frame rate (``fps`` or the preset's) at which the
+    preset's raw frames fit in a frame."""
+    from ..cameras.preset import sequence_too_long
+
+    if values[""]["clip_frames"] == 1:
+        return
+    fps = clip_fps(values, preset)
+    if fps is None:
+        raise DatasetError(f"{source}: clip_frames = {values['']['clip_frames']} needs fps: "
+                           f"the camera preset {preset.name} gives no frame_rate_hz")
+    problem = sequence_too_long(preset, fps)
+    if problem:
+        raise DatasetError(f"{source}: fps = {fps:g}: {problem}")
 
 
 #: renders of every frame of the preset per sample: the full split (the ideal one is its

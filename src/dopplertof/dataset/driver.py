@@ -385,7 +385,7 @@ def announce_time(config: DatasetConfig, samples: int) -> None:
     from ..cameras.preset import load_preset
     from .config import describe_sample, sample_seconds
 
-    frames = len(load_preset(config["render"]["camera"]).frames)
+    frames = len(load_preset(config["render"]["camera"]).frames) * config.clip_frames
     seconds = sample_seconds(config["render"], frames) * samples
     if seconds > budget.LONG_RENDER_SECONDS:
         print(f"dopplertof: dataset: {samples} sample(s), each "

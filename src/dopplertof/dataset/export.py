@@ -104,9 +104,22 @@ def _write_raw(path: str, array: np.ndarray) -> None:
         raise io.write_error(path, exc) from exc
 
 
-def flat_name(index: int) -> str:
-    """A sample's file name in FLAT's folders (16 characters, as FLAT's scene ids)."""
-    return f"dtof{index:012d}"
+def flat_name(index: int, frame: int | None = None) -> str:
+    """A sample's file name in FLAT's folders (16 characters, as FLAT's scene ids); frame
+    ``frame`` of a clip's: the index in 8 digits and the frame in 4."""
+    return f"dtof{index:012d}" if frame is None else f"dtof{index:08d}{frame:04d}"
+
+
+def sample_views(ds, item: int) -> tuple:
+    """(sample arrays per frame, attributes) of item ``item``: one frame's, or each
+    frame of a clip (:func:`dopplertof.dataset.reader.clip_frame`), with its number."""
+    from .reader import clip_frame, clip_frames
+
+    sample, attributes = ds[item], ds.attributes(item)
+    frames = clip_frames(attributes)
+    if frames == 1:
+        return [(None, sample)], attributes
+    return [(k, clip_frame(sample, k)) for k in range(frames)], attributes
 
 
 def _export_flat(ds, staging: str) -> dict:
@@ -116,22 +129,23 @@ def _export_flat(ds, staging: str) -> dict:
         os.makedirs(os.path.join(root, folder))
     names = []
     for item in range(len(ds)):
-        attributes = ds.attributes(item)
+        views, attributes = sample_views(ds, item)
         preset = attributes["camera_preset"]
         where = f"{ds.folder}: sample {attributes['index']}"
         order = flat_channel_frames(preset, where)
-        sample = ds[item]
-        if sample["depth"].shape != FLAT_SHAPE:
-            raise DatasetError(f"{where}: --format flat needs the Kinect's {FLAT_SHAPE[1]} x "
-                               f"{FLAT_SHAPE[0]} pixels (render.resolution = [512, 424]), "
-                               f"got {sample['depth'].shape[1]} x {sample['depth'].shape[0]}")
-        name = flat_name(int(attributes["index"]))
-        for folder, split in FLAT_FOLDERS.items():
-            _write_raw(os.path.join(root, folder, name),
-                       flat_raw(sample[f"raw{'' if split == 'full' else '_' + split}"],
-                                order, preset["sensor"]))
-        _write_raw(os.path.join(root, "gt", name), flat_gt(sample["depth"]))
-        names.append(name)
+        for frame, sample in views:  # (a clip: each frame a FLAT scene of its own)
+            if sample["depth"].shape != FLAT_SHAPE:
+                raise DatasetError(
+                    f"{where}: --format flat needs the Kinect's {FLAT_SHAPE[1]} x "
+                    f"{FLAT_SHAPE[0]} pixels (render.resolution = [512, 424]), got "
+                    f"{sample['depth'].shape[1]} x {sample['depth'].shape[0]}")
+            name = flat_name(int(attributes["index"]), frame)
+            for folder, split in FLAT_FOLDERS.items():
+                _write_raw(os.path.join(root, folder, name),
+                           flat_raw(sample[f"raw{'' if split == 'full' else '_' + split}"],
+                                    order, preset["sensor"]))
+            _write_raw(os.path.join(root, "gt", name), flat_gt(sample["depth"]))
+            names.append(name)
     with open(os.path.join(root, "list", "all.txt"), "w", encoding="utf-8") as f:
         f.write("".join(f"{n}\n" for n in names))
     return {"files": names, "folders": {k: f"our split {v}" for k, v in FLAT_FOLDERS.items()}}
@@ -168,34 +182,42 @@ def light_pose(pose: np.ndarray, light: dict) -> np.ndarray:
 
 
 def _export_torf(ds, staging: str) -> dict:
-    """Every sample of ``ds`` as a TöRF scan (one view each): sample_<index>/{tof, depth,
-    color}/0000.npy and cams/."""
+    """Every sample of ``ds`` as a TöRF scan: sample_<index>/{tof, depth, color}/0000.npy
+    and cams/, a view per frame (a clip's frames 0000, 0001...; TöRF's scans are
+    sequences)."""
     from .. import file_formats
     from ..outputs import TORF
 
     scans = []
     for item in range(len(ds)):
-        sample, attributes = ds[item], ds.attributes(item)
-        frequencies = np.asarray(sample["camera_frequencies"])
+        views, attributes = sample_views(ds, item)
+        first = views[0][1]
+        frequencies = np.asarray(first["camera_frequencies"])
         k = int(np.argmin(frequencies))  # (the longest range)
         scan = os.path.join(staging, f"sample_{int(attributes['index']):08d}")
         for folder in ("tof", "depth", "color", "cams"):
             os.makedirs(os.path.join(scan, folder))
-        files = {"tof/0000.npy": torf_tof(sample["camera_phase"][k],
-                                          sample["camera_amplitude"],
-                                          sample["camera_valid"]),
-                 "depth/0000.npy": np.nan_to_num(sample["depth"]).astype(np.float32),
-                 "color/0000.npy": np.nan_to_num(sample["albedo"]).astype(np.float32),
-                 "cams/depth_range.npy": np.float32(SPEED_OF_LIGHT / (frequencies[k] * 1e6))}
-        extrinsics = torf_extrinsics(sample["pose"])[None]
-        lights = torf_extrinsics(light_pose(sample["pose"],
-                                            attributes["description"]["light"]))[None]
+        files = {}
+        for view, (_, sample) in enumerate(views):
+            files.update({
+                f"tof/{view:04d}.npy": torf_tof(sample["camera_phase"][k],
+                                                sample["camera_amplitude"],
+                                                sample["camera_valid"]),
+                f"depth/{view:04d}.npy": np.nan_to_num(sample["depth"]).astype(np.float32),
+                f"color/{view:04d}.npy": np.nan_to_num(sample["albedo"]).astype(np.float32)})
+        files["cams/depth_range.npy"] = np.float32(SPEED_OF_LIGHT / (frequencies[k] * 1e6))
+        light = attributes["description"]["light"]
+        extrinsics = np.stack([torf_extrinsics(s["pose"]) for _, s in views])
+        lights = np.stack([torf_extrinsics(light_pose(s["pose"], light)) for _, s in views])
         for kind in ("tof", "color"):
-            files[f"cams/{kind}_intrinsics.npy"] = np.asarray(sample["K"], np.float32)
+            files[f"cams/{kind}_intrinsics.npy"] = np.asarray(first["K"], np.float32)
             files[f"cams/{kind}_extrinsics.npy"] = extrinsics.astype(np.float32)
             files[f"cams/{kind}_light_extrinsics.npy"] = lights.astype(np.float32)
-        for name in TORF:
-            file_formats.write_npy(os.path.join(scan, name), files[name])
+        for name in TORF:  # (a view's file, tof/0000.npy...: every view's)
+            folder, base = os.path.split(name)
+            for one in ([f"{folder}/{v:04d}.npy" for v in range(len(views))]
+                        if base == "0000.npy" else [name]):
+                file_formats.write_npy(os.path.join(scan, one), files[one])
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 

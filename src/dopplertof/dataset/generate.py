@@ -165,6 +165,26 @@ def _draw_object(config: DatasetConfig, rng, k: int, camera_rest, tans) -> dict:
             "velocity_m_s": velocity, "angular_velocity_rad_s": spin}
 
 
+def frame_description(description: dict, frame: int, fps: float) -> dict:
+    """Frame ``frame`` of a clip at ``fps`` frames per second of the scene ``description``
+    (its frame 0): the same scene ``frame / fps`` s later, every body and the camera
+    moved on along their constant-velocity motions (each pose and centre the frame's own
+    at its mid-exposure), its times and the rest kept; its noise seed drawn from the
+    sample's and the frame's (frame 0 is ``description`` itself)."""
+    if frame == 0:
+        return description
+    tau = frame / fps
+    camera = dict(description["camera"])
+    camera["rest"] = camera_pose(description["camera"], tau).tolist()
+    objects = [{**obj, "rest": object_matrix(obj, tau).tolist(),
+                "centre_m": (np.asarray(obj["centre_m"]) + tau * np.asarray(
+                    obj["velocity_m_s"])).tolist()} for obj in description["objects"]]
+    noise = np.random.SeedSequence([int(description["noise_seed"]), int(frame)])
+    return {**description, "camera": camera, "objects": objects,
+            "noise_seed": int(noise.generate_state(1, np.uint64)[0] >> np.uint64(2)),
+            "clip_frame": int(frame), "clip_time_s": tau}
+
+
 def enclosed_camera(description: dict) -> str | None:
     """The first object whose bounding sphere holds the camera's centre at mid-exposure
     (it encloses or touches the camera), said in words; None when none does."""

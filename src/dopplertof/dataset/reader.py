@@ -19,6 +19,17 @@ from .shards import DamagedSample, index_span, read_group, sample_group, shard_s
 ON_DAMAGE = ("error", "skip")
 
 
+def clip_frames(attributes: dict) -> int:
+    """How many frames a sample holds (``clip_frames``; 1 without the attribute)."""
+    return int(attributes.get("clip_frames", 1))
+
+
+def clip_frame(sample: dict, frame: int) -> dict:
+    """Frame ``frame`` of a clip's sample (every (T, ...) array's entry ``frame``; the
+    0-d values, index and seed, kept)."""
+    return {key: value[frame] if np.ndim(value) else value for key, value in sample.items()}
+
+
 class Dataset:
     """The samples of a ``dopplertof dataset`` folder, in index order.
 
@@ -107,21 +118,30 @@ class Dataset:
 
     def attributes(self, item: int) -> dict:
         """The sample's attributes: index, render_seed, noise_seed, scene_xml,
-        description (parsed), camera_preset (parsed), photons_per_unit."""
-        attrs = {k: v.item() if hasattr(v, "item") else v
+        description (parsed), camera_preset (parsed), photons_per_unit; a clip's also
+        clip_frames, fps, clip_times_s, clip_noise_seeds and clip_scene_xml (arrays of a
+        value per frame; photons_per_unit too)."""
+        attrs = {k: v.item() if hasattr(v, "item") and np.size(v) == 1 else v
                  for k, v in self._read(item)[1].items()}
         for key in ("description", "camera_preset"):
             attrs[key] = json.loads(attrs[key])
         return attrs
 
-    def scene(self, item: int):
-        """The sample's scene, loaded from its stored XML (a DopplerScene; its meshes are
-        the dataset's copies): ``capture_camera(ds.scene(i), preset, spp,
-        ds.attributes(i)["render_seed"], ...)`` renders it again, bitwise."""
+    def scene(self, item: int, frame: int = 0):
+        """The sample's scene (a clip's: frame ``frame``'s), loaded from its stored XML
+        (a DopplerScene; its meshes are the dataset's copies): ``capture_camera(
+        ds.scene(i), preset, spp, ds.attributes(i)["render_seed"], ...)`` renders it
+        again, bitwise."""
         from ..scene import load_string
 
-        return load_string(self.attributes(item)["scene_xml"], {},
-                           source=f"{self.folder}: sample {item}", base_dir=self.folder)
+        attributes = self.attributes(item)
+        frame = check_index(frame, clip_frames(attributes), "frame")
+        if "clip_scene_xml" not in attributes:
+            return load_string(attributes["scene_xml"], {},
+                               source=f"{self.folder}: sample {item}", base_dir=self.folder)
+        return load_string(json.loads(attributes["clip_scene_xml"])[frame], {},
+                           source=f"{self.folder}: sample {item}, frame {frame}",
+                           base_dir=self.folder)
 
 
 

@@ -29,26 +29,90 @@ CAMERA_OUTPUTS, UNITS = SAMPLE_CAMERA, SAMPLE
 
 def render_sample(config: DatasetConfig, index: int, folder: str) -> tuple[dict, dict]:
     """(arrays, attributes) of sample ``index`` (see :data:`UNITS`) of the dataset in
-    ``folder`` (its scenes' meshes are in ``folder/meshes``)."""
+    ``folder`` (its scenes' meshes are in ``folder/meshes``); a clip of T frames
+    (``clip_frames``) stacks each array as (T, ...) (:func:`render_clip`)."""
     from ..cameras.preset import load_preset
 
     render = config["render"]
     preset = load_preset(render["camera"])
     draw = 0
-    while True:  # (drawn again while the camera reports too few pixels)
+    while True:  # (drawn again while the camera reports too few pixels in frame 0)
         description, text, scene, truth = drawn_sample(config, index, preset, folder, draw)
-        arrays, readings = _raw_frames(scene, preset, render["spp"], description)
-        arrays.update(truth)
-        arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
-        problem = too_few_valid(arrays["camera_valid"], render["min_valid_share"])
+        if config.clip_frames > 1:
+            arrays, attributes = render_clip(config, preset, description,
+                                             (text, scene, truth), folder)
+            valid = arrays["camera_valid"][0]
+        else:
+            arrays, attributes = _frame_arrays(render, preset, description, scene, truth), None
+            valid = arrays["camera_valid"]
+        problem = too_few_valid(valid, render["min_valid_share"])
         if problem is None:
             break
         draw = _next_draw(index, description["draw"], problem)
-    attributes = {"index": int(index), "render_seed": description["render_seed"],
-                  "noise_seed": description["noise_seed"], "scene_xml": text,
-                  "description": json.dumps(json_ready(description), sort_keys=True),
-                  "camera_preset": json.dumps(json_ready(preset.describe()), sort_keys=True),
-                  "photons_per_unit": arrays.pop("photons_per_unit")}
+    if attributes is None:
+        attributes = _attributes(description, text, preset, arrays.pop("photons_per_unit"))
+    return arrays, attributes
+
+
+def _frame_arrays(render: dict, preset, description: dict, scene, truth: dict) -> dict:
+    """The arrays of one frame: its raw frames, its truth and the camera's outputs."""
+    arrays, readings = _raw_frames(scene, preset, render["spp"], description)
+    arrays.update(truth)
+    arrays.update(camera_outputs(readings, preset, arrays["depth_z"] / arrays["depth"]))
+    return arrays
+
+
+def _attributes(description: dict, text: str, preset, photons) -> dict:
+    return {"index": int(description["index"]), "render_seed": description["render_seed"],
+            "noise_seed": description["noise_seed"], "scene_xml": text,
+            "description": json.dumps(json_ready(description), sort_keys=True),
+            "camera_preset": json.dumps(json_ready(preset.describe()), sort_keys=True),
+            "photons_per_unit": photons}
+
+
+def clip_descriptions(config: DatasetConfig, description: dict, preset) -> list:
+    """The descriptions of every frame of the sample whose frame 0 is ``description``
+    (:func:`dopplertof.dataset.generate.frame_description`); one frame: itself."""
+    from .config import clip_fps
+    from .generate import frame_description
+
+    fps = clip_fps(config.values, preset)
+    return [frame_description(description, k, fps) for k in range(config.clip_frames)]
+
+
+def render_clip(config: DatasetConfig, preset, description: dict, first: tuple,
+                folder: str) -> tuple[dict, dict]:
+    """A clip's (arrays, attributes): frame k is the scene ``k / fps`` s on (its bodies
+    and the camera moved on, its own sensor noise), each array stacked (T, ...); the
+    attributes are frame 0's (description, scene_xml, noise_seed), with ``clip_frames``,
+    ``fps``, ``clip_times_s`` (each frame's start after frame 0's), ``clip_noise_seeds``,
+    ``clip_scene_xml`` (JSON list of every frame's scene) and ``photons_per_unit`` per
+    frame."""
+    from ..scene import load_string
+    from .config import clip_fps
+
+    render = config["render"]
+    frames, texts = [], [first[0]]
+    descriptions = clip_descriptions(config, description, preset)
+    for k, frame in enumerate(descriptions):
+        if k == 0:
+            text, scene, truth = first
+        else:
+            text = scene_xml(frame, render["spp"], render["max_depth"])
+            scene = load_string(text, {}, source=f"sample {description['index']}, frame {k}",
+                                base_dir=folder)
+            truth = sample_truth(scene, frame, render["grazing_deg"])
+            texts.append(text)
+        frames.append(_frame_arrays(render, preset, frame, scene, truth))
+    photons = np.asarray([f.pop("photons_per_unit") for f in frames], np.float64)
+    arrays = {key: np.stack([f[key] for f in frames]) for key in frames[0]}
+    attributes = _attributes(description, first[0], preset, photons)
+    attributes.update(clip_frames=len(frames), fps=float(clip_fps(config.values, preset)),
+                      clip_times_s=np.asarray([d.get("clip_time_s", 0.0)
+                                               for d in descriptions], np.float64),
+                      clip_noise_seeds=np.asarray([d["noise_seed"] for d in descriptions],
+                                                  np.int64),
+                      clip_scene_xml=json.dumps(texts))
     return arrays, attributes
 
 
@@ -90,7 +154,8 @@ def drawn_sample(config: DatasetConfig, index: int, preset, folder: str,
     kinds_alive(config)  # (before any scene: the same registry ids in every worker)
     for draw in range(first, MAX_DRAWS):
         description = draw_scene(config, index, preset, draw)
-        problem = enclosed_camera(description)
+        problem = next(filter(None, map(enclosed_camera, clip_descriptions(
+            config, description, preset))), None)  # (every frame of a clip)
         if problem is None:
             text = scene_xml(description, render["spp"], render["max_depth"])
             scene = load_string(text, {}, source=f"sample {index}", base_dir=folder)

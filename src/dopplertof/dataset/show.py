@@ -2,7 +2,9 @@
 per sample of what a network sees and learns: the first raw frame, the camera's depth
 beside the truth and their error, the radial velocity truth and the camera's, the optical
 flow's magnitude and the instances, each with its colour bar; masked pixels hatched as
-in every preview (:mod:`dopplertof.previews`)."""
+in every preview (:mod:`dopplertof.previews`). A clip's row is its frame 0, and its
+camera depth, velocity and amplitude are written beside the PNG as a video
+(``preview_item3.mp4`` or ``.gif``)."""
 
 from __future__ import annotations
 
@@ -78,7 +80,7 @@ def show_dataset(folder, samples, output: str, split: str = "full",
     from .. import io
     from .. import image_files
     from ..previews import NO_SIGNAL_NOTE, draw
-    from .reader import Dataset
+    from .reader import Dataset, clip_frame
 
     if not str(output).lower().endswith(".png"):
         raise DatasetError(f"-o must be a .png file, got {output!r}")
@@ -91,16 +93,45 @@ def show_dataset(folder, samples, output: str, split: str = "full",
         write_statistics(ds, indices, output, f"{folder}: statistics of {len(indices)} items")
         return output
     indices = parse_samples(samples, len(ds))
-    rows = [sample_panels(ds[i], i) for i in indices]
+    rows, clips = [], ""
+    for i in indices:
+        sample = ds[i]
+        if np.ndim(sample["depth"]) == 3:  # a clip: its frame 0, and its video
+            write_clip_video(sample, i, output, ds.attributes(i)["fps"])
+            sample = clip_frame(sample, 0)
+            clips = "; clips: frame 0 of each, their videos beside this file"
+        rows.append(sample_panels(sample, i))
     columns = max(len(r) for r in rows)
     panels = [p for r in rows for p in r]
     caption = (f"{NO_SIGNAL_NOTE}; truth hatched where it is not truth_valid (nothing hit, "
                "grazing), the camera's where a mask is set (docs/dataset.md)")
     drawing = draw(panels, FIT, title=f"{ds.info['config'].get('dataset', {}).get('name', '')}"
-                   f" ({folder}), split {split}: items {', '.join(map(str, indices))}",
+                   f" ({folder}), split {split}: items {', '.join(map(str, indices))}{clips}",
                    caption=caption, columns=columns)
     image_files.save_png(output, drawing)
     return output
+
+
+def clip_video_path(output: str, item: int) -> str:
+    """Where ``show -o output`` writes item ``item``'s clip video: beside it, named
+    after it and the item (.mp4 or .gif: :func:`dopplertof.videos.video_extension`)."""
+    from ..videos import video_extension
+
+    return f"{str(output)[:-4]}_item{item}{video_extension()}"
+
+
+def write_clip_video(sample: dict, item: int, output: str, fps: float) -> str:
+    """A clip's camera depth, velocity (the camera's where it measures one, else the
+    truth) and amplitude as a video at the clip's frame rate (:mod:`dopplertof.videos`)."""
+    from ..videos import depth_velocity_amplitude, draw_frames, write_video
+
+    measured = "camera_radial_velocity" in sample
+    maps = depth_velocity_amplitude(
+        sample["camera_depth"], sample["camera_radial_velocity" if measured else "velocity_gt"],
+        sample["camera_amplitude"], not measured, sample["depth"])
+    frames = len(sample["camera_depth"])
+    titles = [f"item {item}: frame {k} of {frames}" for k in range(frames)]
+    return write_video(clip_video_path(output, item), draw_frames(maps, titles), fps)
 
 
 def dataset_statistics(ds, indices) -> dict:
@@ -108,7 +139,7 @@ def dataset_statistics(ds, indices) -> dict:
     and |radial velocities| where truth_valid holds, the objects' distances and speeds,
     each item's valid fractions and, per split, the camera's |depth error| (modulo its
     unambiguous range: a one-frequency camera's depth wraps) and predicted depth std over
-    its valid pixels."""
+    its valid pixels (a clip's over every frame; its objects as in frame 0)."""
     from ..cameras.unwrap import unambiguous_range
     from .sample import CAMERA_SPLITS
 
@@ -130,7 +161,8 @@ def dataset_statistics(ds, indices) -> dict:
             if valid is None:  # (layout 1)
                 continue
             stats["valid"][split].append(valid.mean())
-            wrap = unambiguous_range(sample["camera_frequencies"] * 1e6)
+            frequencies = np.asarray(sample["camera_frequencies"])  # (a clip's: (T, F))
+            wrap = unambiguous_range(frequencies.reshape(-1, frequencies.shape[-1])[0] * 1e6)
             error = (sample[f"camera_depth{suffix}"] - sample["depth"])[valid]
             stats["error"][split].append(np.abs(error - wrap * np.round(error / wrap)))
             stats["std"][split].append(sample[f"camera_depth_std{suffix}"][valid])

@@ -301,8 +301,9 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
     from matplotlib.figure import Figure
     from PIL import Image
 
-    from .. import image_files, io, previews
+    from .. import image_files, previews
     from ..tof.figures import RADIANCE_GAMMA_LABEL, radiance_norm, radiance_top
+    from ..videos import write_gif
 
     load = lambda t, name: np.load(os.path.join(t.folder, name))  # noqa: E731
     velocity = [load(t, "velocity.npy") for t in tasks]
@@ -336,8 +337,5 @@ def write_velocity_gif(tasks, path: str, fps: float) -> str:
         fig.canvas.draw()
         rgba = np.asarray(fig.canvas.buffer_rgba())
         images.append(Image.fromarray(rgba[..., :3].copy()))
-    duration = max(20, int(round(1000.0 / fps)))
-    with io.atomic_path(path) as tmp:
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
-                       duration=duration, loop=0)
+    write_gif(path, images, fps)
     return path

@@ -99,7 +99,9 @@ def _add_animate(subparsers) -> None:
     a.add_argument("--fps", type=float, help="frames per second of the GIF (default 10); "
                    "with --camera, of the stream (default: the preset's frame_rate_hz)")
     a.add_argument("--previews", action="store_true",
-                   help="also write every frame's PNG previews")
+                   help="also write every frame's PNG previews; with --camera, a contact "
+                   "sheet of the stream (contact_sheet.png: its frames' depth, velocity and "
+                   "amplitude side by side)")
     add_defines_option(a)
     add_params_option(a, "override an integrator parameter (repeatable)")
     _stream_options(a)
@@ -207,7 +209,7 @@ def cmd_report(args) -> int:
 
 #: animate's options that a camera stream takes, and those it refuses
 STREAM_ONLY = ("trajectory", "res", "noiseless", "noise_seed", "ambient_irradiance")
-NOT_STREAM = ("frame_period", "start", "previews")
+NOT_STREAM = ("frame_period", "start")
 
 
 def _check_stream_options(args) -> None:
@@ -236,7 +238,7 @@ def _stream(args):
                       defines=parse_pairs(args.defines, "-D"),
                       params=parse_pairs(args.params, "-P"), variant=args.variant,
                       scheduler=args.scheduler, workers=args.workers, retries=args.retries,
-                      progress=_progress(args))
+                      progress=_progress(args), previews=args.previews)
 
 
 def cmd_animate(args) -> int:
@@ -249,7 +251,7 @@ def cmd_animate(args) -> int:
             print(f"animate: a stream of {summary.frames} frames through {args.camera}: "
                   f"{summary.done} done now, {summary.skipped} already complete, "
                   f"{len(summary.failed)} failed ({summary.seconds:.1f} s) -> "
-                  f"{summary.output}")
+                  f"{summary.video or summary.output}")
         return _report(summary)
     summary = run_animation(args.scene, args.output, args.frames,
                             frame_period=args.frame_period, start=args.start, spp=args.spp,

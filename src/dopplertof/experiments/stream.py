@@ -15,7 +15,10 @@ its first stamp is t0, and each frame's scene gets as its sensor's keyframes the
 that bracket the frame's raw frames (the camera's illuminator rides with it). Beside the
 frames, ``stream.json`` indexes them (times, poses, each frame's errors) and
 ``groundtruth.txt`` holds the camera's pose at each frame's truth time, in the TUM
-format (on the trajectory's clock where one is given, else the scene's).
+format (on the trajectory's clock where one is given, else the scene's), and once every
+frame is complete the stream's depth, velocity and amplitude as a video at its frame rate
+(``video.mp4`` or ``video.gif``: :mod:`dopplertof.videos`), with ``previews`` a contact
+sheet of its frames too.
 
 Frames run on Dask as the animation's do (:mod:`.animate`): a frame with a valid
 completion marker is not rendered again, and a resumed stream is bitwise the same as
@@ -43,6 +46,8 @@ from .tasks import (PARAMS_JSON, RENDER_LOCK, begin_task, check_unchanged, finis
 
 STREAM_JSON = "stream.json"
 GROUNDTRUTH_TXT = "groundtruth.txt"
+#: the stream's video (.mp4 or .gif: dopplertof.videos) and its --previews contact sheet
+STREAM_VIDEO, CONTACT_SHEET = "video", "contact_sheet.png"
 #: files every complete frame folder holds
 FRAME_FILES = (SUMMARY_JSON, CAMERA_JSON.name, *(CAMERA[name].npy for name in (
     "raw", "depth", "depth_gt", "velocity_gt")), PARAMS_JSON)
@@ -265,9 +270,10 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
 
 def run_stream(scene, output, frames: int, camera, *, scheduler=None, workers=None,
                client=None, retries: int = DEFAULT_RETRIES, progress=None,
-               **options) -> AnimationSummary:
-    """Capture every frame not already complete, then write stream.json and
-    groundtruth.txt. ``options``: those of :func:`plan_stream`."""
+               previews: bool = False, **options) -> AnimationSummary:
+    """Capture every frame not already complete, then write stream.json,
+    groundtruth.txt and the video (when every frame is complete; ``previews``: also the
+    contact sheet). ``options``: those of :func:`plan_stream`."""
     from .. import io
 
     started = time.perf_counter()
@@ -292,9 +298,40 @@ def run_stream(scene, output, frames: int, camera, *, scheduler=None, workers=No
         summary.done = len(outcome.done)
         summary.failed = outcome.failed
     with io.output_folder(output, "stream") as staged:
+        entries = [] if summary.failed else [_frame_entry(t, plan) for t in plan.tasks]
+        if entries:
+            written = write_stream_video(staged.path, plan, entries, previews)
+            summary.video = os.path.join(output, written[0])
         summary.seconds = time.perf_counter() - started
         write_stream_index(staged.path, plan, summary)
     return summary
+
+
+def write_stream_video(path, plan: StreamPlan, entries, sheet: bool) -> list:
+    """The stream's depth, velocity and amplitude as a video at its frame rate (and with
+    ``sheet`` a contact sheet of up to SHEET_FRAMES frames), each at ``path(name)``;
+    returns the names written."""
+    from ..videos import (depth_velocity_amplitude, draw_frames, sheet_indices,
+                          video_extension, write_contact_sheet, write_video)
+
+    folders = [os.path.join(os.path.dirname(plan.tasks[0].folder), e["folder"])
+               for e in entries]
+    load = lambda name: np.stack([np.load(os.path.join(f, CAMERA[name].npy))  # noqa: E731
+                                  for f in folders])
+    measured = os.path.isfile(os.path.join(folders[0], CAMERA["velocity"].npy))
+    maps = depth_velocity_amplitude(load("depth"), load("velocity" if measured else
+                                                        "velocity_gt"),
+                                    load("amplitude"), not measured, load("depth_gt"))
+    times = [f"frame {e['index']}, t = {e['truth_time_s']:.4f} s" for e in entries]
+    names = [STREAM_VIDEO + video_extension()]
+    write_video(path(names[0]), draw_frames(maps, [f"{plan.camera}: {t}" for t in times]),
+                plan.fps)
+    if sheet:
+        names.append(CONTACT_SHEET)
+        write_contact_sheet(path(CONTACT_SHEET), maps,
+                            {k: times[k] for k in sheet_indices(len(entries))},
+                            f"{plan.camera}: {len(entries)} frames at {plan.fps:g} fps")
+    return names
 
 
 def _frame_entry(task: StreamFrameTask, plan: StreamPlan) -> dict:
@@ -346,7 +383,9 @@ def write_stream_index(path, plan: StreamPlan, summary: AnimationSummary) -> Non
                   "t0_s" if plan.trajectory is not None else "timestamps on the scene's "
                   "clock (s)"),
         "trajectory": None if plan.trajectory is None else plan.trajectory.path,
-        "groundtruth": GROUNDTRUTH_TXT, "spp": first.spp, "seed": first.seed,
+        "groundtruth": GROUNDTRUTH_TXT,
+        "video": os.path.basename(summary.video) if summary.video else None,
+        "spp": first.spp, "seed": first.seed,
         "noise": first.noise, "resolution": first.resolution, "params": first.params,
         "frames": [{**e, "timestamp": f"{e['timestamp']:.9f}"} for e in entries],
         "warnings": summary.warnings,
