@@ -233,8 +233,8 @@ def starter(args) -> None:
     import dopplertof
     from dopplertof.cameras import load_preset, preset_names
     from dopplertof.cameras.accuracy import wrong_depths
-    from dopplertof.cameras.capture import (capture_camera, load_scene_for_camera,
-                                            parse_resolution)
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera, parse_resolution
 
     dopplertof.set_variant()
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -92,7 +92,8 @@ def main(argv=None) -> None:
 
     import dopplertof
     from dopplertof.cameras import load_preset
-    from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
 
     dopplertof.set_variant("llvm_ad_rgb")
     presets = [load_preset(n) for n in args.cameras.split(",")]

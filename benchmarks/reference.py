@@ -50,7 +50,7 @@ def render_pieces(scene, out: str, spp: int, piece_spp: int, max_pieces: int | N
     rendered (resuming from its checkpoint) and written; None when ``max_pieces`` new
     pieces were rendered before the last."""
     import dopplertof
-    from dopplertof.io import write_npy
+    from dopplertof.file_formats import write_npy
 
     pieces, rendered = [], 0
     for i in range(spp // piece_spp):
@@ -101,7 +101,8 @@ def main(argv=None) -> int:
         return 2
 
     import dopplertof
-    from dopplertof.io import OutputError, make_output_folder, write_json, write_npy
+    from dopplertof.file_formats import write_json, write_npy
+    from dopplertof.io import OutputError, make_output_folder
 
     try:
         out = make_output_folder(args.out)

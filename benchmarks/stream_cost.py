@@ -231,7 +231,8 @@ def attribute(args) -> None:
     anew, and how many of them are the sphere's code with other literals."""
     import dopplertof
     from dopplertof.cameras import load_preset
-    from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
 
     dopplertof.set_variant("llvm_ad_rgb")
     preset = load_preset(args.camera_cold)

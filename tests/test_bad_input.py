@@ -403,7 +403,7 @@ def test_a_toml_file_with_a_utf8_byte_order_mark_is_read(tmp_path):
     """issue 39, 2026-12-03 campaign D57: a configuration saved with a byte-order mark (as
     Windows editors write) failed as 'malformed TOML: Invalid statement (at line 1,
     column 1)'."""
-    from dopplertof.io import read_toml
+    from dopplertof.file_formats import read_toml
 
     text = 'samples = 3\n[render]\nspp = 4\nname = "wall"\n'
     (tmp_path / "plain.toml").write_text(text, encoding="utf-8")

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import dopplertof
-from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+from dopplertof.cameras.capture import capture_camera
+from dopplertof.cameras.scene_view import load_scene_for_camera
 from dopplertof.cameras.preset import load_preset
 from dopplertof.tof import reconstruct as rec
 from dopplertof.tof.capture import CaptureError

@@ -49,7 +49,8 @@ def wall(preset, distance, albedo, ambient=0.0, crop=8, spp=64):
     """A capture (no noise) of a wall facing the camera, lit by the illuminator alone."""
     import dopplertof
     from dopplertof.cameras.accuracy import crop_fov, wall_scene_xml
-    from dopplertof.cameras.capture import capture_camera, with_illuminator
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import with_illuminator
     from dopplertof.scene import load_string
 
     dopplertof.set_variant()
@@ -139,7 +140,8 @@ def test_random_error_grows_with_distance_as_the_photon_count_predicts(tmp_path)
 
 def test_a_scene_without_light_gets_the_illuminator_and_area_lights_are_refused(tmp_path):
     import dopplertof
-    from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.tof.capture import CaptureError
 
     preset = load_text(tmp_path, absolute_text())
@@ -412,8 +414,8 @@ def test_wrong_depths_of_a_light_off_the_camera_are_its_path_or_its_shadow():
 
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.accuracy import path_depth, wall_scene_xml, wrong_depths
-    from dopplertof.cameras.capture import (capture_camera, load_scene_for_camera,
-                                            with_illuminator)
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera, with_illuminator
     from dopplertof.scene import load_string
 
     preset = load_preset("pmd-argos3d-p320")  # auto-exposed: the shadow keeps its light

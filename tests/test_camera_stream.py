@@ -271,7 +271,7 @@ def test_a_rotating_trajectory_slerps_as_the_closed_form_rotation(tmp_path):
     rotation (SLERP of one axis is the rotation by the interpolated angle), and the
     static wall's velocity truth holds the camera's own turning."""
     import dopplertof
-    from dopplertof.cameras.capture import load_scene_for_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset
     from dopplertof.scene.motion import Motion, rotation_quaternion
     from dopplertof.scene.trajectory import read_tum

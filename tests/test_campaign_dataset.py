@@ -175,8 +175,8 @@ def test_an_export_of_a_dataset_with_a_failed_sample_names_it(with_failed, tmp_p
 
 
 def test_an_export_writes_the_bytes_np_save_writes(tiny, tmp_path):
-    """The export's .npy files go through io.write_npy now (FD05): the same bytes as
-    np.save."""
+    """The export's .npy files go through file_formats.write_npy now (FD05): the same
+    bytes as np.save."""
     from dopplertof.cli import main
 
     out = tmp_path / "torf"
@@ -208,7 +208,7 @@ class _FullFile:
         self.inner.close()
 
 
-@pytest.mark.parametrize("module", ["dopplertof.io", "dopplertof.dataset.export"])
+@pytest.mark.parametrize("module", ["dopplertof.file_formats", "dopplertof.dataset.export"])
 def test_an_export_onto_a_full_disk_names_the_file(tiny, tmp_path, capsys, monkeypatch,
                                                     module):
     """FD05: 'dopplertof: error: 3072 requested and 992 written' (np.save's and tofile's
@@ -220,7 +220,7 @@ def test_an_export_onto_a_full_disk_names_the_file(tiny, tmp_path, capsys, monke
 
     monkeypatch.setattr(importlib.import_module(module), "open", _FullFile, raising=False)
     out = tmp_path / "exp"
-    if module == "dopplertof.io":  # (TöRF's .npy files)
+    if module == "dopplertof.file_formats":  # (TöRF's .npy files)
         assert main(["dataset", "export", tiny[1], "--format", "torf", "-o", str(out)]) == 2
         expected = os.path.join(str(out), "sample_00000000", "tof", "0000.npy")
     else:  # FLAT's raw files (the export needs a Kinect dataset: the writer alone)
@@ -263,16 +263,16 @@ def test_sigterm_during_an_export_says_so_in_one_line(tiny, tmp_path, capsys, mo
     a rerun exports."""
     import signal
 
-    from dopplertof import io
+    from dopplertof import file_formats
     from dopplertof.cli import main
 
-    real = io.write_npy
+    real = file_formats.write_npy
 
     def terminated_while_writing(path, array):
         real(path, array)
         os.kill(os.getpid(), signal.SIGTERM)  # (handled at the next bytecode)
 
-    monkeypatch.setattr(io, "write_npy", terminated_while_writing)
+    monkeypatch.setattr(file_formats, "write_npy", terminated_while_writing)
     out = tmp_path / "exp"
     assert main(["dataset", "export", tiny[1], "--format", "torf", "-o", str(out)]) == 143
     err = capsys.readouterr().err
@@ -281,7 +281,7 @@ def test_sigterm_during_an_export_says_so_in_one_line(tiny, tmp_path, capsys, mo
                           "written; the dataset") and "earlier output are intact" in err
     assert os.listdir(tmp_path) == []
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # (the handler given back)
-    monkeypatch.setattr(io, "write_npy", real)
+    monkeypatch.setattr(file_formats, "write_npy", real)
     assert main(["dataset", "export", tiny[1], "--format", "torf", "-o", str(out)]) == 0
     assert (out / "export.json").exists()
 

@@ -15,7 +15,7 @@ import pytest
 from analytic import plane_scene
 
 import dopplertof
-from dopplertof import io
+from dopplertof import file_formats, io
 from dopplertof.cli import main
 from dopplertof.fmcw import Chirp, FMCWError, fmcw
 from dopplertof.modulation import SPEED_OF_LIGHT
@@ -242,9 +242,9 @@ def test_a_folder_holding_another_output_is_not_overwritten(tmp_path, capsys):
     they were, and an FMCW frame rewrites its own folder."""
     folder = tmp_path / "capture"
     with io.output_folder(folder, "capture") as staged:
-        io.write_json(staged.path("summary.json"), {"kind": "capture"})
-        io.write_npy(staged.path("velocity.npy"), np.zeros((2, 2)))
-        io.write_npy(staged.path("depth.npy"), np.zeros((2, 2)))
+        file_formats.write_json(staged.path("summary.json"), {"kind": "capture"})
+        file_formats.write_npy(staged.path("velocity.npy"), np.zeros((2, 2)))
+        file_formats.write_npy(staged.path("depth.npy"), np.zeros((2, 2)))
     before = _digests(folder)
     code = main(["fmcw", SPHERE, "-o", str(folder), "--spp", "1", "-D", "res=4"])
     _refused(capsys, code, "holds the capture output that wrote velocity.npy, summary.json",

@@ -171,7 +171,8 @@ def test_pixels_outside_a_narrow_illuminator_get_no_light(tmp_path):
     import dopplertof
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.accuracy import wall_scene_xml
-    from dopplertof.cameras.capture import capture_camera, with_illuminator
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import with_illuminator
     from dopplertof.cameras.radiometry import view_tangents
     from dopplertof.scene import load_string
 
@@ -236,8 +237,8 @@ def test_a_capture_through_the_nfov_preset_reports_its_unlit_rows_invalid(tmp_pa
     import dopplertof
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.accuracy import wall_scene_xml
-    from dopplertof.cameras.capture import (capture_camera, format_camera_summary,
-                                            scene_text_for_camera, with_illuminator)
+    from dopplertof.cameras.capture import capture_camera, format_camera_summary
+    from dopplertof.cameras.scene_view import scene_text_for_camera, with_illuminator
     from dopplertof.cameras.radiometry import view_tangents
     from dopplertof.scene import load_string
 

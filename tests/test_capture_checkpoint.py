@@ -129,7 +129,8 @@ def test_a_camera_capture_stopped_after_two_raw_frames_resumes_bitwise(tmp_path,
     """A camera's raw frames (each in its own window): stopped (KeyboardInterrupt) once
     2 frames were rendered, the capture again renders the other frames only, and its
     raw frames, readout and depth are bitwise those of an uninterrupted capture."""
-    from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset
 
     preset = load_preset("pmd-argos3d-p320")  # 4 raw frames

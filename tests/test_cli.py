@@ -1,12 +1,13 @@
 """The command line: outputs, exit codes, one-line errors, untouched files on failure."""
 
+import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from conftest import PUBLISHED
+from conftest import PUBLISHED, ROOT
 
 SMALL = ["-D", "resx=12", "-D", "resy=10", "--spp", "4", "--quiet"]
 
@@ -89,6 +90,23 @@ def test_mitsuba_plugin_renders_static_scene():
     ours = dopplertof.render(dopplertof.scene.load_string(text, {"resx": 8, "resy": 8}),
                              spp=8, seed=1)
     assert np.array_equal(img, ours)
+
+
+def test_an_fmcw_scene_loads_after_mitsuba_renders_with_the_plugin():
+    """mitsuba.render traverses the integrator (its modality settings, dataclasses) and
+    Dr.Jit resolves their fields' type names to classes in place: the FMCW settings of
+    every scene loaded after it were refused ('dopplertof: error: <class 'float'>')."""
+    import mitsuba as mi
+
+    import dopplertof
+
+    text = open(PUBLISHED).read()
+    start, end = text.index('<shape type="cube" id="ShortBox">'), text.index("<emitter")
+    text = (text[:start] + text[end:]).replace('type="correlated"', 'type="independent"')
+    mi.render(mi.load_string(text, resx=4, resy=4), spp=2, seed=1)
+    street = dopplertof.load_file(os.path.join(ROOT, "examples", "fmcw_street.xml"),
+                                  {"res": "4"})
+    assert street.modality_settings["fmcw"].bandwidth == 4.0  # (the file's fmcw_bandwidth)
 
 
 def test_the_mitsuba_plugin_is_the_integrator_class():

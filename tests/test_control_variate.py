@@ -192,3 +192,21 @@ def test_derivatives_of_an_auto_scene_sample_time():
     assert scene.params.resolved(scene.shutter_interval).time_sampling_method == (
         "control_variate")
     assert gradient_params(DifferentiableScene(scene)).time_sampling_method == "stratified"
+
+
+def test_a_render_leaves_the_settings_dataclasses_as_they_were():
+    """The pass reads its loop's settings through a plain object: a loop that read the
+    render's setup (a dataclass) took it for loop state, and Dr.Jit's traversal then
+    replaced the FMCW settings' field types ('float') by the classes in place, so that
+    the next FMCW scene in the process failed to load (KeyError: <class 'float'>)."""
+    from dataclasses import fields
+
+    from dopplertof.fmcw_settings import FMCWSettings
+
+    before = [f.type for f in fields(FMCWSettings)]
+    scene = dopplertof.load_dict(plane_scene(
+        3.0, 30.0, spp=4, integrator=dict(time_sampling_method="control_variate")))
+    dopplertof.render(scene, seed=0)
+    assert [f.type for f in fields(FMCWSettings)] == before
+    street = dopplertof.load_file(os.path.join(EXAMPLES, "fmcw_street.xml"), {"res": "4"})
+    assert street.modality_settings["fmcw"].bandwidth == 4.0  # (the file's fmcw_bandwidth)

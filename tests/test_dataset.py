@@ -898,9 +898,9 @@ def _assert_close_tree(got, expected, where: str):
 
 def test_a_samples_description_is_written_with_json_ready_floats(tiny):
     """issue 42 item 11 (2026-12-04): the HDF5 attributes description and camera_preset
-    held floats such as 0.006500000000000001; they go through io.json_ready (15
+    held floats such as 0.006500000000000001; they go through file_formats.json_ready (15
     significant digits, float32 values as their shortest decimal)."""
-    from dopplertof.io import json_ready
+    from dopplertof.file_formats import json_ready
 
     ds = Dataset(tiny[1])
     for item in range(len(ds)):

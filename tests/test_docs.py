@@ -231,3 +231,18 @@ def test_a_doc_that_uses_pytorch_shows_its_cpu_wheel():
         text = open(path, encoding="utf-8").read()
         if re.search(r"^import torch\b", text, re.M):
             assert "--index-url https://download.pytorch.org/whl/cpu" in text, path
+
+
+def test_the_image_hash_table_lists_every_hash_the_tool_records():
+    """docs/testing.md's table of tools/image_hashes.py's hashes names each hash the tool
+    computes (image_hashes.names()) once, and no other."""
+    import sys
+
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    import image_hashes
+
+    with open(os.path.join(ROOT, "docs", "testing.md"), encoding="utf-8") as f:
+        table = f.read().split("| hash | what is rendered |\n")[1].split("\n\n")[0]
+    listed = [name for row in table.split("\n")[1:]
+              for name in re.findall(r"`([^`]+)`", row.split(" | ")[0])]
+    assert sorted(listed) == sorted(image_hashes.names())

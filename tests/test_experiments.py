@@ -85,7 +85,10 @@ def client():
     ({"reference": {"spp": 64, "hetero_frequency": 0}}, "changes the expected image"),
     ({"reference": {"seed": 5}}, "give the reference's spp"),
     ({"scene": "missing.xml"}, "scene file not found"),
-    ({"outputs": "x"}, "unknown key 'outputs'"),
+    ({"outputs": "x"}, "unknown key outputs"),
+    ({"varaint": "x"}, "unknown key varaint, did you mean 'variant'?"),
+    ({"name": 3}, "name must be a string (the sweep's label"),
+    ({"fixed": 3}, "[fixed] must be a table, got 3"),
 ])
 def test_bad_config_is_rejected_with_the_reason(changes, message):
     with pytest.raises(ConfigError) as err:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import dopplertof
-from dopplertof import image_files, io
+from dopplertof import file_formats, image_files, io
 from dopplertof.cli import main
 from dopplertof.demo import demo_scene_path
 
@@ -160,7 +160,7 @@ def test_files_that_are_not_the_captures_are_left_alone(captures, cheap_previews
     (tmp_path / "data").mkdir()
     (tmp_path / "data" / "x.npy").write_bytes(b"x")
     with io.output_folder(tmp_path, "fit") as staged:
-        io.write_json(staged.path("fit.json"), {"fit": 1})
+        file_formats.write_json(staged.path("fit.json"), {"fit": 1})
     monkeypatch.chdir(tmp_path)
     captures["batches"].write(".")
     captures["small"].write(".")
@@ -435,10 +435,10 @@ def test_json_floats_are_written_to_fifteen_significant_digits(tmp_path):
     shortest decimal; integers, infinities and NaN pass as they are."""
     import json
 
-    from dopplertof import io
+    from dopplertof import file_formats
 
     path = tmp_path / "a.json"
-    io.write_json(path, {"a": 0.03 - 0.02, "b": [0.1 * 0.1, np.float64(1 / 3)],
+    file_formats.write_json(path, {"a": 0.03 - 0.02, "b": [0.1 * 0.1, np.float64(1 / 3)],
                          "c": np.float32(0.0015), "d": 7, "e": float("inf"), "f": 123456.789})
     text = path.read_text()
     assert "0.0099999" not in text and "0.0100000" not in text

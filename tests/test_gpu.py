@@ -234,7 +234,8 @@ PLANE_AT_3M = """<scene version="3.0.0">
 
 
 def test_camera_preset_capture_measures_the_plane(variant, tmp_path):
-    from dopplertof.cameras.capture import capture_camera, load_scene_for_camera
+    from dopplertof.cameras.capture import capture_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset
 
     path = tmp_path / "plane.xml"

@@ -590,3 +590,26 @@ def test_path_replay_equals_the_trajectory_with_an_area_light(hide_emitters):
                             weights, 16)
     scale = max(abs(trajectory[n]) for n in camera)
     assert all(abs(trajectory[n] - path[n]) <= 1e-2 * scale for n in camera)
+
+
+def test_a_gradient_leaves_the_settings_dataclasses_as_they_were():
+    """The adjoint's path loop reads the render's setup (a dataclass) only through plain
+    objects: a loop that read it took it for loop state, and Dr.Jit's traversal then
+    replaced the FMCW settings' field types ('float') by the classes in place, so that
+    the next FMCW scene in the process failed to load ('dopplertof: error: <class
+    'float'>')."""
+    from dataclasses import fields
+
+    import drjit as dr
+
+    import dopplertof
+    from dopplertof.fmcw_settings import FMCWSettings
+
+    before = [f.type for f in fields(FMCWSettings)]
+    dopplertof.set_variant("llvm_ad_rgb")
+    scene = DifferentiableScene(dopplertof.load_dict(plane_scene(
+        2.0, 10.0, spp=4, integrator={"hetero_frequency": 1.0}, res=2)))
+    got = gradient(scene, lambda image: dr.sum(image, axis=None), names=["body0.vz"], spp=4,
+                   method="path")
+    assert np.isfinite(got["body0.vz"]).all()
+    assert [f.type for f in fields(FMCWSettings)] == before

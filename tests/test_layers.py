@@ -191,3 +191,25 @@ def test_no_issue_numbers_or_dates_in_src_and_no_issue_numbers_in_docs():
             if issue.search(line):
                 found.append(f"{os.path.relpath(path, root)}:{number}")
     assert not found, "history outside git: " + ", ".join(found)
+
+
+#: names that hold dataclasses (a render's setup, its parameters): read inside a Dr.Jit
+#: loop they become loop state, and Dr.Jit's traversal of them replaced the FMCW
+#: settings' field types in place (tests/test_gradient.py, test_control_variate.py)
+_NOT_IN_LOOPS = ("setup", "params")
+
+
+def test_no_dr_syntax_loop_reads_a_dataclass_by_name():
+    """The path loops (functions decorated ``dr.syntax``) read the render's setup and
+    parameters only through plain objects (path_steps.LoopSettings, a modality)."""
+    found = []
+    for module, path in modules().items():
+        for node in ast.walk(ast.parse(open(path).read())):
+            if isinstance(node, ast.FunctionDef) and any(
+                    ast.unparse(d) == "dr.syntax" for d in node.decorator_list):
+                for loop in (n for n in ast.walk(node) if isinstance(n, ast.While)):
+                    names = {n.id for part in [loop.test, *loop.body]
+                             for n in ast.walk(part) if isinstance(n, ast.Name)}
+                    found += [f"{module}.{node.name}: {name}"
+                              for name in sorted(names & set(_NOT_IN_LOOPS))]
+    assert not found, "a dr.syntax loop reads: " + ", ".join(found)

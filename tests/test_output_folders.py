@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from dopplertof import io
+from dopplertof import file_formats, io
 from dopplertof.cli import _parser, main
 from dopplertof.cli_options import FOLDER_HELP
 from dopplertof.demo import demo_scene_path
@@ -63,6 +63,6 @@ def test_a_file_in_the_way_is_refused_before_any_work(tmp_path):
 
 def test_atomic_writes_create_the_folder(tmp_path):
     target = tmp_path / "x" / "y" / "data.json"
-    io.write_json(target, {"a": 1})
+    file_formats.write_json(target, {"a": 1})
     assert target.read_text().strip().startswith("{")
     assert os.listdir(target.parent) == ["data.json"]

@@ -136,7 +136,7 @@ def test_unit_scales_geometry_camera_and_velocity(tmp_path):
     illuminator (its offset in metres) on the camera."""
     import mitsuba as mi
 
-    from dopplertof.cameras.capture import load_scene_for_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset
 
     dopplertof.set_variant()
@@ -218,7 +218,7 @@ def test_an_intensity_it_cannot_scale_is_one_line():
 
 
 def test_unit_m_changes_nothing_and_a_bad_unit_is_one_line():
-    from dopplertof.cameras.capture import load_scene_for_camera
+    from dopplertof.cameras.scene_view import load_scene_for_camera
     from dopplertof.cameras.preset import load_preset
 
     dopplertof.set_variant()
@@ -249,7 +249,7 @@ def test_a_bad_unit_from_the_cli_is_one_line_exit_2(tmp_path):
 def test_the_presets_view_is_said_and_can_be_kept(tmp_path):
     """The preset's 75 degrees replace the scene's 50 with a note; keep-view keeps the
     scene's 50 on the preset's pixels (fov_axis y: the horizontal view its aspect gives)."""
-    from dopplertof.cameras.capture import load_scene_for_camera, preset_with_scene_view
+    from dopplertof.cameras.scene_view import load_scene_for_camera, preset_with_scene_view
     from dopplertof.cameras.preset import load_preset
 
     dopplertof.set_variant()

@@ -9,7 +9,7 @@ import pytest
 
 from dopplertof.cameras.preset import PRESET_FOLDER, PresetError, _preset_from
 from dopplertof.dataset.config import DatasetError, config_from_mapping
-from dopplertof.io import read_toml
+from dopplertof.file_formats import read_toml
 
 DATASET = {"samples": 2, "render": {"resolution": [8, 6], "spp": 4}}
 

@@ -8,9 +8,10 @@ unchanged (same machine, same Dr.Jit and Mitsuba).
 ``-P name=value`` adds a render parameter to every configuration (e.g.
 ``-P film_sampling=importance``: tests/fixtures/images_importance_film.json holds those
 hashes, which tests/test_film.py compares on the machine that recorded them). The set
-covers every time-sampling method, the waveforms and the full-waveform mode, the variant
-families (RGB, spectral, mono), body, camera and light motion, the three filters,
-adaptive counts, a crop window, the motion mapping; and the captures: a D-ToF frame (with error
+covers every time-sampling method (the analytic and control-variate modes among them), the
+waveforms and the full-waveform mode, the variant families (RGB, spectral, mono), body,
+camera and light motion, the three filters, adaptive counts, a crop window, the motion
+mapping; and the captures: a D-ToF frame (with error
 bars, through a checkpoint), two camera presets' frames, an FMCW spectrum and two dataset
 samples. About a minute on 2 cores.
 """
@@ -37,6 +38,17 @@ def _digest(*arrays) -> str:
         h.update(str((a.dtype, a.shape)).encode())
         h.update(a.tobytes())
     return h.hexdigest()[:16]
+
+
+#: the captures hashed after the renders of configurations(), by name
+CAPTURES = ("capture", "capture-error-bars", "capture-checkpoint", "camera-azure-kinect",
+            "camera-kinect-v2", "fmcw", "fmcw-collimated-speckle", "dataset-sample0",
+            "dataset-sample1")
+
+
+def names() -> list:
+    """Every hash's name, in the order they are computed (docs/testing.md lists them)."""
+    return [c[0] for c in configurations()] + list(CAPTURES)
 
 
 def configurations():
@@ -82,6 +94,8 @@ def configurations():
                               "antithetic_mapping": "motion"}}
     yield "published-analytic", rgb, published(), {
         "spp": 32, "params": {"time_sampling_method": "analytic"}}
+    yield "published-control-variate", rgb, published(), {
+        "spp": 32, "params": {"time_sampling_method": "control_variate"}}
     yield "published-adaptive", rgb, published(), {
         "spp": 128, "params": {"adaptive_sampling": True}}
     for wave in ("rectangular", "triangular", "trapezoidal"):
@@ -140,6 +154,8 @@ def hashes(extra_params: dict, only=None) -> dict:
     out["capture"] = _digest(*(frame.captures[k] for k in sorted(frame.captures)),
                              frame.velocity, frame.depth)
     out.update(capture_hashes(extra_params))
+    if only is None:
+        assert sorted(out) == sorted(names()), "CAPTURES is not what capture_hashes hashes"
     return out
 
 

@@ -13,7 +13,7 @@ import json
 import os
 from dataclasses import dataclass
 
-from . import io
+from . import file_formats
 
 #: the file name of a capture's summary
 SUMMARY_JSON = "summary.json"
@@ -41,7 +41,7 @@ def write_summary(path: str, kind: str, summary: dict) -> None:
     """Write ``summary`` to ``path`` (atomically) with the schema of ``kind``."""
     if kind not in KINDS:
         raise ValueError(f"unknown capture kind {kind!r}: expected one of {', '.join(KINDS)}")
-    io.write_json(path, {"schema": {"kind": kind, "version": SCHEMA_VERSION}, **summary})
+    file_formats.write_json(path, {"schema": {"kind": kind, "version": SCHEMA_VERSION}, **summary})
 
 
 @dataclass(frozen=True)

@@ -363,7 +363,7 @@ def _noise_model(args, default: bool):
 
 
 def _cmd_precision(args) -> int:
-    from . import io
+    from . import file_formats, io
     from .params import FREQUENCY_RANGE_MHZ
     from .tof import study
 
@@ -414,7 +414,7 @@ def _cmd_precision(args) -> int:
             study.write_map(staged.path(map_name), result, f"{os.path.basename(args.scene)}: "
                             f"predicted velocity precision (sensor: {noise.full_well:g} e- "
                             f"well, {scale})")
-            io.write_json(staged.path(stem + ".json"), result.describe())
+            file_formats.write_json(staged.path(stem + ".json"), result.describe())
         print(f"wrote {args.output}")
     return 0
 

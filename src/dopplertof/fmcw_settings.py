@@ -59,9 +59,11 @@ class FMCWSettings:
     def coerced(cls, values: dict, where: str = "parameters") -> dict:
         """``{field: value}`` of ``values`` (``{fmcw_name: value}``, every name one of
         :meth:`names`), each value of its field's type (strings parsed)."""
-        types = {cls.PREFIX + f.name: f.type for f in fields(cls)}
-        return {name[len(cls.PREFIX):]: coerce_parameter(name, value, _TYPES[types[name]],
-                                                         where)
+        # a field's type is its name, or the class itself once Dr.Jit has traversed the
+        # dataclass (mitsuba.render's custom op does: it resolves the names in place)
+        types = {cls.PREFIX + f.name: _TYPES[getattr(f.type, "__name__", f.type)]
+                 for f in fields(cls)}
+        return {name[len(cls.PREFIX):]: coerce_parameter(name, value, types[name], where)
                 for name, value in values.items()}
 
     @classmethod

@@ -11,8 +11,8 @@ import threading
 
 import numpy as np
 
-from .io import (atomic_path, check_output_path, json_default, json_ready, write_error,
-                 write_npy)
+from .file_formats import json_default, json_ready, write_npy
+from .io import atomic_path, check_output_path, write_error
 from .previews import (NAN_HATCHED, NO_SIGNAL_COLOUR, NOTHING_HIT, preview_scalar,
                        robust_limit)
 

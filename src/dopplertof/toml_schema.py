@@ -1,11 +1,12 @@
 """The one validator of the package's TOML files (camera presets: cameras/preset.py;
-dataset configurations: dataset/config.py): each section's keys declared with their
-kind, range, meaning and default, checked strictly. An unknown or misspelt key (with
+dataset configurations: dataset/config.py; sweep configurations, whose tables of render
+parameters are free-form: experiments/config.py): each section's keys declared with
+their kind, range, meaning and default, checked strictly. An unknown or misspelt key (with
 the nearest known name), a missing key, a value of the wrong kind or out of its range is
 one line naming the file and the key, raised as the caller's error class.
 
-A schema is ``{section: {key: Key}}``, section "" the top level. (io.read_toml reads
-the files.)
+A schema is ``{section: {key: Key}}``, section "" the top level.
+(file_formats.read_toml reads the files.)
 """
 
 from __future__ import annotations

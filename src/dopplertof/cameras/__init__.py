@@ -23,5 +23,6 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
                 "preset_names"),
     ".preset_file": ("write_preset",),
     ".calibration": ("calibrate", "fit_table", "CalibrationError"),
-    ".capture": ("capture_camera", "load_scene_for_camera"),
+    ".capture": ("capture_camera",),
+    ".scene_view": ("load_scene_for_camera",),
 })

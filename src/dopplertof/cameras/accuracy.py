@@ -1,7 +1,7 @@
 """A camera's depth accuracy on a flat diffuse wall, as makers specify it.
 
 The wall faces the camera at distance d, albedo rho, with no light of its own: the
-preset's illuminator lights it (:func:`.capture.with_illuminator`), with ambient light
+preset's illuminator lights it (:func:`.scene_view.with_illuminator`), with ambient light
 of the preset's condition or the one given. A crop of ``crop`` x ``crop`` pixels of the
 preset's own angular pitch around the optical axis is rendered once; the sensor and the
 depth engine then run ``seeds`` times on the same renders (:meth:`CameraResult.read_again`).
@@ -82,7 +82,8 @@ def render_wall(preset, distance: float, albedo: float, ambient: float | None = 
     (:meth:`CameraResult.read_again`) or with other sensor constants
     (:func:`predicted_random`)."""
     from ..scene import load_string
-    from .capture import capture_camera, with_illuminator
+    from .capture import capture_camera
+    from .scene_view import with_illuminator
     from .radiometry import view_tangents
 
     fov = crop_fov(preset, crop)

@@ -33,6 +33,7 @@ from . import radiometry
 from . import sensor as camera_sensor
 from .preset import CameraPreset, load_preset, sequence_window
 from .reconstruct import CameraReconstruction, reconstruct
+from .scene_view import load_scene_for_camera
 
 
 @dataclass
@@ -106,7 +107,7 @@ def capture_camera(scene, camera, spp: int | None = None, seed: int = 0, *, para
                    ambient_irradiance: float | None = None) -> CameraResult:
     """Render, read out and reconstruct one depth frame of ``camera`` (a preset name, a
     .toml path or a CameraPreset) on ``scene`` (a DopplerScene: its film is the camera's
-    resolution; or a scene file's path, loaded by :func:`load_scene_for_camera` with the
+    resolution; or a scene file's path, loaded by :func:`.scene_view.load_scene_for_camera` with the
     preset's field of view, resolution and, for a scene without light, its illuminator).
 
     params: integrator parameter overrides for every frame. noise: shot and read noise
@@ -458,157 +459,6 @@ def format_camera_summary(summary: dict, folder: str | None = None) -> str:
                      f"{v['p95_abs']:.3g} m/s over {v['pixels']} pixels" if v["pixels"]
                      else "  velocity error: no valid pixels")
     return "\n".join(lines)
-
-
-# ---- A scene file seen through a camera -------------------------------------------------
-
-def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
-                          source: str) -> str:
-    """The scene XML with its (single, top-level) sensor's film size and horizontal
-    field of view set to the camera's."""
-    from ..scene.sensor_text import set_sensor_properties
-
-    return set_sensor_properties(
-        text, [("sensor", "float", "fov", repr(float(fov_deg))),
-               ("sensor", "string", "fov_axis", "x"), ("film", "integer", "width", int(width)),
-               ("film", "integer", "height", int(height))],
-        source, "a camera preset", CaptureError)
-
-
-def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
-    """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
-    confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
-    reaches past it; default the preset's view) added when it has no light at all (a
-    scene's own point and spot lights stand for it otherwise): at the preset's offset
-    from the lens, riding with the camera (a keyframed camera's: placed at its first
-    keyframe, whose pose the loader takes for the rest pose). The offset is in OpenCV's
-    camera axes (x right, y down, z forward); Mitsuba's camera has x left and y up, so
-    the light is translated by (-x, -y, z) in the camera's frame."""
-    import xml.etree.ElementTree as ET
-
-    root = ET.fromstring(text)
-    if next(root.iter("emitter"), None) is not None:
-        return text
-    light = ET.fromstring(radiometry.illuminator_xml(preset, view))
-    sensor = root.find("sensor")
-    placed = next((t for t in sensor.findall("transform") if t.get("name") == "to_world"),
-                  None) if sensor is not None else None
-    moving = sensor.find("animation") if sensor is not None else None
-    if placed is None and moving is not None:  # the first keyframe: the camera's rest pose
-        placed = moving.find("transform")  # (the light rides on: follow="sensor")
-    transform = light.find("transform")
-    if placed is not None:
-        for step in placed:  # after the offset: the camera's own placement
-            transform.append(step)
-    root.append(light)
-    return ET.tostring(root, encoding="unicode")
-
-
-def parse_resolution(text: str) -> tuple:
-    """``WIDTHxHEIGHT`` as (width, height), or a CaptureError naming --res."""
-    try:
-        width, height = (int(v) for v in str(text).lower().split("x"))
-    except ValueError:
-        raise CaptureError(f"--res must be WIDTHxHEIGHT (e.g. 64x53), got {text!r}") from None
-    if width < 1 or height < 1:
-        raise CaptureError(f"--res must be positive, got {text!r}")
-    return width, height
-
-
-def scene_view_note(text: str, preset: CameraPreset, source: str) -> str | None:
-    """A note when the preset's field of view replaces the one the scene's sensor gives
-    (its framing is lost), None when they agree or the text has no single sensor."""
-    import xml.etree.ElementTree as ET
-
-    try:
-        sensors = [el for el in ET.fromstring(text) if el.tag == "sensor"]
-    except ET.ParseError:
-        return None  # the loader names the problem
-    if len(sensors) != 1:
-        return None
-    given = {el.get("name"): el.get("value") for el in sensors[0]
-             if el.get("name") in ("fov", "fov_axis", "focal_length")}
-    axis = given.get("fov_axis") or "x"
-    if "fov" in given:
-        try:
-            if axis == "x" and float(given["fov"]) == preset.fov_deg:
-                return None
-        except ValueError:
-            pass  # a $name: say what is written
-        said = f"fov {given['fov']}" + (f", fov_axis {axis}" if axis != "x" else "")
-    else:
-        said = f"focal_length {given.get('focal_length', '50mm')}"
-    return (f"{source}: the camera preset {preset.name}'s {preset.fov_deg:g} degree "
-            f"horizontal field of view replaces the scene's sensor's ({said}): the framing "
-            "differs from the scene's; --keep-view keeps the scene's view with the preset's "
-            "sensor")
-
-
-def _scene_text(path) -> str:
-    with open(path, encoding="utf-8") as f:
-        return f.read()
-
-
-def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
-                           defines=None) -> CameraPreset:
-    """``preset`` with the horizontal field of view that the scene file ``path``'s
-    sensor has on the preset's pixels (or ``resolution``): the scene's framing, the
-    preset's sensor (its pixels, pitch and radiometry; a shorter or longer focal
-    length)."""
-    from dataclasses import replace
-
-    import mitsuba as mi
-
-    from ..scene import load_string
-    from ..scene.sensor_text import set_sensor_properties
-
-    width, height = resolution or preset.resolution
-    text = set_sensor_properties(_scene_text(path),
-                                 [("film", "integer", "width", int(width)),
-                                  ("film", "integer", "height", int(height))],
-                                 os.fspath(path), "a camera preset", CaptureError)
-    if preset.absolute:
-        text = with_illuminator(text, preset)
-    scene = load_string(text, dict(defines or {}), source=os.fspath(path),
-                        base_dir=os.path.dirname(os.path.abspath(path)))
-    fov = mi.traverse(scene.sensor).get("x_fov")
-    if fov is None:
-        raise CaptureError(f"{path}: --keep-view needs a perspective sensor (a field of "
-                           "view), the scene's has none")
-    fov = float(np.asarray(fov).reshape(-1)[0])
-    if not 0.1 <= fov <= 160:
-        raise CaptureError(f"{path}: --keep-view: the scene's horizontal field of view "
-                           f"{fov:g} degrees is outside a preset's 0.1 to 160")
-    return replace(preset, fov_deg=fov)
-
-
-def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=None,
-                          keep_view: bool = False, camera_keyframes=None):
-    """The scene file ``path`` with the camera's field of view and resolution (or
-    ``resolution`` = (width, height): the same field of view, other pixels); a note
-    (``scene.notes``) when that field of view replaces the scene's, unless
-    ``keep_view`` (``preset`` is :func:`preset_with_scene_view`'s: the scene's view).
-    ``camera_keyframes``: :class:`dopplertof.scene.motion.Keyframes` of the sensor's
-    to_world that replace its placement (a trajectory's,
-    :meth:`dopplertof.scene.trajectory.Trajectory.keyframes`)."""
-    from dataclasses import replace
-
-    from ..scene import load_string
-    from ..scene.sensor_text import set_sensor_keyframes
-
-    text = _scene_text(path)
-    note = None if keep_view else scene_view_note(text, preset, os.fspath(path))
-    width, height = resolution or preset.resolution
-    text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
-    if camera_keyframes is not None:
-        text = set_sensor_keyframes(text, camera_keyframes, os.fspath(path), "a trajectory",
-                                    CaptureError)
-    if preset.absolute:
-        text = with_illuminator(text, preset,
-                                radiometry.view_tangents(preset.fov_deg, width, height))
-    scene = load_string(text, dict(defines or {}), source=os.fspath(path),
-                        base_dir=os.path.dirname(os.path.abspath(path)))
-    return replace(scene, notes=scene.notes + (note,)) if note else scene
 
 
 def capture_through(path, cameras, resolution=None, defines=None, **options) -> list:

@@ -159,7 +159,8 @@ def _compare(args) -> int:
     import dopplertof
 
     from ..cli_options import print_warnings
-    from .capture import capture_through, format_camera_summary, parse_resolution
+    from .capture import capture_through, format_camera_summary
+    from .scene_view import parse_resolution
     from .figures import write_camera_comparison
     from .preset import load_preset, preset_names
 
@@ -211,8 +212,8 @@ def run_camera_capture(args, load_defines) -> int:
 
     from ..cli_options import parse_pairs, print_warnings
     from ..tof import prepare_folder
-    from .capture import (capture_camera, format_camera_summary, load_scene_for_camera,
-                          parse_resolution, preset_with_scene_view)
+    from .capture import capture_camera, format_camera_summary
+    from .scene_view import load_scene_for_camera, parse_resolution, preset_with_scene_view
     from .preset import load_preset
 
     preset = load_preset(args.camera)

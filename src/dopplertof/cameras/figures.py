@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import io, previews
+from .. import file_formats, previews
 
 from .. import image_files
 from .demodulate import calibration_tables, wiggling_curves
@@ -39,7 +39,7 @@ def write_wiggling(path, preset) -> dict:
                "distances_m": distances.tolist(), "error_uncalibrated_m": raw.tolist(),
                "error_reported_m": reported.tolist(),
                "calibration_tables": calibration_tables(preset)}
-    io.write_json(str(path)[:-4] + ".json", numbers)
+    file_formats.write_json(str(path)[:-4] + ".json", numbers)
     return numbers
 
 
@@ -91,7 +91,7 @@ def write_camera_comparison(path, results, title: str) -> dict:
     image_files.save_figure(fig, path)
     numbers = {"title": title, "cameras": [_comparison_numbers(r, e)
                                            for r, e in zip(results, errors)]}
-    io.write_json(str(path)[:-4] + ".json", numbers)
+    file_formats.write_json(str(path)[:-4] + ".json", numbers)
     return numbers
 
 

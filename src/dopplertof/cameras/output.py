@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import io
+from .. import file_formats, io
 
 from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
@@ -46,7 +46,7 @@ def _write_camera_files(result, path) -> None:
     if readout.shutter is not None:
         arrays["shutter"] = readout.shutter
     for name, data in arrays.items():
-        io.write_npy(path(CAMERA[name].npy), CAMERA[name].array(data))
+        file_formats.write_npy(path(CAMERA[name].npy), CAMERA[name].array(data))
     _write_previews(result, path, camera)
     write_summary(path(SUMMARY_JSON), "camera", summary)
 

@@ -22,7 +22,7 @@ import os
 from dataclasses import dataclass, field
 
 from ..hints import did_you_mean
-from ..io import read_toml
+from ..file_formats import read_toml
 from ..modulation import WAVEFORMS
 from ..toml_schema import Key, section, table
 

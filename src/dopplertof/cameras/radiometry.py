@@ -92,7 +92,7 @@ def illuminator_xml(preset, view=None) -> str:
     none outside (:func:`light_xml`): the scene's only light. ``view``: the
     (tan_x, tan_y) of the view's half extents (:func:`view_tangents`; default the
     preset's). The transform holds the offset only;
-    :func:`..capture.with_illuminator` appends the camera's placement."""
+    :func:`.scene_view.with_illuminator` appends the camera's placement."""
     from ..scene.scene import CAMERA_ILLUMINATOR_ID
 
     x, y, z = preset.illuminator["offset_m"]  # OpenCV axes: Mitsuba's are (-x, -y, z)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ..arguments import check_seed
 from .. import toml_schema
-from ..io import read_toml
+from ..file_formats import read_toml
 from ..toml_schema import Key
 
 #: shapes a configuration may draw ("mesh": a file of [objects] mesh_folder)

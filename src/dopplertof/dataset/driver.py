@@ -187,11 +187,11 @@ def json_digest(info: dict) -> str:
     canonical JSON: sorted keys, no spaces)."""
     import hashlib
 
-    from .. import io
+    from .. import file_formats
 
-    content = json.loads(json.dumps(io.json_ready({k: v for k, v in info.items()
+    content = json.loads(json.dumps(file_formats.json_ready({k: v for k, v in info.items()
                                                    if k != JSON_DIGEST}),
-                                    default=io.json_default))
+                                    default=file_formats.json_default))
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
@@ -396,7 +396,7 @@ def announce_time(config: DatasetConfig, samples: int) -> None:
 
 def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> None:
     """dataset.json: what the folder is, how to read it and what the last run did."""
-    from .. import io
+    from .. import file_formats, io
     from .sample import UNITS
 
     with io.output_folder(output, "dataset") as staged:
@@ -416,4 +416,4 @@ def write_dataset_json(output: str, config: DatasetConfig, tasks, summary) -> No
                          "samples_per_hour": summary.samples_per_hour},
             "documentation": "docs/dataset.md",
         }
-        io.write_json(staged.path(DATASET_JSON), {**info, JSON_DIGEST: json_digest(info)})
+        file_formats.write_json(staged.path(DATASET_JSON), {**info, JSON_DIGEST: json_digest(info)})

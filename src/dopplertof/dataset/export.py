@@ -185,7 +185,7 @@ def _export_torf(ds, staging: str) -> dict:
     """Every sample of ``ds`` as a TöRF scan: sample_<index>/{tof, depth, color}/0000.npy
     and cams/, a view per frame (a clip's frames 0000, 0001...; TöRF's scans are
     sequences)."""
-    from .. import io
+    from .. import file_formats
     from ..outputs import TORF
 
     scans = []
@@ -217,7 +217,7 @@ def _export_torf(ds, staging: str) -> dict:
             folder, base = os.path.split(name)
             for one in ([f"{folder}/{v:04d}.npy" for v in range(len(views))]
                         if base == "0000.npy" else [name]):
-                io.write_npy(os.path.join(scan, one), files[one])
+                file_formats.write_npy(os.path.join(scan, one), files[one])
         scans.append(os.path.basename(scan))
     return {"scans": scans}
 

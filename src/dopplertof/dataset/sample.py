@@ -16,7 +16,7 @@ import json
 
 import numpy as np
 
-from ..io import json_ready
+from ..file_formats import json_ready
 from ..outputs import CAMERA_SPLITS, MASKS, SAMPLE, SAMPLE_CAMERA
 from .config import DatasetConfig
 from .generate import camera_pose, draw_scene

@@ -36,10 +36,10 @@ class FitResult:
 def write_fit(result: FitResult, folder) -> list:
     """fit.json and convergence.png into ``folder`` (created if missing), both or
     neither (the output set "fit" of :func:`dopplertof.io.output_folder`)."""
-    from .. import io
+    from .. import file_formats, io
 
     with io.output_folder(folder, "fit") as staged:
-        io.write_json(staged.path("fit.json"), result.as_json())
+        file_formats.write_json(staged.path("fit.json"), result.as_json())
         write_convergence_plot(result, staged.path("convergence.png"))
     return staged.written
 

@@ -116,7 +116,7 @@ def load_frame_scene(path: str, defines: dict, shutter_open: float, shutter_clos
 
 def run_frame_task(task: FrameTask) -> dict:
     """Render and reconstruct one frame into its folder (runs on a worker)."""
-    from .. import io
+    from .. import file_formats
     from .. import image_files
     from ..tof import capture
 
@@ -133,19 +133,19 @@ def run_frame_task(task: FrameTask) -> dict:
         result.write(task.folder)
     else:
         for name, image in result.captures.items():
-            io.write_npy(os.path.join(task.folder, f"{name}.npy"), image)
+            file_formats.write_npy(os.path.join(task.folder, f"{name}.npy"), image)
         arrays = {"velocity": result.velocity, "velocity_gt": result.velocity_gt,
                   "depth": result.depth, "depth_gt": result.depth_gt,
                   "radiance": result.radiance}
         for name, array in arrays.items():
-            io.write_npy(os.path.join(task.folder, DTOF[name].npy), DTOF[name].array(array))
+            file_formats.write_npy(os.path.join(task.folder, DTOF[name].npy), DTOF[name].array(array))
         write_summary(os.path.join(task.folder, SUMMARY_JSON), "dtof", result.summary)
     image_files.write_exr(os.path.join(task.folder, "velocity.exr"),
                  np.asarray(result.velocity, dtype=np.float32),
                  {"quantity": "radial velocity, m/s, > 0 receding",
                   "exposure_start_s": task.shutter_open})
     seconds = time.perf_counter() - started
-    io.write_json(os.path.join(task.folder, PARAMS_JSON), {
+    file_formats.write_json(os.path.join(task.folder, PARAMS_JSON), {
         "frame": task.index, "exposure_start_s": task.shutter_open,
         "exposure_end_s": task.shutter_close, "params": task.params, "spp": task.spp,
         "seed": task.seed, "scene": task.scene, "scene_sha256": task.scene_sha256,
@@ -267,9 +267,9 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
 
 
 def _write_animation_json(path, tasks, summary, fps, frame_period) -> None:
-    from .. import io
+    from .. import file_formats
 
-    io.write_json(path, {
+    file_formats.write_json(path, {
         "scene": tasks[0].scene, "frames": len(tasks), "fps": fps,
         "exposure_s": tasks[0].params["time"],
         "frame_period_s": (tasks[1].shutter_open - tasks[0].shutter_open

@@ -20,7 +20,9 @@
 
 Everything is checked before anything runs: unknown names, wrong types, empty grids,
 values out of range, and (against the loaded scene) parameter combinations that the
-renderer would refuse. Errors are one line and name the file and the key.
+renderer would refuse. Errors are one line and name the file and the key. The top level
+is checked by the package's TOML schema (toml_schema.py); the tables hold scene defines
+and render parameters, each checked as the parameter it names (:func:`typed_value`).
 """
 
 from __future__ import annotations
@@ -30,11 +32,12 @@ import os
 import re
 from dataclasses import dataclass, field
 
+from .. import toml_schema
 from ..arguments import check_seed
-from ..hints import did_you_mean
-from ..io import read_toml
+from ..file_formats import read_toml
 from ..params import FULL_CORRELATION, ParameterError, RenderParams
 from ..sampling import seed_words
+from ..toml_schema import Key
 
 #: grid and fixed keys besides the render parameters
 SAMPLE_KEYS = ("spp", "seed")
@@ -54,7 +57,14 @@ VALUE_WORDS = {("path_correlation_depth", "full"): FULL_CORRELATION}
 #: that a run never shares random numbers with its reference
 DEFAULT_REFERENCE_SEED = 1_000_003
 
-TOP_LEVEL_KEYS = ("scene", "name", "variant", "defines", "fixed", "grid", "reference")
+#: the top level's keys (toml_schema); its tables, TABLES, are free-form: the scene's
+#: defines and render parameters (typed_value)
+TOP_LEVEL = {
+    "scene": Key("string", "the scene file, a path relative to the configuration"),
+    "name": Key("string", "the sweep's label; default: the file's name", default=None),
+    "variant": Key("string", "the Mitsuba variant; default: the scene's", default=None),
+}
+TABLES = ("defines", "fixed", "grid", "reference")
 
 #: longest folder name written as is; longer ones are shortened with a hash
 MAX_FOLDER_NAME = 180
@@ -179,25 +189,16 @@ def config_from_mapping(data: dict, base_dir: str = ".", source: str = "<config>
     """Build a checked SweepConfig from the parsed TOML (or an equivalent dict)."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: expected a table at the top level")
-    unknown = [k for k in data if k not in TOP_LEVEL_KEYS]
-    if unknown:
-        raise ConfigError(f"{source}: unknown key {unknown[0]!r}"
-                          f"{did_you_mean(unknown[0], TOP_LEVEL_KEYS)} "
-                          f"(expected: {', '.join(TOP_LEVEL_KEYS)})")
-    scene = data.get("scene")
-    if not isinstance(scene, str) or not scene.strip():
-        raise ConfigError(f"{source}: 'scene' must name the scene file "
+    top = toml_schema.section(data, TOP_LEVEL, source, ConfigError, extra=TABLES)
+    if not top["scene"].strip():
+        raise ConfigError(f"{source}: scene must name the scene file "
                           "(a path relative to the configuration)")
-    scene_path = os.path.normpath(os.path.join(base_dir, os.path.expanduser(scene)))
+    scene_path = os.path.normpath(os.path.join(base_dir, os.path.expanduser(top["scene"])))
     if not os.path.isfile(scene_path):
         raise ConfigError(f"{source}: scene file not found: {scene_path}")
-
-    name = data.get("name", os.path.splitext(os.path.basename(source))[0] or "sweep")
-    if not isinstance(name, str):
-        raise ConfigError(f"{source}: 'name' must be a string, got {name!r}")
-    variant = data.get("variant")
-    if variant is not None and not isinstance(variant, str):
-        raise ConfigError(f"{source}: 'variant' must be a string, got {variant!r}")
+    name = top["name"]
+    if name is None:
+        name = os.path.splitext(os.path.basename(source))[0] or "sweep"
 
     defines = _table(data, "defines", source)
     for key, value in defines.items():
@@ -233,14 +234,12 @@ def config_from_mapping(data: dict, base_dir: str = ".", source: str = "<config>
     if "reference" in data:
         reference = _reference(_table(data, "reference", source), fixed, grid, source)
     return SweepConfig(scene=scene_path, grid=grid, fixed=fixed, defines=defines,
-                       reference=reference, variant=variant, name=name, source=source)
+                       reference=reference, variant=top["variant"], name=name, source=source)
 
 
 def _table(data: dict, key: str, source: str) -> dict:
-    value = data.get(key, {})
-    if not isinstance(value, dict):
-        raise ConfigError(f"{source}: '{key}' must be a table ([{key}]), got {value!r}")
-    return value
+    """The free-form table ``key`` ({} when absent)."""
+    return toml_schema.table(data, key, source, ConfigError, required=False)
 
 
 def _define_text(value) -> str:

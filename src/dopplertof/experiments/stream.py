@@ -109,8 +109,9 @@ def _keyframes(task: StreamFrameTask):
 
 def run_stream_frame_task(task: StreamFrameTask) -> dict:
     """Capture one depth frame into its folder (runs on a worker)."""
-    from .. import io
-    from ..cameras.capture import capture_camera, load_scene_for_camera
+    from .. import file_formats
+    from ..cameras.capture import capture_camera
+    from ..cameras.scene_view import load_scene_for_camera
     from ..cameras.preset import load_preset
 
     started = time.perf_counter()
@@ -131,9 +132,9 @@ def run_stream_frame_task(task: StreamFrameTask) -> dict:
     written = [os.path.basename(p) for p in result.write(task.folder)]
     truth = CAMERA["velocity_gt"]
     if truth.npy not in written:  # (a preset without velocity: the truth still)
-        io.write_npy(os.path.join(task.folder, truth.npy), truth.array(result.velocity_gt))
+        file_formats.write_npy(os.path.join(task.folder, truth.npy), truth.array(result.velocity_gt))
     seconds = time.perf_counter() - started
-    io.write_json(os.path.join(task.folder, PARAMS_JSON), {
+    file_formats.write_json(os.path.join(task.folder, PARAMS_JSON), {
         "frame": task.index, "frame_start_s": task.shutter_open,
         "sequence_end_s": task.shutter_close, "camera": task.camera,
         "resolution": task.resolution, "params": task.params, "spp": task.spp,
@@ -218,7 +219,7 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
     ``"WIDTHxHEIGHT"``; None: the preset's."""
     from ..arguments import check_seed
     from ..backend import DEFAULT_VARIANT
-    from ..cameras.capture import load_scene_for_camera, parse_resolution
+    from ..cameras.scene_view import load_scene_for_camera, parse_resolution
     from ..cameras.preset import load_preset, sequence_window
     from ..scene.inputs import scene_file_digest
     from ..scene.trajectory import read_tum
@@ -366,7 +367,7 @@ def _stamp(plan: StreamPlan, scene_time: float, task: StreamFrameTask):
 def write_stream_index(path, plan: StreamPlan, summary: AnimationSummary) -> None:
     """stream.json and groundtruth.txt (``path(name)``: where each goes) of the frames
     complete now (the failed ones are listed, not indexed)."""
-    from .. import io
+    from .. import file_formats
     from ..scene.trajectory import write_tum
 
     failed = {name for name, _ in summary.failed}
@@ -375,7 +376,7 @@ def write_stream_index(path, plan: StreamPlan, summary: AnimationSummary) -> Non
     write_tum(path(GROUNDTRUTH_TXT), [(e["timestamp"], np.asarray(e["pose_camera_to_world"]))
                                       for e in entries])
     first = plan.tasks[0]
-    io.write_json(path(STREAM_JSON), {
+    file_formats.write_json(path(STREAM_JSON), {
         "scene": first.scene, "camera": plan.camera, "camera_file": first.camera,
         "fps": plan.fps, "frame_count": len(plan.tasks), "t0_s": first.shutter_open,
         "clock": ("timestamps on the trajectory's clock: its first stamp is the scene's "

@@ -131,18 +131,18 @@ def write_sweep_files(config: SweepConfig, tasks, output: str, summary=None) -> 
     """sweep.json (the plan) and, at the end of a run, its summary.json: one output set
     (:func:`dopplertof.io.output_folder`), so that a summary.json never stays beside the
     plan of another run (at the start, the previous run's goes)."""
-    from .. import io
+    from .. import file_formats, io
 
     with io.output_folder(output, "sweep") as staged:
         write_sweep_json(config, tasks, output, staged.path(SWEEP_JSON))
         if summary is not None:
-            io.write_json(staged.path(SUMMARY_JSON), summary.to_json())
+            file_formats.write_json(staged.path(SUMMARY_JSON), summary.to_json())
 
 
 def write_sweep_json(config: SweepConfig, tasks, output: str, path: str) -> None:
-    from .. import io
+    from .. import file_formats
 
-    io.write_json(path, {
+    file_formats.write_json(path, {
         "config": config.to_json(),
         "tasks": [{"kind": t.kind, "name": t.name,
                    "folder": os.path.relpath(t.folder, output), "grid_point": t.grid_point,
@@ -194,9 +194,9 @@ def reserve_summary(path: str, summary: SweepSummary, pending: int) -> None:
     """Before any task runs: summary.json of this run (nothing done yet), padded with
     spaces to the size the final one takes when every pending task fails, so that a disk
     the tasks fill up still takes the final summary (:func:`write_summary`)."""
-    from .. import io
+    from .. import file_formats, io
 
-    text = json.dumps(io.json_ready(summary.to_json()), indent=2, sort_keys=True)
+    text = json.dumps(file_formats.json_ready(summary.to_json()), indent=2, sort_keys=True)
     with io.atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text + "\n" + " " * (SUMMARY_BYTES_PER_TASK * pending) + "\n")
@@ -206,7 +206,7 @@ def write_summary(config: SweepConfig, tasks, output: str, summary: SweepSummary
     """sweep.json and summary.json, all or nothing (:func:`write_sweep_files`); on a full
     disk, summary.json over the space :func:`reserve_summary` kept (in place: the one
     write that is not atomic, and only when nothing else can be written)."""
-    from .. import io
+    from .. import file_formats, io
 
     path = os.path.join(output, SUMMARY_JSON)
     try:
@@ -214,7 +214,7 @@ def write_summary(config: SweepConfig, tasks, output: str, summary: SweepSummary
     except (OSError, io.WriteError) as e:
         if not io.is_disk_full(e) or not os.path.isfile(path):
             raise
-        text = json.dumps(io.json_ready(summary.to_json()), indent=2, sort_keys=True,
+        text = json.dumps(file_formats.json_ready(summary.to_json()), indent=2, sort_keys=True,
                           default=str) + "\n"
         with open(path, "r+", encoding="utf-8") as f:
             f.write(text)

@@ -123,9 +123,9 @@ def begin_task(folder: str) -> None:
 
 
 def finish_task(folder: str, task_hash: str, outputs, seconds: float) -> None:
-    from .. import io
+    from .. import file_formats
 
-    io.write_json(os.path.join(folder, COMPLETE_MARKER), {
+    file_formats.write_json(os.path.join(folder, COMPLETE_MARKER), {
         "spec_hash": task_hash, "outputs": list(outputs), "seconds": seconds,
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     })
@@ -221,7 +221,7 @@ def run_render_task(task: RenderTask) -> dict:
     the sweep gave the task up (its Dask task cancelled, or the sweep's folder deleted:
     :func:`run_given_up`, asked before the render and before the writes)."""
     import dopplertof
-    from .. import image_files, io
+    from .. import file_formats, image_files
 
     started = time.perf_counter()
     sweep_folder = os.path.dirname(os.path.dirname(task.folder))  # (runs/NAME, reference/NAME)
@@ -237,7 +237,7 @@ def run_render_task(task: RenderTask) -> dict:
     if run_given_up(sweep_folder):
         return given_up
     image = result.image
-    io.write_npy(os.path.join(task.folder, IMAGE_NPY), image)
+    file_formats.write_npy(os.path.join(task.folder, IMAGE_NPY), image)
     image_files.write_exr(os.path.join(task.folder, IMAGE_EXR), image, result.metadata)
     seconds = time.perf_counter() - started
     record = {
@@ -261,6 +261,6 @@ def run_render_task(task: RenderTask) -> dict:
         "worker": worker_identity(),
         "spec_hash": task.hash,
     }
-    io.write_json(os.path.join(task.folder, PARAMS_JSON), record)
+    file_formats.write_json(os.path.join(task.folder, PARAMS_JSON), record)
     finish_task(task.folder, task.hash, task.outputs, seconds)
     return {"task": task.name, "seconds": seconds, "worker": record["worker"]}

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import io
+from .. import file_formats, io
 from ..capture_summary import SUMMARY_JSON, write_summary
 from ..outputs import FMCW, files, renamed
 from ..tof.summary import STATIC_SURFACES, error_stats
@@ -76,7 +76,7 @@ class FMCWResult:
                 data = getattr(self, output.name, None)
                 if output.dtype and data is not None and (several or not
                                                           output.name.startswith("returns_")):
-                    io.write_npy(path(output.npy), output.array(data))
+                    file_formats.write_npy(path(output.npy), output.array(data))
             self._write_previews(path)
             write_summary(path(SUMMARY_JSON), "fmcw", self.summary)
         return staged.written

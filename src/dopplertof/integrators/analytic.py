@@ -33,8 +33,8 @@ from ..modulation import SPEED_OF_LIGHT
 from ..scene import lights
 from ..scene.bodies import BodyFrames
 from ..scene.motion import lane_times
-from .path_steps import (_as_colour, _intersect, advance, film_position, lane_streams,
-                         loop_settings, roulette, shade, vertex_numbers)
+from .path_steps import (LoopSettings, _as_colour, _intersect, advance, film_position,
+                         lane_streams, roulette, shade, vertex_numbers)
 
 #: |phase change over the exposure| (rad) below which the closed forms use their series
 #: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
@@ -120,7 +120,8 @@ def _exposure_ends(mi, setup, layout, streams):
 def trace_analytic_pass(mi, setup, layout):
     """Render one pass with analytic time integration; returns each lane's
     time-averaged measurement and film offset, as ``DopplerToFPath.trace`` does."""
-    static = setup.scene.static
+    settings = LoopSettings(mi, setup)  # (a plain object: not loop state)
+    static = settings.static
     integrated = IntegratedWeight(mi, setup.modulation)
     streams = lane_streams(mi, setup, layout)  # correlation depth 0: samples independent
 
@@ -143,20 +144,15 @@ def trace_analytic_pass(mi, setup, layout):
     prev_delta1, prev_delta2 = mi.Bool(True), mi.Bool(True)  # ... and whether a delta
     eta1, eta2 = mi.Float(1.0), mi.Float(1.0)
     fresh = mi.Bool(False)  # (no camera hit traced before the loop)
-    bsdf_ctx = mi.BSDFContext()
 
-    # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(active1, max_iterations=max_iterations, label="dopplertof_analytic"):
+    while dr.hint(active1, max_iterations=settings.max_iterations, label="dopplertof_analytic"):
         si1 = _intersect(mi, static, frames1, ray1, active1, depth1, None, fresh)
         si2 = _intersect(mi, static, frames2, ray2, active2, depth2, None, fresh)
         numbers = vertex_numbers(streams, depth1, u_em_first, u_dir_first)  # P1's, for both
-        v1 = shade(mi, static, frames1, light_frames1, ray1, si1, active1, depth1, beta1,
-                   length1, prev_si1, prev_pdf1, prev_delta1, numbers, max_depth,
-                   hide_direct_emitters, mi.Float, bsdf_ctx)
-        v2 = shade(mi, static, frames2, light_frames2, ray2, si2, active2, depth2, beta2,
-                   length2, prev_si2, prev_pdf2, prev_delta2, numbers, max_depth,
-                   hide_direct_emitters, mi.Float, bsdf_ctx)
+        path1 = (ray1, beta1, length1, depth1, active1, prev_si1, prev_pdf1, prev_delta1, eta1)
+        path2 = (ray2, beta2, length2, depth2, active2, prev_si2, prev_pdf2, prev_delta2, eta2)
+        v1 = shade(mi, settings, path1, (frames1, light_frames1), si1, numbers)
+        v2 = shade(mi, settings, path2, (frames2, light_frames2), si2, numbers)
 
         # ---- P1's contributions, integrated over the exposure towards P2's ----
         # (where P2 has none, it fades out at P1's length: P2's has no meaning there)
@@ -168,14 +164,13 @@ def trace_analytic_pass(mi, setup, layout):
             v1.length_em, dr.select(v2.active_em, v2.length_em, v1.length_em), rho_em), 0.0)
 
         # ---- Continue both paths ----
-        length1, length2 = v1.length_hit, v2.length_hit
-        ray1, beta1, eta1, prev_si1, prev_pdf1, prev_delta1, depth1 = advance(
-            mi, si1, ray1, v1, beta1, eta1, prev_si1, prev_pdf1, prev_delta1, depth1)
-        ray2, beta2, eta2, prev_si2, prev_pdf2, prev_delta2, depth2 = advance(
-            mi, si2, ray2, v2, beta2, eta2, prev_si2, prev_pdf2, prev_delta2, depth2)
+        ray1, beta1, length1, depth1, _, prev_si1, prev_pdf1, prev_delta1, eta1 = advance(
+            mi, path1, si1, v1)
+        ray2, beta2, length2, depth2, _, prev_si2, prev_pdf2, prev_delta2, eta2 = advance(
+            mi, path2, si2, v2)
 
         # ---- Russian roulette: P1's decides for both (their ratio stays) ----
-        beta_max1, rr_prob, rr_active = roulette(beta1, eta1, depth1, rr_depth)
+        beta_max1, rr_prob, rr_active = roulette(beta1, eta1, depth1, settings.rr_depth)
         beta_max2 = dr.max(beta2)
         beta1[rr_active] *= dr.rcp(rr_prob)
         beta2[rr_active] *= dr.rcp(rr_prob)

@@ -33,8 +33,8 @@ from __future__ import annotations
 import drjit as dr
 
 from .analytic import IntegratedWeight, _exposure_ends, _ratio
-from .path_steps import (_as_colour, _intersect, advance, contributions, lane_streams,
-                         loop_settings, roulette, shade, survive, vertex_numbers)
+from .path_steps import (LoopSettings, _as_colour, _intersect, advance, contributions,
+                         lane_streams, path_start, roulette, shade, survive, vertex_numbers)
 
 
 def model_terms(integrated: IntegratedWeight, v1, v2, coherent, fraction):
@@ -56,35 +56,12 @@ def model_terms(integrated: IntegratedWeight, v1, v2, coherent, fraction):
     return average, now
 
 
-#: a path's loop state, in this order
-PATH_STATE = ("ray", "throughput", "length from the camera (m)", "surface hits so far",
-              "whether it goes on", "previous vertex (MIS)", "last BSDF sample's pdf",
-              "whether that sample was a delta lobe", "relative index of refraction")
-
-
-def _path_start(mi, ray, weight, offset, active):
-    """A path's loop state (PATH_STATE) at its camera ray."""
-    return (ray, mi.Spectrum(weight), mi.Float(offset), mi.UInt32(0), mi.Bool(active),
-            dr.zeros(mi.Interaction3f), mi.Float(1.0), mi.Bool(True), mi.Float(1.0))
-
-
-def _path_vertex(mi, setup, path, frames, light_frames, numbers, bsdf_ctx):
-    """The path's next surface interaction and its vertex (path_steps.shade)."""
-    ray, beta, length, depth, active, prev_si, prev_pdf, prev_delta, _ = path
-    max_depth, _, _, hide_direct_emitters = loop_settings(mi, setup)
-    static = setup.scene.static
-    si = _intersect(mi, static, frames, ray, active, depth, None, mi.Bool(False))
-    return si, shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                     prev_si, prev_pdf, prev_delta, numbers, max_depth,
-                     hide_direct_emitters, mi.Float, bsdf_ctx)
-
-
-def _path_advanced(mi, path, si, v):
-    """The path's loop state after vertex ``v`` (before the roulette)."""
-    ray, beta, _, depth, active, prev_si, prev_pdf, prev_delta, eta = path
-    ray, beta, eta, prev_si, prev_pdf, prev_delta, depth = advance(
-        mi, si, ray, v, beta, eta, prev_si, prev_pdf, prev_delta, depth)
-    return (ray, beta, v.length_hit, depth, active, prev_si, prev_pdf, prev_delta, eta)
+def _path_vertex(mi, settings, path, frames, numbers):
+    """The path's (PATH_STATE) next surface interaction and its vertex (path_steps.shade;
+    ``frames``: its bodies' and lights')."""
+    ray, _, _, depth, active = path[:5]
+    si = _intersect(mi, settings.static, frames[0], ray, active, depth, None, mi.Bool(False))
+    return si, shade(mi, settings, path, frames, si, numbers)
 
 
 def _ends_roulette(mi, p1, p2, v1, v2, u_rr, rr_depth):
@@ -126,23 +103,23 @@ def trace_control_variate_pass(mi, setup, layout):
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
     u_dir_first = streams.first_hit_2d(1, layout.group, layout.index, setup.groups_per_pixel)
     wavelengths = ray1.wavelengths  # of the camera ray, for the colour conversion
-    rr_depth = loop_settings(mi, setup)[2]
-    bsdf_ctx = mi.BSDFContext()
+    settings = LoopSettings(mi, setup)  # (a plain object: not loop state)
+    rr_depth = settings.rr_depth
 
     # ---- Loop state ----
     measured = mi.Spectrum(0.0)  # G + f - g of the contributions so far
-    p1 = _path_start(mi, ray1, weight1, offset1, True)  # P1, at the exposure's start
-    p2 = _path_start(mi, ray2, weight2, offset2, True)  # P2, at its end
-    pt = _path_start(mi, start.ray, start.ray_weight, start.camera_offset, start.active)  # P(t)
+    p1 = path_start(mi, ray1, weight1, offset1, True)  # P1, at the exposure's start
+    p2 = path_start(mi, ray2, weight2, offset2, True)  # P2, at its end
+    pt = path_start(mi, start.ray, start.ray_weight, start.camera_offset, start.active)  # P(t)
     coherent = mi.Bool(True)  # whether P1 and P2 have hit the same shapes so far
 
-    while dr.hint(p1[4] | pt[4], max_iterations=loop_settings(mi, setup)[1],
+    while dr.hint(p1[4] | pt[4], max_iterations=settings.max_iterations,
                   label="dopplertof_control_variate"):
         numbers = vertex_numbers(streams, p1[3], u_em_first, u_dir_first)  # P1's and P2's
         numbers_t = vertex_numbers(streams, pt[3], u_em_first, u_dir_first)
-        si1, v1 = _path_vertex(mi, setup, p1, frames1, light_frames1, numbers, bsdf_ctx)
-        si2, v2 = _path_vertex(mi, setup, p2, frames2, light_frames2, numbers, bsdf_ctx)
-        si_t, v_t = _path_vertex(mi, setup, pt, frames_t, light_frames_t, numbers_t, bsdf_ctx)
+        si1, v1 = _path_vertex(mi, settings, p1, (frames1, light_frames1), numbers)
+        si2, v2 = _path_vertex(mi, settings, p2, (frames2, light_frames2), numbers)
+        si_t, v_t = _path_vertex(mi, settings, pt, (frames_t, light_frames_t), numbers_t)
 
         # ---- G - g of P1's contributions, f of P(t)'s ----
         coherent &= ~p2[4] | ((si1.shape == si2.shape) & (si1.is_valid() == si2.is_valid()))
@@ -151,8 +128,8 @@ def trace_control_variate_pass(mi, setup, layout):
         measured += (average - now) + (hit_t + light_t)
 
         # ---- Continue the three paths; Russian roulette with the same number ----
-        p1, p2 = _ends_roulette(mi, _path_advanced(mi, p1, si1, v1),
-                                _path_advanced(mi, p2, si2, v2), v1, v2, numbers[3], rr_depth)
-        pt = _own_roulette(mi, _path_advanced(mi, pt, si_t, v_t), v_t, numbers_t[3], rr_depth)
+        p1, p2 = _ends_roulette(mi, advance(mi, p1, si1, v1), advance(mi, p2, si2, v2), v1, v2,
+                                numbers[3], rr_depth)
+        pt = _own_roulette(mi, advance(mi, pt, si_t, v_t), v_t, numbers_t[3], rr_depth)
 
     return _as_colour(mi, measured, wavelengths), film_offset

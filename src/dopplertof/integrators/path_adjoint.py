@@ -36,7 +36,7 @@ import drjit as dr
 
 from ..scene.bodies import nearest_hit, surface_interaction
 from ..scene.motion import vec3
-from .path_steps import (advance, contributions, length_derivatives, lit_at, loop_settings,
+from .path_steps import (LoopSettings, advance, contributions, length_derivatives, lit_at,
                          sample_light, shade, survive, vertex_numbers)
 
 
@@ -203,7 +203,8 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     pass's M, M_L and light sample bits (lit_bits; None: shadow rays are traced). The
     gradients are the loop's side effects (``dr.eval()`` runs it, once)."""
     static, modulation = setup.scene.static, setup.modulation_weight
-    t_rel, ray, frames, light_frames = start.t_rel, start.ray, start.frames, start.light_frames
+    settings = LoopSettings(mi, setup, modulation.F)  # (a plain object: not loop state)
+    t_rel, ray, frames = start.t_rel, start.ray, (start.frames, start.light_frames)
     attached = AttachedLane(mi, setup, start, motion)
     u_first = [streams.first_hit_2d(k, layout.group, layout.index, setup.groups_per_pixel)
                for k in (0, 1)]  # (the first hit's light and BSDF samples)
@@ -222,17 +223,17 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
     origin = mi.Point3f(0.0)  # the last scattering vertex, where the ray starts (moving)
     origin_owner = mi.Int32(-1)  # the scene it is on (owner_of; -1: the camera)
     tangents = [mi.Vector3f(0.0) for _ in attached.parameters if attached.moving]  # d origin
-    bsdf_ctx = mi.BSDFContext()
-    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(going != 0, max_iterations=max_iterations, label="dopplertof_adjoint"):
+    while dr.hint(going != 0, max_iterations=settings.max_iterations,
+                  label="dopplertof_adjoint"):
         # ---- The vertex, traced as the primal pass traced it ----
         active = going != 0
-        pi, winner = nearest_hit(mi, static, frames, ray, active, coherent=depth == 0)
-        si = surface_interaction(mi, static, frames, ray, pi, winner, active, attached.hit_flags)
+        pi, winner = nearest_hit(mi, static, frames[0], ray, active, coherent=depth == 0)
+        si = surface_interaction(mi, static, frames[0], ray, pi, winner, active,
+                                 attached.hit_flags)
         numbers = vertex_numbers(streams, depth, *u_first)
-        v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                  prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, modulation.F, bsdf_ctx, lit_at(lit, depth))
+        path = (ray, beta, length, depth, active, prev_si, prev_bsdf_pdf,
+                prev_bsdf_delta != 0, eta)
+        v = shade(mi, settings, path, frames, si, numbers, lit_at(lit, depth))
         hit_contribution, light_contribution = contributions(modulation, v, t_rel)
         # ---- Its tangents (where motion is differentiated): its ray's and its own ----
         followed = followed_vertex(mi, attached, (si, winner), ray, depth,
@@ -241,8 +242,8 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         # ---- Its local terms, attached, back-propagated at once ----
         suffix = (total - prefix, total_dl - prefix_dl,
                   total - prefix - hit_contribution - light_contribution)
-        _back_propagate(mi, setup, attached, (delta, active), (si, ray, v, numbers, beta, t_rel),
-                        suffix, (depth, origin, followed), bsdf_ctx)
+        _back_propagate(mi, attached.setup, attached, (delta, active), (si, ray, v, numbers,
+                        beta, t_rel), suffix, (depth, origin, followed), settings.bsdf_ctx)
         prefix += hit_contribution  # (summed as the primal pass sums them)
         prefix += light_contribution
         prefix_dl += length_derivatives(modulation, v, t_rel)
@@ -251,11 +252,10 @@ def adjoint_paths(mi, setup, layout, streams, start, delta, total, total_dl, mot
         origin, origin_owner, tangents = _next_place(si, v, followed, (origin, origin_owner,
                                                                        tangents))
         # ---- Continue the path (as the primal pass) ----
-        length = v.length_hit
-        ray, beta, eta, prev_si, prev_bsdf_pdf, delta_lobe, depth = advance(
-            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
+        ray, beta, length, depth, _, prev_si, prev_bsdf_pdf, delta_lobe, eta = advance(
+            mi, path, si, v)
         prev_bsdf_delta = mi.UInt32(dr.select(delta_lobe, 1, 0))
-        beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])
+        beta, going = survive(mi, v, beta, eta, depth, settings.rr_depth, numbers[3])
 
 
 def followed_vertex(mi, attached, hit, ray, depth, last):

@@ -32,7 +32,7 @@ import drjit as dr
 
 from ..sampling import ModalityDimensions
 from ..scene.bodies import intersect
-from .path_steps import (CameraSample, PassLayout, advance, loop_settings, shade, survive,
+from .path_steps import (CameraSample, LoopSettings, PassLayout, advance, shade, survive,
                          vertex_numbers)
 
 
@@ -63,9 +63,9 @@ class Modality:
 def trace_path_loop(mi, setup, layout: PassLayout, streams, start: CameraSample, modality):
     """Every lane's path from its camera ray (``start``), each surface hit handed to
     ``modality``; returns the modality's loop state at the paths' ends."""
-    static = setup.scene.static
-    F = modality.F or mi.Float
-    ray, frames, light_frames = start.ray, start.frames, start.light_frames
+    settings = LoopSettings(mi, setup, modality.F)  # (a plain object: not loop state)
+    static, F = settings.static, settings.F
+    ray, frames = start.ray, (start.frames, start.light_frames)
 
     # The first hit's light and BSDF samples from the pixel's low-discrepancy set
     u_em_first = streams.first_hit_2d(0, layout.group, layout.index, setup.groups_per_pixel)
@@ -82,33 +82,31 @@ def trace_path_loop(mi, setup, layout: PassLayout, streams, start: CameraSample,
     prev_bsdf_delta = mi.UInt32(1)  # whether that sample was a delta lobe (1) or not (0)
     eta = mi.Float(1.0)  # relative index of refraction along the path
     iteration = mi.UInt32(0)  # loop iterations so far (0: the camera ray's hit may be known)
-    bsdf_ctx = mi.BSDFContext()
 
     ray, attached = AttachedOrigin.split(mi, ray)  # (an attached origin: not loop state)
 
-    # Plain values only below: dr.syntax treats dataclasses read in the loop as state.
-    max_depth, max_iterations, rr_depth, hide_direct_emitters = loop_settings(mi, setup)
-    while dr.hint(going != 0, max_iterations=max_iterations, label=modality.label):
+    # The path's state as the tuple path_steps' steps take (PATH_STATE) is built anew
+    # in each iteration: the loop's own state holds no Bool (UInt32 flags instead).
+    while dr.hint(going != 0, max_iterations=settings.max_iterations, label=modality.label):
         active, fresh = going != 0, iteration == 0
         if attached is not None:
             ray.o = dr.select(fresh, attached.origin, ray.o)
-        si, hit = modality.hit(mi, static, frames, ray, active, depth, fresh)
+        si, hit = modality.hit(mi, static, frames[0], ray, active, depth, fresh)
         numbers = vertex_numbers(streams, depth, u_em_first, u_dir_first)
-        v = shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length,
-                  prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, numbers, max_depth,
-                  hide_direct_emitters, F, bsdf_ctx,
-                  light=modality.light(depth, max_depth, bsdf_ctx))
+        path = (ray, beta, length, depth, active, prev_si, prev_bsdf_pdf,
+                prev_bsdf_delta != 0, eta)
+        v = shade(mi, settings, path, frames, si, numbers,
+                  light=modality.light(depth, settings.max_depth, settings.bsdf_ctx))
 
         # ---- What the modality measures of this vertex ----
         carried = modality.vertex(carried, si, hit, ray, v, beta, depth, numbers)
 
         # ---- Continue the path ----
-        length = v.length_hit
-        ray, beta, eta, prev_si, prev_bsdf_pdf, delta, depth = advance(
-            mi, si, ray, v, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta != 0, depth)
+        ray, beta, length, depth, _, prev_si, prev_bsdf_pdf, delta, eta = advance(
+            mi, path, si, v)
         prev_bsdf_delta = mi.UInt32(dr.select(delta, 1, 0))
         iteration += 1
-        beta, going = survive(mi, v, beta, eta, depth, rr_depth, numbers[3])  # (roulette)
+        beta, going = survive(mi, v, beta, eta, depth, settings.rr_depth, numbers[3])
     return carried
 
 

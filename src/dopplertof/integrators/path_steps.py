@@ -221,15 +221,30 @@ class Vertex:
                  "bsdf_weight", "em_sample")
 
 
-def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length, prev_si,
-          prev_bsdf_pdf, prev_bsdf_delta, numbers, max_depth, hide_direct_emitters, F,
-          bsdf_ctx, visible=None, light=None) -> Vertex:
-    """One surface hit of a path (``si``, found for ``ray``) with the decisions'
-    random numbers ``numbers`` (vertex_numbers); ``F`` is the path length type;
-    ``visible``: whether its light sample is unoccluded, where that is known (a Bool;
-    None: the shadow ray is traced); ``light``: None (the scene's lights), or a
-    function ``(si, active) -> (ds, weight)`` drawing the light sample instead (the
-    FMCW collimated beam's spot, fmcw/beam.py)."""
+#: a path's state, the tuple that shade and advance take and advance returns, in this order
+PATH_STATE = ("ray", "throughput", "length from the camera (m)", "surface hits so far",
+              "whether it goes on", "previous vertex (MIS)", "last BSDF sample's pdf",
+              "whether that sample was a delta lobe", "relative index of refraction")
+
+
+def path_start(mi, ray, weight, offset, active, F=None):
+    """A path's state (PATH_STATE) at its camera ray (``F``: the path length's type)."""
+    return (ray, mi.Spectrum(weight), (F or mi.Float)(offset), mi.UInt32(0), mi.Bool(active),
+            dr.zeros(mi.Interaction3f), mi.Float(1.0), mi.Bool(True), mi.Float(1.0))
+
+
+def shade(mi, settings: LoopSettings, path: tuple, frames: tuple, si, numbers, visible=None,
+          light=None) -> Vertex:
+    """One surface hit ``si`` of a path (``path``: its state, PATH_STATE, whose ray found
+    ``si``), the bodies and lights placed by ``frames`` = (BodyFrames, LightFrames) at
+    its lanes' times (each None where nothing moves), with the decisions' random numbers
+    ``numbers`` (vertex_numbers); ``visible``: whether its light sample is unoccluded,
+    where that is known (a Bool; None: the shadow ray is traced); ``light``: None (the
+    scene's lights), or a function ``(si, active) -> (ds, weight)`` drawing the light
+    sample instead (the FMCW collimated beam's spot, fmcw/beam.py)."""
+    ray, beta, length, depth, active, prev_si, prev_bsdf_pdf, prev_bsdf_delta, _ = path
+    static, F, max_depth = settings.static, settings.F, settings.max_depth
+    body_frames, light_frames = frames
     v = Vertex()
     u_em, u_lobe, u_dir, _ = numbers
     valid = active & si.is_valid()
@@ -241,8 +256,8 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
     # hide_emitters, as in Mitsuba 3.9's path tracer: camera rays pass through
     # emitters (the path goes on behind them, its length too)
     through = (valid & (depth == 0) & (emitter != None)  # noqa: E711
-               if hide_direct_emitters else mi.Bool(False))
-    hit_emitter = valid & ((depth > 0) | (not hide_direct_emitters))
+               if settings.hide_direct_emitters else mi.Bool(False))
+    hit_emitter = valid & ((depth > 0) | (not settings.hide_direct_emitters))
     ds = mi.DirectionSample3f(static, si, prev_si)
     em_pdf = dr.select(prev_bsdf_delta, 0.0,
                        static.pdf_emitter_direction(prev_si, ds, hit_emitter & ~prev_bsdf_delta))
@@ -258,14 +273,14 @@ def shade(mi, static, frames, light_frames, ray, si, active, depth, beta, length
                      if light is None else light(si, active_em))
     active_em &= (ds.pdf != 0.0) & dr.isfinite(ds.dist)
     if visible is None:
-        active_em &= ~occluded(mi, static, frames, si.spawn_ray_to(ds.p), active_em)
+        active_em &= ~occluded(mi, static, body_frames, si.spawn_ray_to(ds.p), active_em)
     else:
         active_em &= visible
     wo = si.to_local(ds.d)
 
     # ---- BSDF evaluation and sampling ----
     bsdf_val, bsdf_pdf, v.bs, v.bsdf_weight = bsdf.eval_pdf_sample(
-        bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
+        settings.bsdf_ctx, si, wo, u_lobe, u_dir, active_next)
     v.mis_em = dr.select(ds.delta, 1.0, _mis_power(ds.pdf, bsdf_pdf))
     v.em_value = beta * bsdf_val * em_weight
     v.length_em = length_hit + F(ds.dist)
@@ -283,10 +298,11 @@ def sample_light(mi, static, light_frames, si, u_em, active):
     return static.sample_emitter_direction(si, u_em, False, active)
 
 
-def advance(mi, si, ray, v: Vertex, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta,
-            depth):
-    """The path after vertex ``v``: its next ray (straight on through a hidden emitter)
-    and the state that follows the BSDF sample."""
+def advance(mi, path: tuple, si, v: Vertex) -> tuple:
+    """The path's state (PATH_STATE) after vertex ``v`` at ``si``, before the roulette:
+    its next ray (straight on through a hidden emitter), its length to the hit and what
+    follows the BSDF sample."""
+    ray, beta, _, depth, active, prev_si, prev_bsdf_pdf, prev_bsdf_delta, eta = path
     ray = dr.select(v.through, si.spawn_ray(ray.d), si.spawn_ray(si.to_world(v.bs.wo)))
     bounced = ~v.through
     beta = dr.select(bounced, beta * v.bsdf_weight, beta)
@@ -297,7 +313,8 @@ def advance(mi, si, ray, v: Vertex, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf
     prev_bsdf_delta = dr.select(bounced, mi.has_flag(v.bs.sampled_type, mi.BSDFFlags.Delta),
                                 prev_bsdf_delta)
     depth = dr.select(v.valid & bounced, depth + 1, depth)
-    return ray, beta, eta, prev_si, prev_bsdf_pdf, prev_bsdf_delta, depth
+    return (ray, beta, v.length_hit, depth, active, prev_si, prev_bsdf_pdf, prev_bsdf_delta,
+            eta)
 
 
 def roulette(beta, eta, depth, rr_depth):
@@ -342,18 +359,28 @@ def lit_at(bits, depth):
     return ((bits >> depth) & 1) != 0
 
 
-def loop_settings(mi, setup):
-    """The path loop's plain settings: the depth limit (a UInt32), the iteration hint,
-    the Russian roulette depth and whether directly visible emitters are hidden.
+class LoopSettings:
+    """What every vertex of a pass's paths reads and no vertex changes: the static
+    scene, the depth limit (a UInt32), the iteration hint, the Russian roulette depth,
+    whether directly visible emitters are hidden, the path length's type ``F`` and the
+    BSDF context.
 
-    The hint bounds the iterations for the loop's reverse-mode replay (its state is
-    recorded on a stack of that many entries): max_depth surface hits, plus camera rays
-    that pass through hidden emitters without a bounce (one iteration each)."""
-    params = setup.params
-    through = 2 if setup.hide_emitters else 0  # (passes through emitters, at depth 0)
-    return (mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF),
-            params.max_depth + through if params.max_depth > 0 else -1,
-            params.rr_depth, setup.hide_emitters)
+    A plain object (not a dataclass, not a tuple): Dr.Jit's loop transform takes a
+    dataclass or tuple read in a loop for loop state. The hint bounds the iterations
+    for the loop's reverse-mode replay (its state is recorded on a stack of that many
+    entries): max_depth surface hits, plus camera rays that pass through hidden
+    emitters without a bounce (one iteration each)."""
+
+    def __init__(self, mi, setup, F=None):
+        params = setup.params
+        through = 2 if setup.hide_emitters else 0  # (passes through emitters, at depth 0)
+        self.static = setup.scene.static
+        self.max_depth = mi.UInt32(params.max_depth if params.max_depth > 0 else 0xFFFFFFFF)
+        self.max_iterations = params.max_depth + through if params.max_depth > 0 else -1
+        self.rr_depth = params.rr_depth
+        self.hide_direct_emitters = setup.hide_emitters
+        self.F = F or mi.Float
+        self.bsdf_ctx = mi.BSDFContext()
 
 
 class CameraSample:

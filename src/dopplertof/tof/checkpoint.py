@@ -46,7 +46,7 @@ class CaptureCheckpoint:
         (name, scene window, RenderParams, spp, seed), in render order): a folder of
         the same run is resumed; one of another run is a CheckpointError; else the
         manifest is written (atomically) and the renders start afresh."""
-        from .. import io
+        from .. import file_formats, io
         from ..backend import require_variant
         from ..render import CheckpointError
 
@@ -64,7 +64,7 @@ class CaptureCheckpoint:
                 "scene or a file it references, the parameters, spp, seed, camera or "
                 "variant differ); delete it or choose another checkpoint folder")
         if saved is None:
-            io.write_json(manifest, {"key": key, "renders": names, "timed_out": 0})
+            file_formats.write_json(manifest, {"key": key, "renders": names, "timed_out": 0})
         return cls(folder, names, key)
 
     def path(self, name: str) -> str:
@@ -87,9 +87,9 @@ class CaptureCheckpoint:
         """Say on stderr how many renders the checkpoint served, and record in the
         manifest how many the timeout stopped (:func:`remove_checkpoint` keeps the
         folder then)."""
-        from .. import io
+        from .. import file_formats
 
-        io.write_json(os.path.join(self.folder, MANIFEST),
+        file_formats.write_json(os.path.join(self.folder, MANIFEST),
                       {"key": self.key, "renders": self.names, "timed_out": self.timed_out})
         stopped = (f", {self.timed_out} stopped by the timeout (the same command resumes "
                    "them)" if self.timed_out else "")

@@ -132,10 +132,10 @@ def write_camera_files(path, geometry: dict, pointcloud: bool, depth, amplitude,
                        velocity_gt) -> None:
     """camera.json at ``path("camera.json")`` and, with ``pointcloud``, pointcloud.ply
     (binary little-endian: :func:`point_cloud` of the other arguments)."""
-    from .. import io
+    from .. import file_formats
 
-    io.write_json(path("camera.json"), geometry)
+    file_formats.write_json(path("camera.json"), geometry)
     if pointcloud:
-        io.write_ply(path("pointcloud.ply"),
+        file_formats.write_ply(path("pointcloud.ply"),
                      point_cloud(geometry, depth, amplitude, velocity, velocity_gt),
                      comment="dopplertof capture: one vertex per pixel, row-major")

@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from .. import io, previews
+from .. import file_formats, io, previews
 from ..outputs import DTOF, STD_MAPS
 from ..previews import NOTHING_HIT
 
@@ -95,12 +95,12 @@ def _write_captures(result, path, noisy: str) -> None:
         if record["kind"] == "radiance":
             continue
         image = result.captures[name]
-        io.write_npy(path(f"{name}.npy"), image)
+        file_formats.write_npy(path(f"{name}.npy"), image)
         title = image_files.measurement_title(record["kind"], record["hetero_frequency"],
                                      record["hetero_offset"], record["w_g_MHz"], noisy)
         image_files.write_png(path(f"{name}.png"), image, title=title,
                      label="time-averaged correlation (scene units)", metadata=record)
-    io.write_npy(path("radiance.npy"), result.radiance)
+    file_formats.write_npy(path("radiance.npy"), result.radiance)
     figures.write_radiance(path("radiance.png"), result.radiance,
                            "radiance, time-averaged over the exposure")
 
@@ -118,7 +118,7 @@ def _write_velocity_maps(recon, truth, path, noisy: str) -> None:
          truth_caption(truth)),
     )
     for name, data, title, note in velocity_maps:
-        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
+        file_formats.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         figures.write_map(path(f"{name}.png"), data, title, "m/s (+ receding, - approaching)",
                           cmap="RdBu_r", vmax=v_limit, symmetric=True, note=note)
     error = recon.velocity - truth.velocity
@@ -145,7 +145,7 @@ def _write_depth_maps(recon, truth, depth_info: dict, path, noisy: str) -> None:
              beyond),
             ("depth_gt", truth.depth, "ground truth depth, mid-exposure",
              f"not wrapped; {truth_caption(truth)}", None)):
-        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
+        file_formats.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         figures.write_map(path(f"{name}.png"), data, title,
                           "m from the camera centre along the ray", cmap="viridis",
                           vmin=d_lo, vmax=d_hi, note=note, marked=marked)
@@ -172,11 +172,11 @@ def write_uncertainty(uncertainty, path, recon=None, truth=None) -> None:
     their reasons."""
     for name, data in uncertainty.maps().items():
         title, unit = STD_MAPS[name]
-        io.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
+        file_formats.write_npy(path(DTOF[name].npy), DTOF[name].array(data))
         if np.any(np.isfinite(data) & (data > 0)):
             masked = (previews.NO_SIGNAL_NOTE if recon is None else masked_caption(
                 getattr(recon, f"{name.split('_')[0]}_reasons"), truth))
             figures.write_log_map(path(f"{name}.png"), data, title, f"{unit} (log scale)",
                                   note=f"{masked}; top colour: also first order fails (inf)")
     for name, data in (uncertainty.capture_std_mc or {}).items():
-        io.write_npy(path(f"{name}_std_mc.npy"), data)
+        file_formats.write_npy(path(f"{name}_std_mc.npy"), data)
