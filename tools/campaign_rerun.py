@@ -455,7 +455,7 @@ def api_expression(case: str) -> str | None:
             compile(case[:end], "<row>", "eval")
         except SyntaxError:
             continue
-        return case[:end]
+        return case[:end].strip()
     return None
 
 
