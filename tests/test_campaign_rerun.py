@@ -100,3 +100,16 @@ def test_an_api_case_becomes_its_expression():
         "Chirp(chirp_time=1e-12)"
     assert tool.api_expression("capture_camera(..., ambient_irradiance=True)") == \
         "capture_camera(sphere, 'azure-kinect', spp=4, ambient_irradiance=True)"
+
+
+def test_a_reviewed_change_is_not_a_regression_and_argparse_usage_is_one_error():
+    tool = load_script("tools/campaign_rerun.py")
+    rows = [{"id": "A1", "category": "ok"}, {"id": "A2", "category": "ok"}]
+    results = {"A1": {"status": "rerun", "now": "clear"}, "A2": {"status": "rerun", "now": "clear"}}
+    summary = tool.summarise(rows, results, {"A1": "a new check refuses it"})
+    assert summary["verdicts"] == {"reviewed": ["A1"], "regression": ["A2"]}
+    assert results["A1"]["reviewed"] == "a new check refuses it"
+    usage = ("usage: dopplertof fmcw [-h] [-o OUT]\n                       [--bins N]\n"
+             "dopplertof fmcw: error: argument --bins: invalid int value: '2.5'\n")
+    assert tool.classify(2, usage) == "clear"
+    assert tool.classify(2, usage + "a second error line\n") == "unclear"

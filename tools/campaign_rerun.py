@@ -88,8 +88,13 @@ def classify(rc: int | None, stderr: str, timed_out: bool = False) -> str:
         return "crash"
     if rc == 0:
         return "ok"
-    lines = [line for line in stderr.splitlines()
-             if line.strip() and "warning" not in line.lower()]
+    lines, usage = [], False
+    for line in stderr.splitlines():
+        # argparse's usage block (a "usage:" line and its indented continuation) precedes
+        # its one error line
+        usage = line.startswith("usage:") or (usage and line.startswith(" "))
+        if line.strip() and not usage and "warning" not in line.lower():
+            lines.append(line)
     return "clear" if rc == 2 and len(lines) == 1 else "unclear"
 
 
@@ -267,6 +272,15 @@ def dc_config(case: str, cfg: Path, presets: Path) -> str | None:
     return edit_toml(base, m.group(1), m.group(2), value)
 
 
+def parametric(xml: str) -> str:
+    """A 16x16, 4 spp scene whose size and sample count are the parameters res and spp (the
+    campaign's commands give -D res=16 -D spp=4)."""
+    xml = xml.replace('<scene version="3.0.0">', '<scene version="3.0.0">\n<default name="res" value="16"/>'
+                      '<default name="spp" value="4"/>', 1)
+    xml = re.sub(r'(name="(?:width|height)" value=)"\d+"', r'\1"$res"', xml)
+    return re.sub(r'(name="sample_count" value=)"\d+"', r'\1"$spp"', xml)
+
+
 class Scratch:
     """The scratch folder and the inputs the rows name, each built once on first use."""
 
@@ -329,7 +343,7 @@ class Scratch:
     def _scenes(self, key):
         sys.path.insert(0, str(ROOT / "src"))
         from dopplertof.cameras.accuracy import wall_scene_xml
-        text = wall_scene_xml(2.0, 0.5, 75.0, 16, 4)
+        text = parametric(wall_scene_xml(2.0, 0.5, 75.0, 16, 4))
         lights = {"az_scene.xml": "", "az_point.xml": '<emitter type="point"><point name="position" x="0" '
                   'y="0" z="0"/><rgb name="intensity" value="10"/></emitter>',
                   "az_env.xml": '<emitter type="constant"><rgb name="radiance" value="0.5"/></emitter>',
@@ -343,7 +357,7 @@ class Scratch:
         sys.path.insert(0, str(ROOT / "src"))
         from dopplertof.cameras.accuracy import wall_scene_xml
         distance = float(re.search(r"\d+", key).group())
-        (self.dir / key).write_text(wall_scene_xml(distance, 0.9, 75.0, 16, 4))
+        (self.dir / key).write_text(parametric(wall_scene_xml(distance, 0.9, 75.0, 16, 4)))
 
     def _plain(self, key):
         if key == "afile":
@@ -486,7 +500,7 @@ def tokens_of(step: str) -> list[str]:
         return []
     if words[:2] == ["bash", "-c"] and len(words) > 2:
         return tokens_of(words[2])
-    return [w for i, w in enumerate(words) if not w.startswith("-") and (i == 0 or words[i - 1] != "-o")]
+    return [w for w in words if not w.startswith("-")]
 
 
 class Rerun:
@@ -549,8 +563,9 @@ def read_rows(tsv: Path) -> list[dict]:
     return [dict(zip(head, line.split("\t"))) for line in lines[1:] if line.strip()]
 
 
-def summarise(rows: list[dict], results: dict) -> dict:
-    """Counts before and now, and the rows each verdict names."""
+def summarise(rows: list[dict], results: dict, reviewed: dict | None = None) -> dict:
+    """Counts before and now, and the rows each verdict names; a regression whose row
+    ``reviewed`` explains (id: why the change is meant) is 'reviewed' instead."""
     before = Counter(r["category"] for r in rows)
     now, verdicts = Counter(), {}
     for r in rows:
@@ -558,6 +573,8 @@ def summarise(rows: list[dict], results: dict) -> dict:
         if res["status"] == "rerun":
             now[res["now"]] += 1
             res["verdict"] = verdict(r["category"], res["now"])
+            if res["verdict"] == "regression" and r["id"] in (reviewed or {}):
+                res["verdict"], res["reviewed"] = "reviewed", reviewed[r["id"]]
             verdicts.setdefault(res["verdict"], []).append(r["id"])
         else:
             now[res["status"]] += 1
@@ -578,12 +595,13 @@ def print_summary(summary: dict, rows: list[dict], results: dict):
         counts = summary["recorded_vs_now"].get(cat, {})
         print(f"{cat:<14}{summary['before'].get(cat, 0):>6}  " + "".join(f"{counts.get(k, 0):>12}" for k in kinds))
     print(f"{'now':<14}{summary['rows']:>6}  " + "".join(f"{summary['now'].get(k, 0):>12}" for k in kinds))
-    for name in ("regression", "wording", "changed"):
+    for name in ("regression", "reviewed", "wording", "changed"):
         for rid in summary["verdicts"].get(name, []):
             res = results[rid]
             row = next(r for r in rows if r["id"] == rid)
             print(f"{name}: {rid} was {row['category']}, now {res['now']} (rc {res['rc']}): "
-                  f"{' | '.join(res['stderr'])[:300]}")
+                  f"{' | '.join(res['stderr'])[:300]}" + (f"\n    reviewed: {res['reviewed']}" if
+                                                            name == "reviewed" else ""))
 
 
 def main(argv=None) -> int:
@@ -592,17 +610,27 @@ def main(argv=None) -> int:
     parser.add_argument("--scratch", type=Path, required=True, help="an empty or new folder")
     parser.add_argument("-o", "--output", type=Path, default=Path("campaign_rerun.json"))
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per command")
+    parser.add_argument("--reviewed", type=Path, help="a TSV of id and why the row's change is meant")
     parser.add_argument("--only", default="", help="a regular expression on the row ids")
     args = parser.parse_args(argv)
     rows = [r for r in read_rows(args.tsv) if re.match(args.only, r["id"])]
     args.scratch.mkdir(parents=True, exist_ok=True)
     rerun, results = Rerun(args.scratch.resolve(), args.timeout), {}
     for r in rows:
-        results[r["id"]] = res = rerun.row(r)
+        try:
+            results[r["id"]] = res = rerun.row(r)
+        except Exception as e:  # the tool's own failure on one row: said, and the rest go on
+            results[r["id"]] = res = {"status": "not rebuilt", "why": f"the tool failed: {e!r}"}
         print(f"{r['id']:<7}{r['category']:<14}{res.get('now', res['status']):<12}"
               f"{(res.get('stderr') or [''])[-1][:110] if res['status'] == 'rerun' else res.get('why', res.get('by', ''))[:110]}",
               flush=True)
-    summary = summarise(rows, results)
+    reviewed = {}
+    if args.reviewed:
+        for line in args.reviewed.read_text(encoding="utf-8").splitlines():
+            if line.strip() and not line.startswith("#"):
+                rid, why = line.split("\t", 1)
+                reviewed[rid] = why
+    summary = summarise(rows, results, reviewed)
     print_summary(summary, rows, results)
     args.output.write_text(json.dumps({"tsv": str(args.tsv), "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
                                        "summary": summary, "results": results}, indent=1))
