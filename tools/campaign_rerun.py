@@ -248,10 +248,16 @@ def dataset_toml(samples: int, seed: int, edits: dict | None = None) -> str:
 
 
 def dc_config(case: str, cfg: Path, presets: Path) -> str | None:
-    """A two-sample dataset config with the edit of a 'dataset config' row, or None."""
+    """A two-sample dataset config with the edit of a 'dataset config' row, or None;
+    ``presets``: the packaged presets (a row naming PRnn reads the scratch copy, if made)."""
     base = dataset_toml(2, 0)
     if m := re.search(r"\((PR\d+)\)$", case):
-        shutil.copy(presets / f"{m.group(1)}.toml", cfg / f"{m.group(1)}.toml")
+        edit = re.search(r" with (\w+\.\w+ = \S+)", case)
+        made = cfg.parent.parent / "presets" / f"{m.group(1)}.toml"
+        text = preset_text(edit.group(1), presets) if edit else made.read_bytes() if made.exists() else None
+        if text is None:
+            return None
+        (cfg / f"{m.group(1)}.toml").write_bytes(text)
         return edit_toml(base, "render", "camera", f'"{m.group(1)}.toml"')
     if case.startswith("dataset config with a UTF-8 BOM"):
         return "\ufeff" + base
@@ -295,7 +301,9 @@ class Scratch:
         for name, why in UNBUILT.items():
             if token == name or token.startswith(name.rstrip("/") + "/"):
                 return why
-        key = token if token.startswith(("presets/", "P/", "fx/", "cfg/dc/")) else token.split("/")[0]
+        key = token if token.startswith(("presets/", "P/", "fx/")) else token.split("/")[0]
+        if token.startswith("cfg/dc/"):  # each row's own config (a row may edit another's)
+            key = f"{token}#{row['id']}"
         if key not in self.built:
             self.built[key] = self._build(key, row)
         return self.built[key]
@@ -325,13 +333,13 @@ class Scratch:
             (d / "fx").mkdir(exist_ok=True)
             (d / key).write_text(text)
             return None
-        if re.fullmatch(r"cfg/dc/\w+\.toml", key):
+        if re.fullmatch(r"cfg/dc/\w+\.toml#\w+", key):
             self.ensure("cfg", row)
             text = dc_config(row["case"], d / "cfg" / "dc", self.presets)
             if text is None:
                 return f"the case '{row['case']}' is not an edit the tool knows"
             if text:
-                (d / key).write_text(text)
+                (d / key.split("#")[0]).write_text(text)
             return None
         if key in builders:
             return builders[key](key)
