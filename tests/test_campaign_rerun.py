@@ -1,6 +1,7 @@
 """tools/campaign_rerun.py on synthetic rows: its classifier, its verdicts, and the inputs it
 rebuilds from a row's case (no campaign is run here)."""
 
+import math
 import tomllib
 
 from conftest import load_script
@@ -113,3 +114,20 @@ def test_a_reviewed_change_is_not_a_regression_and_argparse_usage_is_one_error()
              "dopplertof fmcw: error: argument --bins: invalid int value: '2.5'\n")
     assert tool.classify(2, usage) == "clear"
     assert tool.classify(2, usage + "a second error line\n") == "unclear"
+
+
+def test_a_dataset_config_case_names_its_preset_edit(tmp_path):
+    tool = load_script("tools/campaign_rerun.py")
+    presets = tool.ROOT / "src" / "dopplertof" / "cameras" / "presets"
+    cfg = tmp_path / "cfg" / "dc"
+    cfg.mkdir(parents=True)
+    text = tool.dc_config("render.camera = a preset file with optics.pixel_pitch_um = 1e300 (PR32)",
+                          cfg, presets)
+    assert tomllib.loads(text)["render"]["camera"] == "PR32.toml"
+    assert tomllib.loads((cfg / "PR32.toml").read_text())["optics"]["pixel_pitch_um"] == 1e300
+    grazing = tomllib.loads(tool.dc_config("render.grazing_deg = nan", cfg, presets))["render"]["grazing_deg"]
+    assert math.isnan(grazing)
+    tool.dc_config("render.camera = 'mine.toml' (relative to the config's folder)", cfg, presets)
+    assert tool.dc_config("preset file mine.toml edited (power_w 43.7 -> 40) after DC06's run", cfg,
+                          presets) == ""
+    assert tomllib.loads((cfg / "mine.toml").read_text())["illuminator"]["power_w"] == 40
