@@ -131,3 +131,20 @@ def test_a_dataset_config_case_names_its_preset_edit(tmp_path):
     assert tool.dc_config("preset file mine.toml edited (power_w 43.7 -> 40) after DC06's run", cfg,
                           presets) == ""
     assert tomllib.loads((cfg / "mine.toml").read_text())["illuminator"]["power_w"] == 40
+
+
+def test_verify_naming_the_damaged_shard_is_clear_and_the_damages_touch_only_their_file(tmp_path):
+    tool = load_script("tools/campaign_rerun.py")
+    report = "verify: 2 shards, 1 complete; a rerun would render again: shard_00001.h5\n"
+    assert tool.verify_category(1, report, "") == "clear"
+    assert tool.verify_category(1, "verify: something is wrong\n", "") == "unclear"
+    assert tool.verify_category(0, "verify: 2 shards, 2 complete\n", "") == "ok"
+    assert tool.verify_category(1, report, TRACEBACK) == "traceback"
+    for name in ("shard_00000.h5", "shard_00001.h5"):
+        (tmp_path / name).write_bytes(bytes(range(16)) + name.encode())
+    tool.SHARD_DAMAGES["flip_signature"](tmp_path)
+    assert (tmp_path / "shard_00001.h5").read_bytes()[3] == 3 ^ 0xFF
+    assert (tmp_path / "shard_00000.h5").read_bytes()[3] == 3
+    tool.SHARD_DAMAGES["swap"](tmp_path)
+    assert (tmp_path / "shard_00000.h5").read_bytes().endswith(b"shard_00001.h5")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shard_00000.h5", "shard_00001.h5"]

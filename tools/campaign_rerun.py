@@ -64,8 +64,6 @@ COVERED = (
 )
 # Inputs the line names but does not describe well enough to rebuild: token -> why.
 UNBUILT = {
-    "shardcase.py": "the damage script is not in the TSV (tests/test_dataset.py's DAMAGES hold ten of its "
-                    "kinds, tests/test_campaign_dataset.py the dataset.json edits)",
     "torfchk.py": "the checking script is not in the TSV",
     "flatchk.py": "the checking script is not in the TSV",
     "ds_fail": "a dataset with a failed sample needs a failing worker (tests/test_campaign_dataset.py::"
@@ -286,6 +284,83 @@ def parametric(xml: str) -> str:
     return re.sub(r'(name="sample_count" value=)"\d+"', r'\1"$spp"', xml)
 
 
+def _flip(path: Path, at: int):
+    data = bytearray(path.read_bytes())
+    data[at] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def _edit_json(folder: Path, edit):
+    meta = json.loads((folder / "dataset.json").read_text())
+    edit(meta)
+    (folder / "dataset.json").write_text(json.dumps(meta, indent=1))
+
+
+def _edit_h5(path: Path, edit):
+    import h5py
+    with h5py.File(path, "r+") as f:
+        edit(f)
+
+
+def _swap(d: Path):
+    (d / "shard_00000.h5").rename(d / "tmp.h5")
+    (d / "shard_00001.h5").rename(d / "shard_00000.h5")
+    (d / "tmp.h5").rename(d / "shard_00001.h5")
+
+
+def _replace(d: Path, make):
+    (d / "shard_00001.h5").unlink()
+    make(d / "shard_00001.h5")
+
+
+def _depth_plus_one(f):
+    f["sample_00000002"]["depth"][0, 0] += 1
+
+
+# The shard damages of a 'dataset shards' row (``python shardcase.py ID KIND``) on a 4-sample,
+# 2-shard dataset; shard 1 holds samples 2 and 3. json_layout writes the layout version after
+# the reader's (the case's literal 3 was one past the reader of its day).
+SHARD_DAMAGES = {
+    "flip_middle": lambda d: _flip(d / "shard_00001.h5", (d / "shard_00001.h5").stat().st_size // 2),
+    "truncate_half": lambda d: os.truncate(d / "shard_00001.h5", (d / "shard_00001.h5").stat().st_size // 2),
+    "truncate_zero": lambda d: os.truncate(d / "shard_00001.h5", 0),
+    "delete": lambda d: (d / "shard_00001.h5").unlink(),
+    "swap": _swap,
+    "dir_instead": lambda d: _replace(d, Path.mkdir),
+    "symlink_other": lambda d: _replace(d, lambda p: p.symlink_to("shard_00000.h5")),
+    "symlink_dangling": lambda d: _replace(d, lambda p: p.symlink_to("nowhere.h5")),
+    "json_deleted": lambda d: (d / "dataset.json").unlink(),
+    "json_drop_shard": lambda d: _edit_json(d, lambda m: m.update(
+        shards=[s for s in m["shards"] if s["file"] != "shard_00001.h5"])),
+    "json_units": lambda d: _edit_json(d, lambda m: m["units"].update(depth="mm")),
+    "json_layout": lambda d: _edit_json(d, lambda m: m.update(layout_version=m["layout_version"] + 1)),
+    "json_truncated": lambda d: os.truncate(d / "dataset.json", 100),
+    "json_hash": lambda d: _edit_json(d, lambda m: m.update(config_hash="0" * 64)),
+    "flip_signature": lambda d: _flip(d / "shard_00001.h5", 3),
+    "junk_extra": lambda d: shutil.copy(d / "shard_00000.h5", d / "shard_00099.h5"),
+    "stale_tmp": lambda d: (d / ".shard_00001.0123abcd.tmp.h5").write_bytes(b"\0" * 5000),
+    "json_bom": lambda d: (d / "dataset.json").write_bytes(b"\xef\xbb\xbf" + (d / "dataset.json").read_bytes()),
+    "json_samples_swap": lambda d: _edit_json(d, lambda m: [s.update(samples=[3, 2]) for s in m["shards"]
+                                                            if s["file"] == "shard_00001.h5"]),
+    "del_group": lambda d: _edit_h5(d / "shard_00001.h5", lambda f: f.__delitem__("sample_00000003")),
+    "edit_depth": lambda d: _edit_h5(d / "shard_00001.h5", _depth_plus_one),
+    "add_attr": lambda d: _edit_h5(d / "shard_00001.h5", lambda f: f["sample_00000002"].attrs.create("x", 1)),
+    "mark_failed": lambda d: _edit_h5(d / "shard_00001.h5", lambda f: f.attrs.__setitem__("failed", [3])),
+    "extra_group": lambda d: _edit_h5(d / "shard_00001.h5", lambda f: f.create_group("junk")),
+    "samples_attr": lambda d: _edit_h5(d / "shard_00001.h5", lambda f: f.attrs.__setitem__("samples", [3, 2])),
+    "shard_hash_attr": lambda d: _edit_h5(d / "shard_00001.h5",
+                                          lambda f: f.attrs.__setitem__("config_hash", "0" * 64)),
+}
+
+
+def verify_category(rc: int | None, stdout: str, stderr: str, timed_out: bool = False) -> str:
+    """The category of ``dataset verify`` on a damaged dataset: exit 1 with the damaged file
+    named (its report), or as :func:`classify`."""
+    if rc == 1 and "Traceback" not in stderr and re.search(r"shard_\d+\.h5|dataset\.json", stdout + stderr):
+        return "clear"
+    return classify(rc, stderr, timed_out)
+
+
 class Scratch:
     """The scratch folder and the inputs the rows name, each built once on first use."""
 
@@ -401,7 +476,8 @@ class Scratch:
         if key not in made and base != "fitcap":
             return None
         if not (self.dir / base).exists():
-            self.run(f"dopplertof {made[base]} --quiet -o {base}")
+            quiet = " --quiet" if made[base].startswith("capture") else ""
+            self.run(f"dopplertof {made[base]}{quiet} -o {base}")
         if not (self.dir / base).exists():
             return f"building {base} failed"
         if key != base:
@@ -533,6 +609,9 @@ class Rerun:
         tests = covered_by(row["surface"], command)
         if tests:
             return {"status": "covered", "by": tests}
+        shard = re.fullmatch(r"python shardcase\.py (\w+) (\w+)", command)
+        if shard:
+            return self._shard_row(*shard.groups())
         if command.startswith("python: "):
             expression = api_expression(row["case"])
             if expression is None:
@@ -551,6 +630,29 @@ class Rerun:
                     return {"status": "not rebuilt", "why": f"{token}: {why}"}
             argvs = [["bash", "-c", step] for step in steps]
         return self._run(argvs)
+
+    def _shard_row(self, rid: str, kind: str) -> dict:
+        """The damage ``kind`` on a copy of a 4-sample dataset, then ``dataset verify``."""
+        if kind not in SHARD_DAMAGES:
+            return {"status": "not rebuilt", "why": f"the damage '{kind}' needs shardcase.py, not in the TSV "
+                    "(tests/test_dataset.py's DAMAGES hold ten kinds of shard damage)"}
+        four = self.dir / "ds_four"
+        if not four.exists():
+            self.inputs.ensure("cfg", {})
+            (self.dir / "cfg" / "four.toml").write_text(dataset_toml(4, 3))
+            self._setup("dopplertof dataset cfg/four.toml -o ds_four --workers 1 --quiet")
+        if not (four / "dataset.json").exists():
+            return {"status": "not rebuilt", "why": "building the 4-sample dataset failed"}
+        folder = self.dir / f"dmg_{rid}"
+        shutil.rmtree(folder, ignore_errors=True)
+        shutil.copytree(four, folder, symlinks=True)
+        SHARD_DAMAGES[kind](folder)
+        start = time.monotonic()
+        rc, out, err, timed_out = run_command(["dopplertof", "dataset", "verify", folder.name], self.dir,
+                                              self.env, self.timeout)
+        lines = [line for line in (out + err).splitlines() if line.strip()]
+        return {"status": "rerun", "now": verify_category(rc, out, err, timed_out), "rc": rc,
+                "stderr": lines[-3:], "seconds": round(time.monotonic() - start, 1)}
 
     def _run(self, argvs) -> dict:
         start = time.monotonic()
