@@ -148,3 +148,14 @@ def test_verify_naming_the_damaged_shard_is_clear_and_the_damages_touch_only_the
     tool.SHARD_DAMAGES["swap"](tmp_path)
     assert (tmp_path / "shard_00000.h5").read_bytes().endswith(b"shard_00001.h5")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["shard_00000.h5", "shard_00001.h5"]
+
+
+def test_a_clear_line_names_a_path_option_or_key_of_its_row():
+    tool = load_script("tools/campaign_rerun.py")
+    names = tool.row_names("dopplertof cameras presets/PR01.toml", "illuminator.power_w = nan")
+    assert {"presets/PR01.toml", "PR01.toml", "illuminator.power_w", "power_w"} <= names
+    assert "cameras" not in names and "dopplertof" not in names
+    assert tool.classify(2, "dopplertof: error: illuminator.power_w must be finite\n", names=names) == "clear"
+    assert tool.classify(2, "dopplertof: error: something is wrong\n", names=names) == "unclear"
+    flags = tool.row_names("dopplertof fmcw s.xml -D res=16 --bins 2.5 -o fo_FO08", "--bins 2.5")
+    assert {"--bins", "res", "fo_FO08"} <= flags and "2.5" not in flags and "16" not in flags

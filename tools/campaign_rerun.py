@@ -75,8 +75,9 @@ UNBUILT = {
 }
 
 
-def classify(rc: int | None, stderr: str, timed_out: bool = False) -> str:
-    """The campaign's category of one command's outcome."""
+def classify(rc: int | None, stderr: str, timed_out: bool = False, names=None) -> str:
+    """The campaign's category of one command's outcome; ``names``: the words of the row
+    (paths, options, keys) of which a clear error line names at least one (None: any line)."""
     if timed_out:
         return "hang"
     if "Traceback (most recent call last)" in stderr:
@@ -92,7 +93,32 @@ def classify(rc: int | None, stderr: str, timed_out: bool = False) -> str:
         usage = line.startswith("usage:") or (usage and line.startswith(" "))
         if line.strip() and not usage and "warning" not in line.lower():
             lines.append(line)
-    return "clear" if rc == 2 and len(lines) == 1 else "unclear"
+    if rc != 2 or len(lines) != 1:
+        return "unclear"
+    line = lines[0].lower().replace("_", "-")
+    return "clear" if names is None or any(n.lower().replace("_", "-") in line for n in names) else "unclear"
+
+
+GENERIC = {"dopplertof", "capture", "fmcw", "cameras", "dataset", "export", "show", "verify", "fit",
+           "bash", "timeout", "python", "quiet", "true", "false", "none"}
+
+
+def row_names(command: str, case: str) -> set[str]:
+    """The words a clear error line of the row may name: the command's paths (and their file
+    names), options and -D/-P parameter names, and the keys its case names (with their parts:
+    fmcw_bins names bins; '_' and '-' count as one)."""
+    words = set()
+    for word in re.findall(r"[^\s'\"=;&|<>(),]+", command + " " + case):
+        word = word.strip(".:[]{}")
+        if re.fullmatch(r"-[A-Za-z]", word):
+            words.add(word + " ")
+        if len(word) < 3 or word.lower() in GENERIC or re.fullmatch(r"[-+\d.ex]+", word):
+            continue
+        words.update({word, word.lstrip("-"), os.path.basename(word.rstrip("/"))})
+        if re.fullmatch(r"[\w.]+", word):
+            words.update(part for part in word.split(".") if len(part) >= 3)
+            words.update(part for part in re.split(r"[._]", word) if len(part) >= 4)
+    return {w for w in words if len(w) >= 3 and w.lower() not in GENERIC}
 
 
 def verdict(recorded: str, now: str) -> str:
@@ -622,6 +648,7 @@ class Rerun:
                     return {"status": "not rebuilt", "why": f"{token}: {why}"}
             argvs = [[sys.executable, "api_row.py", expression,
                       str(self.inputs.presets / "azure-kinect.toml")]]
+            return self._run(argvs, None)  # an API error describes its argument by its role
         else:
             steps = steps_of(command)
             for token in (t for step in steps for t in tokens_of(step)):
@@ -629,7 +656,7 @@ class Rerun:
                 if why:
                     return {"status": "not rebuilt", "why": f"{token}: {why}"}
             argvs = [["bash", "-c", step] for step in steps]
-        return self._run(argvs)
+        return self._run(argvs, row_names(command, row["case"]))
 
     def _shard_row(self, rid: str, kind: str) -> dict:
         """The damage ``kind`` on a copy of a 4-sample dataset, then ``dataset verify``."""
@@ -654,11 +681,11 @@ class Rerun:
         return {"status": "rerun", "now": verify_category(rc, out, err, timed_out), "rc": rc,
                 "stderr": lines[-3:], "seconds": round(time.monotonic() - start, 1)}
 
-    def _run(self, argvs) -> dict:
+    def _run(self, argvs, names) -> dict:
         start = time.monotonic()
         for argv in argvs:
             rc, out, err, timed_out = run_command(argv, self.dir, self.env, self.timeout)
-            now = classify(rc, err, timed_out)
+            now = classify(rc, err, timed_out, names)
             if now != "ok":
                 break
         lines = [line for line in err.splitlines() if line.strip()]
