@@ -23,7 +23,8 @@ From the last rows the floor a / spp: the variance at one path per sample with i
 average exact, the best any time integration can do at equal paths. The pairs' variance
 over the floor bounds what a time integrator (a control variate included) can gain at
 equal cost; the printout turns it into the most an equal-time race against the
-published code could reach from the 4.07x measured before. ``--figure`` draws, per h,
+published code could reach from the 4.67x measured side by side
+(benchmarks/race_published.py). ``--figure`` draws, per h,
 the block variance ratio of the control variate against sampled time, where it loses
 (silhouettes, occlusion changes) and each method's efficiency and seconds. ``--beats``
 instead prints, per h, the candidates of ``auto`` against the control variate: the
@@ -42,9 +43,10 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURES = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "fixtures", "published"))
 
-#: the equal-time ratio against the published CPU code measured side by side on
-#: 2026-12-07 (auto + adaptive, 4096 spp in 139.1 s, against its 1024 spp in 238.9 s)
-PUBLISHED_RATIO = 4.07
+#: the equal-time ratio against the published CPU code measured side by side on an idle
+#: machine on 2026-12-07 (benchmarks/race_published.py: auto + adaptive, 4096 spp in
+#: 48.7 s, against its 1024 spp in 108.6 s; 4.07 in a loaded sitting the same day)
+PUBLISHED_RATIO = 4.67
 #: periodic group sizes whose variance gives the path-space floor
 FLOOR_GROUPS = (8, 16, 32)
 
