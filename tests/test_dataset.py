@@ -301,6 +301,27 @@ def test_a_changed_config_in_the_same_folder_is_refused(tiny, tmp_path, capsys):
         assert json.load(f)["config"]["render"]["spp"] == 4
 
 
+def test_the_hash_is_the_presets_contents_not_where_its_file_lies(tmp_path, monkeypatch):
+    """A built-in preset read from another checkout or install (its folder elsewhere)
+    defines the same samples: one hash; an edited copy of it, another."""
+    import shutil
+
+    from dopplertof.cameras import preset
+    from dopplertof.dataset.driver import config_hash
+
+    config = _config({"render": {"camera": "paper-dtof"}})
+    here = config_hash(config, "llvm_ad_rgb")
+    elsewhere = tmp_path / "install" / "presets"
+    shutil.copytree(preset.PRESET_FOLDER, elsewhere)
+    monkeypatch.setattr(preset, "PRESET_FOLDER", str(elsewhere))
+    assert preset.load_preset("paper-dtof").describe()["file"].startswith(str(elsewhere))
+    assert config_hash(config, "llvm_ad_rgb") == here
+    edited = elsewhere / "paper-dtof.toml"
+    edited.write_text(edited.read_text().replace("description = ", "description = \"edited\" # ",
+                                                 1))
+    assert config_hash(config, "llvm_ad_rgb") != here
+
+
 def test_a_wrong_variant_does_not_claim_the_folder(tmp_path, capsys):
     """issue 39, O04: `--variant nonsense_rgb` wrote dataset.json, and the corrected
     rerun was refused as "another configuration" though nothing was rendered."""

@@ -84,12 +84,14 @@ class DatasetSummary:
 
 def config_hash(config: DatasetConfig, variant: str) -> str:
     """What defines the samples: the configuration, the camera preset's and the meshes'
-    contents and the Mitsuba variant."""
+    contents and the Mitsuba variant (not where the preset file lies: the same dataset
+    from another checkout or install is the same dataset)."""
     from ..cameras.preset import load_preset
     from ..experiments.tasks import spec_hash
 
     preset = load_preset(config["render"]["camera"]).describe()
-    preset.pop("source_file", None)
+    for where in ("source_file", "file"):
+        preset.pop(where, None)
     return spec_hash({"config": config.to_json(), "camera": preset,
                       "meshes": mesh_digests(config), "variant": variant,
                       "layout": LAYOUT_VERSION})
