@@ -237,24 +237,11 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
                            spp=spp, seed=seed, defines=defines, params=params,
                            variant=variant, previews=previews)
     io.make_output_folder(output)  # the frames' folders go in it
-    pending = []
-    for task in tasks:
-        if is_complete(task.folder, task.hash, task.outputs):
-            continue
-        if os.path.isdir(task.folder):
-            remove_partial_files(task.folder)
-        pending.append(task)
     warning = frames_past_keyframes(tasks, load_scene_facts(
         tasks[0].scene, tasks[0].defines, tasks[0].variant).keyframe_span)
-    summary = AnimationSummary(frames=len(tasks), skipped=len(tasks) - len(pending), done=0,
-                               output=output, warnings=[warning] if warning else [])
-    if pending:
-        outcome = run_in_folder(run_frame_task, pending, output, scheduler=scheduler,
-                                workers=workers, client=client, retries=retries,
-                                progress=progress, description="frames",
-                                already_done=summary.skipped)
-        summary.done = len(outcome.done)
-        summary.failed = outcome.failed
+    summary = run_frame_tasks(run_frame_task, tasks, output, [warning] if warning else [],
+                              scheduler=scheduler, workers=workers, client=client,
+                              retries=retries, progress=progress)
     # ---- the video and animation.json: one output set, all or nothing (no video of an
     # earlier run stays beside an animation.json without one)
     with io.output_folder(output, "animation") as staged:
@@ -263,6 +250,29 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
             summary.video = os.path.join(output, VELOCITY_GIF)
         summary.seconds = time.perf_counter() - started
         _write_animation_json(staged.path(ANIMATION_JSON), tasks, summary, fps, frame_period)
+    return summary
+
+
+def run_frame_tasks(run_task, tasks, output: str, warnings: list, *, scheduler, workers,
+                    client, retries: int, progress) -> AnimationSummary:
+    """Run ``run_task`` on every frame task not already complete (a partial folder's
+    files removed first), on Dask; the run's summary (its seconds still to set)."""
+    pending = []
+    for task in tasks:
+        if is_complete(task.folder, task.hash, task.outputs):
+            continue
+        if os.path.isdir(task.folder):
+            remove_partial_files(task.folder)
+        pending.append(task)
+    summary = AnimationSummary(frames=len(tasks), skipped=len(tasks) - len(pending), done=0,
+                               output=output, warnings=warnings)
+    if pending:
+        outcome = run_in_folder(run_task, pending, output, scheduler=scheduler,
+                                workers=workers, client=client, retries=retries,
+                                progress=progress, description="frames",
+                                already_done=summary.skipped)
+        summary.done = len(outcome.done)
+        summary.failed = outcome.failed
     return summary
 
 

@@ -37,12 +37,12 @@ import numpy as np
 from ..capture_summary import SUMMARY_JSON, read_capture
 from ..outputs import CAMERA, CAMERA_JSON
 from ..scene.inputs import file_sha256
-from .animate import AnimationSummary, frames_past_keyframes
-from .cluster import DEFAULT_RETRIES, run_in_folder
+from .animate import AnimationSummary, frames_past_keyframes, run_frame_tasks
+from .cluster import DEFAULT_RETRIES
 from .config import ConfigError
 from .tasks import (PARAMS_JSON, RENDER_LOCK, begin_task, check_unchanged, finish_task,
-                    is_complete, package_versions, prepare_worker, remove_partial_files,
-                    spec_hash, worker_identity)
+                    is_complete, package_versions, prepare_worker, spec_hash,
+                    worker_identity)
 
 STREAM_JSON = "stream.json"
 GROUNDTRUTH_TXT = "groundtruth.txt"
@@ -280,23 +280,10 @@ def run_stream(scene, output, frames: int, camera, *, scheduler=None, workers=No
     output = io.check_output_folder(os.fspath(output))
     plan = plan_stream(scene, output, frames, camera, **options)
     io.make_output_folder(output)
-    pending = []
-    for task in plan.tasks:
-        if is_complete(task.folder, task.hash, task.outputs):
-            continue
-        if os.path.isdir(task.folder):
-            remove_partial_files(task.folder)
-        pending.append(task)
-    summary = AnimationSummary(frames=len(plan.tasks), skipped=len(plan.tasks) - len(pending),
-                               done=0, output=output,
-                               warnings=[plan.warning] if plan.warning else [])
-    if pending:
-        outcome = run_in_folder(run_stream_frame_task, pending, output, scheduler=scheduler,
-                                workers=workers, client=client, retries=retries,
-                                progress=progress, description="frames",
-                                already_done=summary.skipped)
-        summary.done = len(outcome.done)
-        summary.failed = outcome.failed
+    summary = run_frame_tasks(run_stream_frame_task, plan.tasks, output,
+                              [plan.warning] if plan.warning else [], scheduler=scheduler,
+                              workers=workers, client=client, retries=retries,
+                              progress=progress)
     with io.output_folder(output, "stream") as staged:
         entries = [] if summary.failed else [_frame_entry(t, plan) for t in plan.tasks]
         if entries:
