@@ -91,12 +91,15 @@ def test_the_sensor_offset_enters_the_phase():
         assert abs(values[o] - expected[o]) < 1e-3 * scale, (o, values[o], expected[o])
 
 
+@pytest.mark.parametrize("method", ["analytic", "control_variate"])
 @pytest.mark.parametrize("integrator,message", [
     ({"wave_function_type": "rectangular"}, "needs wave_function_type 'sinusoidal'"),
     ({"low_frequency_component_only": False}, "needs low_frequency_component_only=true"),
 ])
-def test_other_waveforms_are_refused(integrator, message):
+def test_other_waveforms_are_refused(integrator, message, method):
+    """Both methods built on the closed form (the analytic integral and its control
+    variate) refuse the waveforms it does not cover, in one line naming the method."""
     with pytest.raises(dopplertof.SceneError, match=message) as info:
         dopplertof.load_dict(plane_scene(4.0, 30.0, spp=4, integrator=dict(
-            integrator, time_sampling_method="analytic")))
-    assert "\n" not in str(info.value)
+            integrator, time_sampling_method=method)))
+    assert f"'{method}'" in str(info.value) and "\n" not in str(info.value)

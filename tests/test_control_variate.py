@@ -5,8 +5,8 @@ What it must be: unbiased where the analytic mode is not (the exact quadrature o
 moving plane, including a plane whose value is far from linear in time, a moving camera
 and a moving light), the analytic mode itself where nothing moves (the sampled path is
 then the model's, up to float32 rounding), in agreement with the sampled methods on the
-starter scenes (a spinning cube, a moving camera, a light off the camera), and refused
-where the closed form does not apply.
+starter scenes (a spinning cube, a moving camera, a light off the camera); its refusal of
+the waveforms the closed form does not cover is tests/test_analytic_mode.py's.
 
 Statistics: the plane tests compare the mean of 16 seeds with the quadrature, |t| under
 the Student bound (15 dof) that gives the file's 5 plane cases together a false-failure
@@ -119,17 +119,6 @@ def test_agrees_with_sampled_time_on_the_starter_scenes(name):
     (a, sa), (b, sb) = estimates["auto"], estimates["control_variate"]
     t = np.abs(a - b) / np.sqrt(sa**2 + sb**2)
     assert np.all(t < STARTER_T), (t, a, b)
-
-
-@pytest.mark.parametrize("integrator,message", [
-    ({"wave_function_type": "rectangular"}, "needs wave_function_type 'sinusoidal'"),
-    ({"low_frequency_component_only": False}, "needs low_frequency_component_only=true"),
-])
-def test_other_waveforms_are_refused(integrator, message):
-    with pytest.raises(dopplertof.SceneError, match=message) as info:
-        dopplertof.load_dict(plane_scene(4.0, 30.0, spp=4, integrator=dict(
-            integrator, time_sampling_method="control_variate")))
-    assert "control_variate" in str(info.value) and "\n" not in str(info.value)
 
 
 PUBLISHED_DIR = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "fixtures",
