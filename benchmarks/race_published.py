@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-FIXTURES = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "fixtures", "published"))
-EXPOSURE = 0.0015  #: the published scene's exposure (s): its .npy holds 1 + T * value
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from published import EXPOSURE, FIXTURES  # noqa: E402  (the fixtures and the scene's T)
+
 REFERENCE_NOISE = 2.93e-6  #: the deep reference's own RMSE (the fixtures' README)
 #: the published code's config of this race, under its source tree
 PEER_CONFIG = os.path.join("config_example", "cornell-box", "point_light", "max_depth_4",
