@@ -84,10 +84,7 @@ def test_no_import_circle():
 #: such as the integrator made per variant, is measured method by method)
 MAX_FUNCTION_LINES = 60
 #: functions allowed to be longer, and why
-LONG_FUNCTIONS = {
-    "dopplertof.integrators.analytic.trace_analytic_pass":
-        "a symbolic path loop: its loop state is declared beside the loop (dr.syntax)",
-}
+LONG_FUNCTIONS = {}
 
 
 def _classes_outside_functions(node):

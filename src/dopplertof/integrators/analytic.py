@@ -34,7 +34,7 @@ from ..scene import lights
 from ..scene.bodies import BodyFrames
 from ..scene.motion import lane_times
 from .path_steps import (LoopSettings, _as_colour, _intersect, advance, film_position,
-                         lane_streams, roulette, shade, vertex_numbers)
+                         lane_streams, path_start, roulette, shade, vertex_numbers)
 
 #: |phase change over the exposure| (rad) below which the closed forms use their series
 #: (float64: the closed forms lose about 1e-16 / x, the series' first dropped terms are
@@ -116,6 +116,22 @@ def _exposure_ends(mi, setup, layout, streams):
     return film_offset, ends[0], ends[1]
 
 
+def ends_roulette(mi, p1, p2, v1, v2, u_rr, rr_depth):
+    """Russian roulette after vertices v1 and v2 of the paths P1 and P2 (path_steps'
+    PATH_STATE tuples, advanced): P1's decides for both, with the number ``u_rr``, so
+    their ratio stays; their states after it."""
+    beta1, beta2, depth1 = p1[1], p2[1], p1[3]
+    beta_max1, rr_prob, rr_active = roulette(beta1, p1[8], depth1, rr_depth)
+    beta_max2 = dr.max(beta2)
+    beta1 = dr.select(rr_active, beta1 * dr.rcp(rr_prob), beta1)
+    beta2 = dr.select(rr_active, beta2 * dr.rcp(rr_prob), beta2)
+    survives = ~rr_active | (u_rr < rr_prob)
+    active1 = p1[4] & ((v1.active_next & survives & (beta_max1 != 0.0)) | v1.through)
+    active2 = active1 & ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through)
+    return (p1[:1] + (beta1,) + p1[2:4] + (active1,) + p1[5:],
+            p2[:1] + (beta2,) + p2[2:4] + (active2,) + p2[5:])
+
+
 @dr.syntax
 def trace_analytic_pass(mi, setup, layout):
     """Render one pass with analytic time integration; returns each lane's
@@ -135,24 +151,16 @@ def trace_analytic_pass(mi, setup, layout):
 
     # ---- Loop state: P1 (start) and P2 (end) ----
     measured = mi.Spectrum(0.0)  # the modulated contributions so far (the measurement)
-    beta1, beta2 = mi.Spectrum(ray_weight1), mi.Spectrum(ray_weight2)  # throughputs
-    length1, length2 = mi.Float(offset1), mi.Float(offset2)  # lengths from the camera (m)
-    depth1, depth2 = mi.UInt32(0), mi.UInt32(0)  # surface hits so far
-    active1, active2 = mi.Bool(True), mi.Bool(True)  # whether each path goes on
-    prev_si1, prev_si2 = dr.zeros(mi.Interaction3f), dr.zeros(mi.Interaction3f)
-    prev_pdf1, prev_pdf2 = mi.Float(1.0), mi.Float(1.0)  # last BSDF sample's pdf
-    prev_delta1, prev_delta2 = mi.Bool(True), mi.Bool(True)  # ... and whether a delta
-    eta1, eta2 = mi.Float(1.0), mi.Float(1.0)
+    p1 = path_start(mi, ray1, ray_weight1, offset1, True)  # P1 (PATH_STATE)
+    p2 = path_start(mi, ray2, ray_weight2, offset2, True)  # P2, with P1's numbers
     fresh = mi.Bool(False)  # (no camera hit traced before the loop)
 
-    while dr.hint(active1, max_iterations=settings.max_iterations, label="dopplertof_analytic"):
-        si1 = _intersect(mi, static, frames1, ray1, active1, depth1, None, fresh)
-        si2 = _intersect(mi, static, frames2, ray2, active2, depth2, None, fresh)
-        numbers = vertex_numbers(streams, depth1, u_em_first, u_dir_first)  # P1's, for both
-        path1 = (ray1, beta1, length1, depth1, active1, prev_si1, prev_pdf1, prev_delta1, eta1)
-        path2 = (ray2, beta2, length2, depth2, active2, prev_si2, prev_pdf2, prev_delta2, eta2)
-        v1 = shade(mi, settings, path1, (frames1, light_frames1), si1, numbers)
-        v2 = shade(mi, settings, path2, (frames2, light_frames2), si2, numbers)
+    while dr.hint(p1[4], max_iterations=settings.max_iterations, label="dopplertof_analytic"):
+        si1 = _intersect(mi, static, frames1, p1[0], p1[4], p1[3], None, fresh)
+        si2 = _intersect(mi, static, frames2, p2[0], p2[4], p2[3], None, fresh)
+        numbers = vertex_numbers(streams, p1[3], u_em_first, u_dir_first)  # P1's, for both
+        v1 = shade(mi, settings, p1, (frames1, light_frames1), si1, numbers)
+        v2 = shade(mi, settings, p2, (frames2, light_frames2), si2, numbers)
 
         # ---- P1's contributions, integrated over the exposure towards P2's ----
         # (where P2 has none, it fades out at P1's length: P2's has no meaning there)
@@ -163,19 +171,8 @@ def trace_analytic_pass(mi, setup, layout):
         measured += dr.select(v1.active_em, v1.em_value * v1.mis_em * integrated(
             v1.length_em, dr.select(v2.active_em, v2.length_em, v1.length_em), rho_em), 0.0)
 
-        # ---- Continue both paths ----
-        ray1, beta1, length1, depth1, _, prev_si1, prev_pdf1, prev_delta1, eta1 = advance(
-            mi, path1, si1, v1)
-        ray2, beta2, length2, depth2, _, prev_si2, prev_pdf2, prev_delta2, eta2 = advance(
-            mi, path2, si2, v2)
-
-        # ---- Russian roulette: P1's decides for both (their ratio stays) ----
-        beta_max1, rr_prob, rr_active = roulette(beta1, eta1, depth1, settings.rr_depth)
-        beta_max2 = dr.max(beta2)
-        beta1[rr_active] *= dr.rcp(rr_prob)
-        beta2[rr_active] *= dr.rcp(rr_prob)
-        survives = ~rr_active | (numbers[3] < rr_prob)
-        active1 = (v1.active_next & survives & (beta_max1 != 0.0)) | v1.through
-        active2 = ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through) & active1
+        # ---- Continue both paths; Russian roulette: P1's decides for both ----
+        p1, p2 = ends_roulette(mi, advance(mi, p1, si1, v1), advance(mi, p2, si2, v2), v1, v2,
+                               numbers[3], settings.rr_depth)
 
     return _as_colour(mi, measured, wavelengths), film_offset

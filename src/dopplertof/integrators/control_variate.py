@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import drjit as dr
 
-from .analytic import IntegratedWeight, _exposure_ends, _ratio
+from .analytic import IntegratedWeight, _exposure_ends, _ratio, ends_roulette
 from .path_steps import (LoopSettings, _as_colour, _intersect, advance, contributions,
-                         lane_streams, path_start, roulette, shade, survive, vertex_numbers)
+                         lane_streams, path_start, shade, survive, vertex_numbers)
 
 
 def model_terms(integrated: IntegratedWeight, v1, v2, coherent, fraction):
@@ -62,20 +62,6 @@ def _path_vertex(mi, settings, path, frames, numbers):
     ray, _, _, depth, active = path[:5]
     si = _intersect(mi, settings.static, frames[0], ray, active, depth, None, mi.Bool(False))
     return si, shade(mi, settings, path, frames, si, numbers)
-
-
-def _ends_roulette(mi, p1, p2, v1, v2, u_rr, rr_depth):
-    """P1's Russian roulette for P1 and P2 (their ratio stays); their states after it."""
-    beta1, beta2, depth1 = p1[1], p2[1], p1[3]
-    beta_max1, rr_prob, rr_active = roulette(beta1, p1[8], depth1, rr_depth)
-    beta_max2 = dr.max(beta2)
-    beta1 = dr.select(rr_active, beta1 * dr.rcp(rr_prob), beta1)
-    beta2 = dr.select(rr_active, beta2 * dr.rcp(rr_prob), beta2)
-    survives = ~rr_active | (u_rr < rr_prob)
-    active1 = p1[4] & ((v1.active_next & survives & (beta_max1 != 0.0)) | v1.through)
-    active2 = active1 & ((v2.active_next & survives & (beta_max2 != 0.0)) | v2.through)
-    return (p1[:1] + (beta1,) + p1[2:4] + (active1,) + p1[5:],
-            p2[:1] + (beta2,) + p2[2:4] + (active2,) + p2[5:])
 
 
 def _own_roulette(mi, path, v, u_rr, rr_depth):
@@ -128,7 +114,7 @@ def trace_control_variate_pass(mi, setup, layout):
         measured += (average - now) + (hit_t + light_t)
 
         # ---- Continue the three paths; Russian roulette with the same number ----
-        p1, p2 = _ends_roulette(mi, advance(mi, p1, si1, v1), advance(mi, p2, si2, v2), v1, v2,
+        p1, p2 = ends_roulette(mi, advance(mi, p1, si1, v1), advance(mi, p2, si2, v2), v1, v2,
                                 numbers[3], rr_depth)
         pt = _own_roulette(mi, advance(mi, pt, si_t, v_t), v_t, numbers_t[3], rr_depth)
 
