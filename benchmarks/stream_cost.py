@@ -11,12 +11,14 @@ one run, with the kernels each compiled.
    warm run beside it (the median of the adjacent pairs' ratios, so that the machine's
    drift cancels).
 2. A new scene through a preset: ``dopplertof capture --camera`` as a user runs it, one
-   process per capture, from an empty kernel cache: a first scene, a second scene right
-   after (the cache holds the first one's kernels) and the second again (warm), in
-   ``--rounds`` rounds, each with its own empty cache. Target: the new scene's median at
-   most 1.3x its rerun's. The kernels the new scene compiled are compared with the first
-   scene's with their literals masked: one that matches differs by a value baked in as a
-   literal; one that does not is other code.
+   process per capture, from an empty kernel cache: a first scene (the translating
+   sphere), then each later scene right after the ones before it (new: the cache holds
+   their kernels) and again (warm), in ``--rounds`` rounds, each with its own empty
+   cache. The later scenes: a translating cube (other shapes) and the rotating cube
+   (other shapes, and a body that turns). Target: a new scene's median at most 1.3x its
+   rerun's. The kernels a new scene compiled are compared with those of the scenes
+   before it with their literals masked: one that matches differs by a value baked in
+   as a literal; one that does not is other code.
 3. ``--full``: seconds per frame of the stream at the preset's full resolution too.
 
 ``--attribute`` says what made the new scene's kernels new: the first scene (a
@@ -151,8 +153,8 @@ def timed_capture(scene: str, camera: str, size: str, spp: int) -> tuple:
     """(wall seconds, kernels) of one capture in a process of its own."""
     with tempfile.TemporaryDirectory(prefix="dopplertof-kernels-") as folder:
         out = os.path.join(folder, "kernels.json")
-        command = [sys.executable, os.path.abspath(__file__), "--one-capture",
-                   os.path.join(ROOT, "examples", scene), camera, size, str(spp), out]
+        command = [sys.executable, os.path.abspath(__file__), "--one-capture", scene, camera,
+                   size, str(spp), out]
         started = time.perf_counter()
         done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                               text=True)
@@ -163,45 +165,57 @@ def timed_capture(scene: str, camera: str, size: str, spp: int) -> tuple:
             return wall, json.load(f)
 
 
+def scene_paths(names, folder: str) -> list:
+    """The scenes named (an example's file name, or a variant of :func:`swapped_scenes`)."""
+    variants = swapped_scenes(folder)
+    return [variants[n] if n in variants else os.path.join(ROOT, "examples", n) for n in names]
+
+
 def new_scene_rounds(args) -> list:
-    """Each round from an empty kernel cache: the first scene, the second right after,
-    the second again."""
-    first, second = args.scenes.split(",")
+    """Each round from an empty kernel cache: the first scene, then each later one right
+    after the scenes before it (new) and again (warm)."""
+    names = args.scenes.split(",")
     rounds = []
-    for _ in range(args.rounds):
-        with empty_kernel_cache() as cache:
-            runs = [timed_capture(s, args.camera_cold, args.size, args.spp)
-                    for s in (first, second, second)]
-            rounds.append({"runs": runs, "cache": cache_size(cache)})
+    with tempfile.TemporaryDirectory(prefix="dopplertof-variants-") as folder:
+        paths = scene_paths(names, folder)
+        for _ in range(args.rounds):
+            with empty_kernel_cache() as cache:
+                runs = [timed_capture(paths[0], args.camera_cold, args.size, args.spp)]
+                for path in paths[1:]:
+                    runs += [timed_capture(path, args.camera_cold, args.size, args.spp)
+                             for _ in range(2)]
+                rounds.append({"runs": runs, "cache": cache_size(cache)})
     return rounds
 
 
 def print_new_scene(rounds, args) -> None:
-    first, second = args.scenes.split(",")
+    names = args.scenes.split(",")
     print(f"2. dopplertof capture --camera {args.camera_cold} --res {args.size} --spp "
-          f"{args.spp}, one process each, each round from an empty kernel cache")
-    print(f"{'round':<6} {first + ' (empty cache)':>30} {second + ' (new)':>26} "
-          f"{'again (warm)':>13} {'new / warm':>11}")
-    ratios = []
+          f"{args.spp}, one process each, each round from an empty kernel cache: "
+          f"{names[0]}, then each later scene new and again")
+    print(f"{'round':<6} {names[0] + ' (empty cache) s':>34} " + " ".join(
+        f"{n + ' new / again s':>36}" for n in names[1:]))
     for n, r in enumerate(rounds):
-        (a, _), (b, _), (c, _) = r["runs"]
-        ratios.append(b / c)
-        print(f"{n:<6} {a:>30.2f} {b:>26.2f} {c:>13.2f} {b / c:>10.2f}x")
-    b_med = statistics.median(r["runs"][1][0] for r in rounds)
-    c_med = statistics.median(r["runs"][2][0] for r in rounds)
-    print(f"new scene / its rerun: median {b_med:.2f} s / {c_med:.2f} s = {b_med / c_med:.2f}x "
-          f"(target <= 1.3x): {'met' if b_med / c_med <= 1.3 else 'NOT met'}; per round "
-          + ", ".join(f"{x:.2f}x" for x in ratios))
-    for n, r in enumerate(rounds):
-        (_, ka), (_, kb), (_, kc) = r["runs"]
-        shapes = {k["shape"] for k in ka}
-        new = compiled(kb)
-        literal = [k for k in new if k["shape"] in shapes]
-        print(f"round {n}: the new scene launched {len(kb)} kernels, compiled {len(new)} "
-              f"({sum(k['ms'] for k in new) / 1000:.2f} s of compiling): {len(literal)} the "
-              f"first scene's code with other literals, {len(new) - len(literal)} other code; "
-              f"its rerun compiled {len(compiled(kc))}; cache at the end {r['cache'][0]} "
-              f"kernels")
+        runs = [s for s, _ in r["runs"]]
+        print(f"{n:<6} {runs[0]:>34.2f} " + " ".join(
+            f"{runs[1 + 2 * i]:>20.2f} / {runs[2 + 2 * i]:.2f} = "
+            f"{runs[1 + 2 * i] / runs[2 + 2 * i]:.2f}x" for i in range(len(names) - 1)))
+    for i, name in enumerate(names[1:]):
+        new = statistics.median(r["runs"][1 + 2 * i][0] for r in rounds)
+        again = statistics.median(r["runs"][2 + 2 * i][0] for r in rounds)
+        print(f"{name} new / its rerun: median {new:.2f} s / {again:.2f} s = "
+              f"{new / again:.2f}x (target <= 1.3x): "
+              f"{'met' if new / again <= 1.3 else 'NOT met'}")
+        for n, r in enumerate(rounds):
+            seen = {k["shape"] for _, ks in r["runs"][:1 + 2 * i] for k in ks}
+            kb, kc = r["runs"][1 + 2 * i][1], r["runs"][2 + 2 * i][1]
+            new_kernels = compiled(kb)
+            literal = [k for k in new_kernels if k["shape"] in seen]
+            print(f"  round {n}: launched {len(kb)} kernels, compiled {len(new_kernels)} "
+                  f"({sum(k['ms'] for k in new_kernels) / 1000:.2f} s of compiling): "
+                  f"{len(literal)} code seen before with other literals, "
+                  f"{len(new_kernels) - len(literal)} other code; its rerun compiled "
+                  f"{len(compiled(kc))}; cache at the end {r['cache'][0]} kernels")
 
 
 def swapped_scenes(folder: str) -> dict:
@@ -233,8 +247,10 @@ def attribute(args) -> None:
     from dopplertof.cameras import load_preset
     from dopplertof.cameras.capture import capture_camera
     from dopplertof.cameras.scene_view import load_scene_for_camera
+    from dopplertof.scene.kinds import keep_common_alive
 
     dopplertof.set_variant("llvm_ad_rgb")
+    keep_common_alive()  # (as the command line does)
     preset = load_preset(args.camera_cold)
     size = tuple(int(v) for v in args.size.split("x"))
 
@@ -293,7 +309,9 @@ def build_parser():
     ap.add_argument("--rounds", type=int, default=3, help="new-scene rounds")
     ap.add_argument("--camera-cold", default="kinect-v2", help="the new scene's preset")
     ap.add_argument("--size", default="48x40", help="the new scene's WIDTHxHEIGHT")
-    ap.add_argument("--scenes", default="translating_sphere.xml,rotating_cube.xml")
+    ap.add_argument("--scenes", default="translating_sphere.xml,translating cube,"
+                    "rotating_cube.xml", help="the first scene, then the new ones: files of "
+                    "examples/ or variants of the first (rotating sphere, translating cube)")
     ap.add_argument("--full", action="store_true",
                     help="also a frame at the preset's full resolution")
     ap.add_argument("--skip-new-scene", action="store_true")

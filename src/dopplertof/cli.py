@@ -227,8 +227,10 @@ def _load_scene(args):
     """Set the variant, load the scene with the -D values; say on stderr what the loader
     assumed (stdout is for results)."""
     import dopplertof
+    from .scene.kinds import keep_common_alive
 
     dopplertof.set_variant(args.variant)
+    keep_common_alive()  # (before the scene: kernels shared with scenes of other shapes)
     scene = dopplertof.load_file(args.scene, parse_pairs(args.defines, "-D"))
     for note in scene.notes:
         print(f"dopplertof: note: {note}", file=sys.stderr)

@@ -159,6 +159,7 @@ def _compare(args) -> int:
     import dopplertof
 
     from ..cli_options import print_warnings
+    from ..scene.kinds import keep_common_alive
     from .capture import capture_through, format_camera_summary
     from .scene_view import parse_resolution
     from .figures import write_camera_comparison
@@ -177,6 +178,7 @@ def _compare(args) -> int:
             print(f"dopplertof: note: {note}", file=sys.stderr)
     resolution = parse_resolution(args.res) if args.res else None
     dopplertof.set_variant(args.variant)
+    keep_common_alive()  # (before the scenes: kernels shared with the capture command's)
     results = capture_through(args.compare, presets, resolution, spp=args.spp,
                               noise=not args.noiseless, progress=False)
     for result in results:
@@ -211,6 +213,7 @@ def run_camera_capture(args, load_defines) -> int:
     import dopplertof
 
     from ..cli_options import parse_pairs, print_warnings
+    from ..scene.kinds import keep_common_alive
     from ..tof import prepare_folder
     from .capture import capture_camera, format_camera_summary
     from .scene_view import load_scene_for_camera, parse_resolution, preset_with_scene_view
@@ -220,6 +223,7 @@ def run_camera_capture(args, load_defines) -> int:
     resolution = parse_resolution(args.res) if args.res else None
     prepare_folder(args.output)
     dopplertof.set_variant(args.variant)
+    keep_common_alive()  # (before the scene: kernels shared with scenes of other shapes)
     if args.keep_view:
         preset = preset_with_scene_view(args.scene, preset, resolution, load_defines)
     scene = load_scene_for_camera(args.scene, preset, resolution, load_defines,

@@ -312,7 +312,7 @@ def run_shard_task(task: ShardTask) -> dict:
     abandoned = {"shard": task.name, "rendered": 0, "failed": [], "given_up": True,
                  "seconds": 0.0}
     with RENDER_LOCK:
-        prepare_worker(task.variant, task.threads)
+        prepare_worker(task.variant, task.threads, common_kinds=False)  # (its own)
         for index in task.indices:
             if given_up(task):
                 return abandoned

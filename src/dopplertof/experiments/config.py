@@ -305,8 +305,10 @@ def load_scene_facts(scene_path: str, defines: dict, variant: str | None) -> Sce
     """Load the scene in this process (checking it and its defines) and read its settings."""
     import dopplertof
     from ..scene.inputs import scene_file_digest
+    from ..scene.kinds import keep_common_alive
 
     dopplertof.set_variant(variant)
+    keep_common_alive()  # (before the scene: kernels shared with the render command's)
     scene = dopplertof.load_file(scene_path, dict(defines))
     return SceneFacts(params=scene.params, spp=scene.spp,
                       sha256=scene_file_digest(scene_path, scene),

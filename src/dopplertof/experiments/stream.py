@@ -241,8 +241,10 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
     defines = {k: str(v) for k, v in (defines or {}).items()}
     window = sequence_window(preset)
     import dopplertof
+    from ..scene.kinds import keep_common_alive
 
     dopplertof.set_variant(variant)
+    keep_common_alive()  # (before the scene: kernels shared with the capture command's)
     probe = load_scene_for_camera(scene, preset, resolution, defines)
     _check_capture(probe, preset, spp, seed, params, noise, noise_seed, ambient_irradiance)
     t0 = probe.shutter_open

@@ -176,14 +176,18 @@ def worker_identity() -> dict:
     return {"host": socket.gethostname(), "pid": os.getpid()}
 
 
-def prepare_worker(variant: str, threads: int | None) -> None:
-    """Set this process's Mitsuba variant (once) and Dr.Jit's thread count."""
+def prepare_worker(variant: str, threads: int | None, common_kinds: bool = True) -> None:
+    """Set this process's Mitsuba variant (once) and Dr.Jit's thread count; with
+    ``common_kinds``, keep the common kinds alive (scene/kinds.py) before any scene."""
     import mitsuba as mi
 
     import dopplertof
+    from ..scene.kinds import keep_common_alive
 
     if mi.variant() != variant:
         dopplertof.set_variant(variant)
+    if common_kinds:  # (before any scene: kernels shared with the capture command's)
+        keep_common_alive()
     if threads:
         import drjit as dr
 

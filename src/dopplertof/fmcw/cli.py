@@ -112,9 +112,11 @@ def run_fmcw(args) -> int:
     from .trace import fmcw_params
 
     io.check_output_set(args.output, "fmcw", OUTPUT_FILES)  # before any work
+    from ..scene.kinds import keep_common_alive
     from ..scene.xml import load_file
 
     dopplertof.set_variant(args.variant)
+    keep_common_alive()  # (before the scene: kernels shared with scenes of other shapes)
     beam = args.beam or parse_pairs(args.params, "-P").get("fmcw_beam")
     scene = load_file(args.scene, parse_pairs(args.defines, "-D"),  # (a beam lights it)
                       params={"fmcw_beam": beam} if beam else None)
