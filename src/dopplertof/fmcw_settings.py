@@ -49,10 +49,12 @@ class FMCWSettings:
     beam: str = "flood"  #: "flood" or "collimated"
     #: a collimated beam's radiant intensity in each pixel's cone (W/sr)
     beam_intensity: float = 1.0
+    #: an I/Q (complex) receiver: signed beats, 2 M bins from -M / T; else a real one
+    iq: bool = False
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
-        """The scene parameters' names, ``fmcw_wavelength`` ... ``fmcw_beam_intensity``."""
+        """The scene parameters' names, ``fmcw_wavelength`` ... ``fmcw_iq``."""
         return tuple(cls.PREFIX + f.name for f in fields(cls))
 
     @classmethod
@@ -84,7 +86,7 @@ class FMCWSettings:
         command's options (the same ranges as dopplertof.fmcw.Chirp's), else None."""
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name != "beam" and not math.isfinite(v):
+            if f.name not in ("beam", "iq") and not math.isfinite(v):
                 return f"{self.PREFIX}{f.name} must be finite, got {v}"
         lo, hi = WAVELENGTH_RANGE_NM
         if not lo <= self.wavelength <= hi:
@@ -114,7 +116,7 @@ class FMCWSettings:
         return self.beam == "collimated"
 
 
-_TYPES = {"float": float, "int": int, "str": str}
+_TYPES = {"float": float, "int": int, "str": str, "bool": bool}
 
 
 def chirp_problem(wavelength: float, bandwidth: float, chirp_time: float,

@@ -95,14 +95,15 @@ class Chirp:
     def of_settings(cls, settings: FMCWSettings | None = None, names: dict | None = None,
                     **given) -> "Chirp":
         """The chirp of ``settings`` (a scene's ``modality_settings["fmcw"]``: its
-        fmcw_wavelength (nm), fmcw_bandwidth (GHz), fmcw_chirp_time (us) and fmcw_bins,
-        XML or defaults; None: the defaults) with the values of ``given`` (SI, as the
+        fmcw_wavelength (nm), fmcw_bandwidth (GHz), fmcw_chirp_time (us), fmcw_bins and
+        fmcw_iq, XML or defaults; None: the defaults) with the values of ``given`` (SI, as the
         fields; None: the settings') over them; ``names`` (:meth:`problem`'s) name a
         sweep or a duration out of its range as it was given."""
         settings = settings or FMCWSettings()
         values = {"wavelength": settings.wavelength / 1e9,
                   "bandwidth": settings.bandwidth * 1e9,
-                  "chirp_time": settings.chirp_time / 1e6, "bins": settings.bins}
+                  "chirp_time": settings.chirp_time / 1e6, "bins": settings.bins,
+                  "iq": settings.iq}
         values.update({k: v for k, v in given.items() if v is not None})
         if names is not None:
             unchecked = object.__new__(cls)  # (its fields set, not yet validated)

@@ -6,6 +6,7 @@ without NumPy or Mitsuba.
 
 from __future__ import annotations
 
+import argparse
 import os
 
 from ..cli_options import (FOLDER_HELP, add_defines_option, add_params_option,
@@ -42,10 +43,10 @@ def add_subcommand(sub) -> None:
     g.add_argument("--beam-intensity", type=_positive_float, metavar="W_SR",
                    help="with a collimated beam: its radiant intensity within each pixel's "
                    "cone, W/sr (fmcw_beam_intensity; default 1)")
-    g.add_argument("--iq", action="store_true",
+    g.add_argument("--iq", action=argparse.BooleanOptionalAction, default=None,
                    help="an I/Q (complex) receiver: it sees the beats' signs, so a Doppler "
                    "beat larger than the range beat does not fold (spectra of 2 M bins "
-                   "from -M/T; default: a real receiver, |beat|)")
+                   "from -M/T; fmcw_iq; --no-iq: a real receiver, |beat|, the default)")
     f.add_argument("--speckle", action="store_true",
                    help="also speckle.npy: each path at a random phase, summed coherently "
                    "per bin (its expectation is spectrum.npy)")
@@ -75,9 +76,10 @@ def _positive_float(text: str) -> float:
 #: where the chirp and the beam come from (the command's --help; docs/fmcw.md section 4)
 PRECEDENCE = ("The chirp pair and the beam, each parameter on its own: the option given "
               "here (--wavelength, --bandwidth, --chirp-time, --bins, --beam, "
-              "--beam-intensity), else -P fmcw_...=VALUE, else the scene's <integrator> "
-              "parameter (fmcw_wavelength in nm, fmcw_bandwidth in GHz, fmcw_chirp_time in "
-              "us, fmcw_bins, fmcw_beam, fmcw_beam_intensity in W/sr), else the default.")
+              "--beam-intensity, --iq or --no-iq), else -P fmcw_...=VALUE, else the "
+              "scene's <integrator> parameter (fmcw_wavelength in nm, fmcw_bandwidth in "
+              "GHz, fmcw_chirp_time in us, fmcw_bins, fmcw_beam, fmcw_beam_intensity in "
+              "W/sr, fmcw_iq true or false), else the default.")
 
 
 def chirp_of(args, settings=None):
@@ -95,7 +97,7 @@ def chirp_of(args, settings=None):
                             else "fmcw_chirp_time", "us", 1e-6)}
     return Chirp.of_settings(settings, names=names, wavelength=wavelength,
                              bandwidth=bandwidth, chirp_time=chirp_time, bins=args.bins,
-                             iq=True if args.iq else None)
+                             iq=args.iq)
 
 
 def run_fmcw(args) -> int:
