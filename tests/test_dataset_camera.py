@@ -16,7 +16,7 @@ from test_dataset import (EXAMPLE, OCTAHEDRON, TINY, _config, _pixel_rays,  # no
                           _truth, _write_toml, in_process_client, tiny)
 
 MASK_NAMES = ("mask_saturated", "mask_low_confidence", "mask_unwrap_failed",
-              "mask_out_of_range", "mask_mixed_footprint")
+              "mask_out_of_range", "mask_mixed_footprint", "mask_unlit")
 
 
 def test_every_split_holds_the_cameras_outputs_and_the_reader_picks_them(tiny):
@@ -299,11 +299,12 @@ def test_a_layout_1_folder_is_still_read_and_an_unknown_layout_is_named(tiny, tm
     """Layout 2 (issue 41) adds keys only: a reader reads layout 1's folders (without
     the camera's outputs) and names a layout it does not know; layout 3 renames two keys
     (outputs.RENAMED), which a folder of layout 2 holds under their former names: read
-    under the present ones, with a FutureWarning naming them."""
+    under the present ones, with a FutureWarning naming them; layout 4 adds
+    camera_mask_unlit (test_dataset_unlit.py reads a folder of layout 3 without it)."""
     import json
     import shutil
 
-    for version, ok in ((1, True), (2, True), (4, False)):
+    for version, ok in ((1, True), (2, True), (5, False)):
         folder = tmp_path / f"layout{version}"
         shutil.copytree(tiny[1], folder)
         info = json.loads((folder / "dataset.json").read_text())
@@ -324,7 +325,7 @@ def test_a_layout_1_folder_is_still_read_and_an_unknown_layout_is_named(tiny, tm
             assert len(Dataset(folder)) == 3
         else:
             with pytest.raises(DatasetError,
-                               match="layout version 4, this reader reads 1, 2, 3"):
+                               match="layout version 5, this reader reads 1, 2, 3, 4"):
                 Dataset(folder)
 
 

@@ -119,11 +119,9 @@ MASKS = {"mask_saturated": ("saturated", "a tap at the full well or the ADC at a
                        "than edge_range_m"),
          "mask_mixed_footprint": ("mixed", "the footprint mixes surfaces during the "
                                   "sequence (from the scene's geometry; NaN in the maps "
-                                  "unless kept: --keep-mixed-pixels)")}
-#: a capture's masks: those and the pixels outside the illuminator's field (a dataset's
-#: scenes carry their own light: it has none)
-CAPTURE_MASKS = {**MASKS, "mask_unlit": ("unlit", "wholly outside the field the camera's "
-                                         "illuminator lights: none of its light")}
+                                  "unless kept: --keep-mixed-pixels)"),
+         "mask_unlit": ("unlit", "wholly outside the field the camera's illuminator "
+                        "lights: none of its light")}
 
 #: a camera preset's frame (``dopplertof capture --camera``); ``dataset``: the key of the
 #: same quantity in a dataset sample (its camera outputs ``camera_*`` per split)
@@ -147,7 +145,6 @@ CAMERA = _table(
     Output("depth_error.png", "m", "", "(H, W)", "range error (camera - truth)"),
     *(Output(name, "1", "bool", "(H, W)", meaning, dataset=f"camera_{name}")
       for name, (_, meaning) in MASKS.items()),
-    Output("mask_unlit", "1", "bool", "(H, W)", CAPTURE_MASKS["mask_unlit"][1]),
     Output("shutter", "1", "float32", "(H, W)", "each pixel's fraction of the integration "
            "(raw and amplitude are in DN of it)", when="sensors with several shutters"),
     Output("velocity", "m/s", "float32", "(H, W)", "the camera's radial velocity",

@@ -12,7 +12,7 @@ from .. import file_formats, io
 
 from .. import image_files
 from ..capture_summary import SUMMARY_JSON, write_summary
-from ..outputs import CAMERA, CAPTURE_MASKS
+from ..outputs import CAMERA, MASKS
 from ..previews import NOTHING_HIT
 from ..tof import figures
 from ..tof.geometry import write_camera_files
@@ -42,7 +42,7 @@ def _write_camera_files(result, path) -> None:
     if recon.velocity is not None:
         arrays.update(velocity=recon.velocity, velocity_gt=result.velocity_gt)
     arrays.update({name: _mask(result, attribute)
-                   for name, (attribute, _) in CAPTURE_MASKS.items()})
+                   for name, (attribute, _) in MASKS.items()})
     if readout.shutter is not None:
         arrays["shutter"] = readout.shutter
     for name, data in arrays.items():
@@ -57,8 +57,7 @@ def _mask(result, attribute: str) -> np.ndarray:
     the information was lost)."""
     if attribute == "mixed" and result.mixed_footprints is not None:
         return np.asarray(result.mixed_footprints, bool)
-    mask = getattr(result.reconstruction, attribute)
-    return np.zeros(result.reconstruction.depth.shape, bool) if mask is None else mask
+    return result.reconstruction.mask(attribute)
 
 
 def masked_caption(recon, truth=None) -> str:

@@ -85,6 +85,13 @@ class CameraReconstruction:
             masked = masked | self.unlit
         return masked if self.mixed is None else masked | self.mixed
 
+    def mask(self, attribute: str) -> np.ndarray:
+        """(H, W) bool: the mask ``attribute`` (:data:`dopplertof.outputs.MASKS`); all
+        False where it was not computed (None: no pixel outside the illuminator's field,
+        no edge filter...)."""
+        mask = getattr(self, attribute)
+        return np.zeros(self.depth.shape, bool) if mask is None else np.asarray(mask, bool)
+
     def describe(self) -> dict:
         mixed = 0 if self.mixed is None else int(self.mixed.sum())
         return {"file": "depth.npy", "method": self.method, "range_m": self.range_m,

@@ -39,9 +39,10 @@ DATASET_JSON = "dataset.json"
 JSON_DIGEST = "sha256"
 #: format of the folder (2: with the camera's outputs, incidence, grazing and
 #: truth_valid, redrawn samples; 3: camera_depth_std and velocity_point, formerly
-#: camera_confidence and velocity_along_ray); a reader reads READABLE_LAYOUTS
-LAYOUT_VERSION = 3
-READABLE_LAYOUTS = (1, 2, 3)
+#: camera_confidence and velocity_along_ray; 4: camera_mask_unlit); a reader reads
+#: READABLE_LAYOUTS
+LAYOUT_VERSION = 4
+READABLE_LAYOUTS = (1, 2, 3, 4)
 #: the splits a reader offers: what ``raw`` is in each (docs/dataset.md)
 SPLITS = {"full": "raw", "ideal": "raw_ideal", "direct": "raw_direct"}
 

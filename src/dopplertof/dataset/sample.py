@@ -196,7 +196,8 @@ def _raw_frames(scene, preset, spp: int, description: dict) -> tuple[dict, dict]
                                  photons_per_unit=full.readout.photons_per_unit,
                                  shutter=full.readout.shutter)
     readings = {"full": full.reconstruction, "ideal": full.read_again(None)[1],
-                "direct": reconstruct(direct_readout, preset, full.mixed_footprints)}
+                "direct": reconstruct(direct_readout, preset, full.mixed_footprints,
+                                      full.reconstruction.unlit)}
     return ({"raw": full.readout.raw, "raw_ideal": full.readout.raw_ideal.astype(np.float32),
              "raw_direct": direct_readout.raw_ideal.astype(np.float32),
              "raw_variance": full.readout.variance.astype(np.float32),
@@ -217,7 +218,7 @@ def camera_outputs(readings: dict, preset, cosine: np.ndarray) -> dict:
             arrays["radial_velocity"] = recon.velocity
         out.update({f"camera_{k}{suffix}": np.asarray(v, np.float32)
                     for k, v in arrays.items()})
-        masks = {name: getattr(recon, attribute) for name, (attribute, _) in MASKS.items()}
+        masks = {name: recon.mask(attribute) for name, (attribute, _) in MASKS.items()}
         masks["valid"] = ~recon.masked
         out.update({f"camera_{k}{suffix}": np.asarray(v, bool) for k, v in masks.items()})
     return out

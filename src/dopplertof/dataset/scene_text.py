@@ -85,8 +85,10 @@ def _sensor(description: dict, spp: int) -> str:
 def _light(description: dict) -> str:
     """A point light riding with the camera: at its centre, or at the offset (camera
     frame, m) from it; confined to the illuminator's field where the description gives
-    one (``field_deg``)."""
+    one (``field_deg``), and then, at the lens, the camera's illuminator (its id, by
+    which a capture reports the pixels wholly outside that field: mask_unlit)."""
     from ..cameras.radiometry import light_xml
+    from ..scene.scene import CAMERA_ILLUMINATOR_ID
 
     light, camera = description["light"], description["camera"]
     offset = np.eye(4)
@@ -94,7 +96,9 @@ def _light(description: dict) -> str:
         offset[:3, 3] = light["offset_m"]
     first = description["times_s"]["start"] - description["times_s"]["mid"]
     placed = camera_pose(camera, first if camera["moving"] else 0.0) @ offset
-    return light_xml(light["intensity"], light.get("field_deg"), _matrix_transform(placed))
+    at_lens = light.get("field_deg") is not None and not offset[:3, 3].any()
+    return light_xml(light["intensity"], light.get("field_deg"), _matrix_transform(placed),
+                     CAMERA_ILLUMINATOR_ID if at_lens else None)
 
 
 def scene_xml(description: dict, spp: int, max_depth: int) -> str:
