@@ -1,7 +1,8 @@
-"""One run at a time in an output folder: a sweep, an animation (a camera stream too) or
-a dataset holds its folder for its whole run (dopplertof.io.held_folder); a second run
-into a folder held by a live run is refused before anything there changes, one that
-follows a killed run resumes. Every run is a subprocess, as from a second shell."""
+"""One run at a time in an output folder: a sweep, an animation (a camera stream too), a
+dataset or a capture's checkpoint folder is held for its whole run
+(dopplertof.io.held_folder); a second run into a folder held by a live run is refused
+before anything there changes, one that follows a killed run resumes. Every run is a
+subprocess, as from a second shell."""
 
 import json
 import os
@@ -27,29 +28,29 @@ TINY_DATASET = ("samples = 2\nsamples_per_shard = 1\nseed = 7\n[render]\n"
 def command(kind, tmp_path):
     """(the argv of a tiny run of ``kind`` into tmp_path/out, the files its two
     pieces of work complete, what its line says when they were complete before)."""
-    out = str(tmp_path / "out")
+    out, workers = str(tmp_path / "out"), ["--workers", "1"]
     if kind == "sweep":
         (tmp_path / "sweep.toml").write_text(TINY_SWEEP)
-        return (["sweep", str(tmp_path / "sweep.toml"), "-o", out],
+        return (["sweep", str(tmp_path / "sweep.toml"), "-o", out, *workers],
                 [f"runs/time_sampling_method={m}/complete.json"
                  for m in ("uniform", "antithetic")], "0 done now, 2 already complete")
     if kind == "animate":
         return (["animate", SCENE, "--frames", "2", "--spp", "4", "-D", "res=8",
-                 "-D", "max_depth=3", "-o", out],
+                 "-D", "max_depth=3", "-o", out, *workers],
                 ["frame_0000/complete.json", "frame_0001/complete.json"],
                 "0 done now, 2 already complete")
     if kind == "stream":
         return (["animate", SCENE, "--camera", "azure-kinect", "--frames", "2", "--res",
-                 "8x6", "--spp", "2", "-D", "max_depth=3", "-o", out],
+                 "8x6", "--spp", "2", "-D", "max_depth=3", "-o", out, *workers],
                 ["frame_0000/complete.json", "frame_0001/complete.json"],
                 "0 done now, 2 already complete")
     (tmp_path / "dataset.toml").write_text(TINY_DATASET)
-    return (["dataset", str(tmp_path / "dataset.toml"), "-o", out],
+    return (["dataset", str(tmp_path / "dataset.toml"), "-o", out, *workers],
             ["shard_00000.h5", "shard_00001.h5"], "0 rendered now, 2 shards already complete")
 
 
 def cli(args, **popen):
-    argv = [sys.executable, "-m", "dopplertof.cli", *args, "--workers", "1"]
+    argv = [sys.executable, "-m", "dopplertof.cli", *args]
     if popen:
         return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 **popen)
@@ -92,25 +93,35 @@ def stopped_holder(args, folder):
     return run
 
 
-@pytest.mark.parametrize("kind", ["sweep", *(pytest.param(k, marks=pytest.mark.slow)
-                                              for k in ("animate", "stream", "dataset"))])
-def test_a_second_run_on_a_held_folder_is_refused_and_a_killed_ones_resumes(kind, tmp_path):
-    args, complete, rerun_line = command(kind, tmp_path)
-    out = str(tmp_path / "out")
-    holder = stopped_holder(args, out)
+def refused_then_killed(args, folder):
+    """Start ``args``, stop it once it holds ``folder``; the same command again is
+    refused (exit 2, one line naming the folder, the holder's pid and its command) and
+    changes no file there (bytes, mtime, no new file); then the first run is killed
+    (SIGKILL, its workers too: its own session), its lock file left behind."""
+    holder = stopped_holder(args, folder)
     try:
-        before = files(out)
+        before = files(folder)
         refused = cli(args)
         assert refused.returncode == 2, refused.stderr
         lines = refused.stderr.splitlines()
-        assert len(lines) == 1 and f"{out} is in use by another run" in lines[0] \
+        assert len(lines) == 1 and f"{folder} is in use by another run" in lines[0] \
             and f"pid {holder.pid} " in lines[0] and f"dopplertof {args[0]} " in lines[0] \
             and lines[0].startswith("dopplertof: error: "), lines
-        assert files(out) == before  # every file's bytes and mtime, and no new file
+        assert files(folder) == before
     finally:
-        os.killpg(holder.pid, signal.SIGKILL)  # (its workers with it)
+        os.killpg(holder.pid, signal.SIGKILL)
         holder.wait(timeout=60)
-    assert holder_pid(out) == holder.pid  # the killed run left its lock file behind
+    assert holder_pid(folder) == holder.pid  # (what a kill leaves)
+
+
+@pytest.mark.parametrize("kind", ["sweep", *(pytest.param(k, marks=pytest.mark.slow)
+                                              for k in ("animate", "stream", "dataset"))])
+def test_a_second_run_on_a_held_folder_is_refused_and_a_killed_ones_resumes(kind, tmp_path):
+    """Refused while the first run lives; after its kill the same command completes the
+    work and leaves no lock file; run once more it skips everything (as without locks)."""
+    args, complete, rerun_line = command(kind, tmp_path)
+    out = str(tmp_path / "out")
+    refused_then_killed(args, out)
     resumed = cli(args)
     assert resumed.returncode == 0, resumed.stderr
     assert all(os.path.isfile(os.path.join(out, f)) for f in complete)
@@ -118,6 +129,18 @@ def test_a_second_run_on_a_held_folder_is_refused_and_a_killed_ones_resumes(kind
     assert not os.path.exists(os.path.join(out, io.RUN_HOLDER))
     again = cli(args)
     assert again.returncode == 0 and rerun_line in again.stdout, again.stdout + again.stderr
+
+
+def test_a_capture_on_a_held_checkpoint_folder_is_refused(tmp_path):
+    """`capture --checkpoint DIR` holds DIR: a second capture with it is refused; after
+    the first is killed the same command captures and removes DIR, as one that served."""
+    checkpoint = str(tmp_path / "checkpoint")
+    args = ["capture", SCENE, "-D", "res=8", "-D", "max_depth=3", "--spp", "8", "-o",
+            str(tmp_path / "frame"), "--checkpoint", checkpoint, "--quiet"]
+    refused_then_killed(args, checkpoint)
+    resumed = cli(args)
+    assert resumed.returncode == 0, resumed.stderr
+    assert (tmp_path / "frame" / "velocity.npy").is_file() and not os.path.exists(checkpoint)
 
 
 def test_a_held_folder_is_refused_to_a_second_holder_and_free_after(tmp_path):

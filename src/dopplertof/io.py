@@ -449,7 +449,8 @@ def _locked(folder: str):
 # ---- A run's hold on its output folder -----------------------------------------------------
 #
 # A command that fills a folder piece by piece over a long run and resumes into it (a
-# sweep, an animation, a dataset) holds the folder for its whole run: it locks (flock)
+# sweep, an animation, a dataset, a capture's checkpoint folder) holds the folder for its
+# whole run: it locks (flock)
 #   .dopplertof-run.lock    the lock file, and writes who holds it in
 #   .dopplertof-run.holder  {"pid", "host", "command", "started"}
 # both removed when the run ends; a killed run's lock is free again (the system releases
@@ -460,33 +461,42 @@ RUN_HOLDER = ".dopplertof-run.holder"
 
 
 @contextlib.contextmanager
-def held_folder(folder):
+def held_folder(folder, remove_empty: bool = False):
     """Hold output folder ``folder`` (created if missing) for this run: yields its
     absolute path. While another live run holds it, an OutputError naming the folder and
     that run (its pid and command), before anything in the folder changes. Where the
     filesystem has no locks the run goes on unheld. Writes inside the folder (this run's,
-    its Dask workers') are never refused: only another run's ``held_folder`` is."""
+    its Dask workers') are never refused: only another run's ``held_folder`` is. At the
+    end a folder this call created and the run left empty is removed again (with
+    ``remove_empty``, one that existed too: a checkpoint folder that has served)."""
     target = check_output_folder(folder)
-    created = _missing_folders(target)
+    created, fd = _missing_folders(target), None
     try:
         os.makedirs(target, exist_ok=True)
         fd = _take_run_lock(target)
         if fd is not None:
             _write_holder(target)
     except BaseException as exc:
-        _remove_created(created)
+        _release_run_lock(target, fd, created, False)
         if isinstance(exc, OSError):
             raise write_error(target, exc) from exc
         raise
     try:
         yield target
     finally:
-        if fd is not None:  # (removed while still locked: the next run makes them anew)
-            for name in (RUN_HOLDER, RUN_LOCK):
-                with contextlib.suppress(OSError):
-                    os.unlink(os.path.join(target, name))
-            os.close(fd)
-        _remove_created(created)
+        _release_run_lock(target, fd, created, remove_empty)
+
+
+def _release_run_lock(target: str, fd, created: list, remove_empty: bool) -> None:
+    if fd is not None:  # (removed while still locked: the next run makes them anew)
+        for name in (RUN_HOLDER, RUN_LOCK):
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(target, name))
+        os.close(fd)
+    if remove_empty:
+        with contextlib.suppress(OSError):
+            os.rmdir(target)  # (only when empty)
+    _remove_created(created)
 
 
 def _take_run_lock(target: str):
@@ -528,7 +538,7 @@ def _write_holder(target: str) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump({"pid": os.getpid(), "host": socket.gethostname(),
                        "command": shlex.join([prog, *sys.argv[1:]]),
-                       "started": time.strftime("%Y-%m-%d %H:%M:%S")}, f)
+                       "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}, f)
 
 
 def _holder(target: str) -> str:
