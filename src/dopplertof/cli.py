@@ -305,10 +305,7 @@ _NOISE_OPTIONS = {"photons_per_unit": "photons_per_unit",
 
 
 def _cmd_capture(args) -> int:
-    import dopplertof
     from . import io
-    from .tof import format_summary, prepare_folder
-    from .tof.checkpoint import remove_checkpoint
 
     _check_before_loading(args, "capture parameters")
     from .cameras import cli as cameras_cli
@@ -316,8 +313,19 @@ def _cmd_capture(args) -> int:
     if not os.path.isfile(args.scene):
         raise UsageError(f"scene file not found: {args.scene}")
     cameras_cli.check_capture_options(args)
-    if args.checkpoint:
-        io.check_output_folder(args.checkpoint)
+    if not args.checkpoint:
+        return _capture(args, cameras_cli)
+    io.check_output_folder(args.checkpoint)
+    with io.held_folder(args.checkpoint, remove_empty=True):  # one run at a time in it
+        return _capture(args, cameras_cli)
+
+
+def _capture(args, cameras_cli) -> int:
+    """``capture`` once its arguments are checked (and its checkpoint folder held)."""
+    import dopplertof
+    from .tof import format_summary, prepare_folder
+    from .tof.checkpoint import remove_checkpoint
+
     if args.camera is not None:
         return cameras_cli.run_camera_capture(args, parse_pairs(args.defines, "-D"))
     noise = _noise_model(args, args.noise)

@@ -446,6 +446,112 @@ def _locked(folder: str):
         os.close(fd)  # releases the lock
 
 
+# ---- A run's hold on its output folder -----------------------------------------------------
+#
+# A command that fills a folder piece by piece over a long run and resumes into it (a
+# sweep, an animation, a dataset, a capture's checkpoint folder) holds the folder for its
+# whole run: it locks (flock)
+#   .dopplertof-run.lock    the lock file, and writes who holds it in
+#   .dopplertof-run.holder  {"pid", "host", "command", "started"}
+# both removed when the run ends; a killed run's lock is free again (the system releases
+# it with the process), so the next run takes the folder and resumes.
+
+RUN_LOCK = ".dopplertof-run.lock"
+RUN_HOLDER = ".dopplertof-run.holder"
+
+
+@contextlib.contextmanager
+def held_folder(folder, remove_empty: bool = False):
+    """Hold output folder ``folder`` (created if missing) for this run: yields its
+    absolute path. While another live run holds it, an OutputError naming the folder and
+    that run (its pid and command), before anything in the folder changes. Where the
+    filesystem has no locks the run goes on unheld. Writes inside the folder (this run's,
+    its Dask workers') are never refused: only another run's ``held_folder`` is. At the
+    end a folder this call created and the run left empty is removed again (with
+    ``remove_empty``, one that existed too: a checkpoint folder that has served)."""
+    target = check_output_folder(folder)
+    created, fd = _missing_folders(target), None
+    try:
+        os.makedirs(target, exist_ok=True)
+        fd = _take_run_lock(target)
+        if fd is not None:
+            _write_holder(target)
+    except BaseException as exc:
+        _release_run_lock(target, fd, created, False)
+        if isinstance(exc, OSError):
+            raise write_error(target, exc) from exc
+        raise
+    try:
+        yield target
+    finally:
+        _release_run_lock(target, fd, created, remove_empty)
+
+
+def _release_run_lock(target: str, fd, created: list, remove_empty: bool) -> None:
+    if fd is not None:  # (removed while still locked: the next run makes them anew)
+        for name in (RUN_HOLDER, RUN_LOCK):
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(target, name))
+        os.close(fd)
+    if remove_empty:
+        with contextlib.suppress(OSError):
+            os.rmdir(target)  # (only when empty)
+    _remove_created(created)
+
+
+def _take_run_lock(target: str):
+    """The descriptor of ``target``'s lock file, locked; None where locks are
+    unsupported. Refused (OutputError) while another run holds it."""
+    path = os.path.join(target, RUN_LOCK)
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputError(f"{target} is in use by another run ({_holder(target)}): "
+                              "wait for it to end (or stop it), or write into another "
+                              "folder; nothing was changed") from None
+        except OSError:  # no locks on this filesystem: go on unheld
+            os.close(fd)
+            return None
+        try:
+            mine = os.path.samestat(os.stat(path), os.fstat(fd))
+        except FileNotFoundError:
+            mine = False
+        if mine:
+            return fd
+        os.close(fd)  # the holder removed it as it ended: take the new one
+
+
+def _write_holder(target: str) -> None:
+    import shlex
+    import socket
+    import sys
+    import time
+
+    argv = sys.argv or [""]
+    ours = argv[0] in ("", "-c") or os.path.dirname(os.path.abspath(argv[0])) == \
+        os.path.dirname(os.path.abspath(__file__))  # (python -m dopplertof.cli)
+    prog = "dopplertof" if ours else os.path.basename(argv[0])
+    with atomic_path(os.path.join(target, RUN_HOLDER)) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"pid": os.getpid(), "host": socket.gethostname(),
+                       "command": shlex.join([prog, *sys.argv[1:]]),
+                       "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}, f)
+
+
+def _holder(target: str) -> str:
+    """Who holds ``target`` (its holder file), in words."""
+    try:
+        with open(os.path.join(target, RUN_HOLDER), encoding="utf-8") as f:
+            info = json.load(f)
+        return (f"pid {int(info['pid'])} on {info['host']}, started {info['started']}: "
+                f"{' '.join(str(info['command']).split())}")
+    except (OSError, ValueError, TypeError, KeyError):
+        return "its pid not written yet"
+
+
 def _missing_folders(folder: str) -> list:
     """``folder`` and its ancestors that do not exist yet, deepest first."""
     missing = []

@@ -352,31 +352,32 @@ def run_dataset(config: DatasetConfig, output, *, scheduler: str | None = None,
     check_variant(variant)  # (before the folder is claimed for it)
     tasks = plan_shards(config, output, variant, retries)
     check_same_config(output, tasks[0].config_hash, config.source)
-    summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
-                             output=output)
-    write_dataset_json(output, config, tasks, summary)  # (claims the folder first)
-    copy_meshes(config, output)
-    pending = []
-    for task in tasks:
-        if not shard_state(task.path, task.config_hash, task.indices).complete:
-            io.remove_temporaries(task.path)  # (a killed writer's)
-            pending.append(task)
-    summary.skipped_shards = len(tasks) - len(pending)
-    if pending:
-        announce_time(config, sum(len(t.indices) for t in pending))
-        outcome = run_in_folder(run_shard_task, pending, output, scheduler=scheduler,
-                                workers=workers, client=client, retries=retries,
-                                progress=progress, description="shards",
-                                already_done=summary.skipped_shards)
-        summary.rendered = sum(r["rendered"] for r in outcome.done)
-        summary.failed_shards = outcome.failed
-        if summary.rendered:
-            summary.samples_per_hour = summary.rendered * 3600.0 / outcome.seconds
-    summary.failed = [f for t in tasks
-                      for f in shard_state(t.path, t.config_hash, t.indices, full=False).failed]
-    summary.seconds = time.perf_counter() - started
-    write_dataset_json(output, config, tasks, summary)
-    return summary
+    with io.held_folder(output):  # (another run's folder: refused before any change)
+        summary = DatasetSummary(samples=config.samples, shards=len(tasks), skipped_shards=0,
+                                 output=output)
+        write_dataset_json(output, config, tasks, summary)  # (claims the folder first)
+        copy_meshes(config, output)
+        pending = []
+        for task in tasks:
+            if not shard_state(task.path, task.config_hash, task.indices).complete:
+                io.remove_temporaries(task.path)  # (a killed writer's)
+                pending.append(task)
+        summary.skipped_shards = len(tasks) - len(pending)
+        if pending:
+            announce_time(config, sum(len(t.indices) for t in pending))
+            outcome = run_in_folder(run_shard_task, pending, output, scheduler=scheduler,
+                                    workers=workers, client=client, retries=retries,
+                                    progress=progress, description="shards",
+                                    already_done=summary.skipped_shards)
+            summary.rendered = sum(r["rendered"] for r in outcome.done)
+            summary.failed_shards = outcome.failed
+            if summary.rendered:
+                summary.samples_per_hour = summary.rendered * 3600.0 / outcome.seconds
+        summary.failed = [f for t in tasks for f in shard_state(
+            t.path, t.config_hash, t.indices, full=False).failed]
+        summary.seconds = time.perf_counter() - started
+        write_dataset_json(output, config, tasks, summary)
+        return summary
 
 
 def announce_time(config: DatasetConfig, samples: int) -> None:

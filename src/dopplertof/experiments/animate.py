@@ -236,20 +236,21 @@ def run_animation(scene, output, frames: int, *, frame_period: float | None = No
     tasks = plan_animation(scene, output, frames, frame_period=frame_period, start=start,
                            spp=spp, seed=seed, defines=defines, params=params,
                            variant=variant, previews=previews)
-    io.make_output_folder(output)  # the frames' folders go in it
-    warning = frames_past_keyframes(tasks, load_scene_facts(
-        tasks[0].scene, tasks[0].defines, tasks[0].variant).keyframe_span)
-    summary = run_frame_tasks(run_frame_task, tasks, output, [warning] if warning else [],
-                              scheduler=scheduler, workers=workers, client=client,
-                              retries=retries, progress=progress)
-    # ---- the video and animation.json: one output set, all or nothing (no video of an
-    # earlier run stays beside an animation.json without one)
-    with io.output_folder(output, "animation") as staged:
-        if summary.ok:
-            write_velocity_gif(tasks, staged.path(VELOCITY_GIF), fps)
-            summary.video = os.path.join(output, VELOCITY_GIF)
-        summary.seconds = time.perf_counter() - started
-        _write_animation_json(staged.path(ANIMATION_JSON), tasks, summary, fps, frame_period)
+    with io.held_folder(output):  # the frames' folders go in it; no other run meanwhile
+        warning = frames_past_keyframes(tasks, load_scene_facts(
+            tasks[0].scene, tasks[0].defines, tasks[0].variant).keyframe_span)
+        summary = run_frame_tasks(run_frame_task, tasks, output, [warning] if warning else [],
+                                  scheduler=scheduler, workers=workers, client=client,
+                                  retries=retries, progress=progress)
+        # ---- the video and animation.json: one output set, all or nothing (no video of an
+        # earlier run stays beside an animation.json without one)
+        with io.output_folder(output, "animation") as staged:
+            if summary.ok:
+                write_velocity_gif(tasks, staged.path(VELOCITY_GIF), fps)
+                summary.video = os.path.join(output, VELOCITY_GIF)
+            summary.seconds = time.perf_counter() - started
+            _write_animation_json(staged.path(ANIMATION_JSON), tasks, summary, fps,
+                                  frame_period)
     return summary
 
 

@@ -281,19 +281,19 @@ def run_stream(scene, output, frames: int, camera, *, scheduler=None, workers=No
     started = time.perf_counter()
     output = io.check_output_folder(os.fspath(output))
     plan = plan_stream(scene, output, frames, camera, **options)
-    io.make_output_folder(output)
-    summary = run_frame_tasks(run_stream_frame_task, plan.tasks, output,
-                              [plan.warning] if plan.warning else [], scheduler=scheduler,
-                              workers=workers, client=client, retries=retries,
-                              progress=progress)
-    with io.output_folder(output, "stream") as staged:
-        entries = [] if summary.failed else [_frame_entry(t, plan) for t in plan.tasks]
-        if entries:
-            written = write_stream_video(staged.path, plan, entries, previews)
-            summary.video = os.path.join(output, written[0])
-        summary.seconds = time.perf_counter() - started
-        write_stream_index(staged.path, plan, summary)
-    return summary
+    with io.held_folder(output):  # (another run's folder: refused before any change)
+        summary = run_frame_tasks(run_stream_frame_task, plan.tasks, output,
+                                  [plan.warning] if plan.warning else [], scheduler=scheduler,
+                                  workers=workers, client=client, retries=retries,
+                                  progress=progress)
+        with io.output_folder(output, "stream") as staged:
+            entries = [] if summary.failed else [_frame_entry(t, plan) for t in plan.tasks]
+            if entries:
+                written = write_stream_video(staged.path, plan, entries, previews)
+                summary.video = os.path.join(output, written[0])
+            summary.seconds = time.perf_counter() - started
+            write_stream_index(staged.path, plan, summary)
+        return summary
 
 
 def write_stream_video(path, plan: StreamPlan, entries, sheet: bool) -> list:

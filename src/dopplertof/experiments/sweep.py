@@ -158,32 +158,36 @@ def run_sweep(config: SweepConfig, output, *, scheduler: str | None = None,
     """Run every task of ``config`` not already complete in ``output``.
 
     Nothing starts before the whole configuration is checked (against the scene
-    too). No cluster is started when everything is complete.
+    too). No cluster is started when everything is complete. The run holds ``output``
+    (:func:`dopplertof.io.held_folder`): another run into it is refused meanwhile.
     """
+    from .. import io
+
     started = time.perf_counter()
     output = check_output_folder(os.fspath(output))
     tasks = plan_sweep(config, output)
-    write_sweep_files(config, tasks, output)
-    partial = partial_tasks(tasks)
-    pending = pending_tasks(tasks)
-    summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
-                           output=output, partial=partial)
-    summary_path = os.path.join(output, SUMMARY_JSON)
-    if pending:
-        reserve_summary(summary_path, summary, len(pending))
-        summary.worker_log = os.path.join(output, WORKER_LOG) if client is None else ""
-        with dask_client(scheduler, workers, client, summary.worker_log or None) as \
-                (dask, threads):
-            if threads:
-                pending = [_with_threads(t, threads) for t in pending]
-            outcome = run_tasks(dask, run_render_task, pending, retries=retries,
-                                progress=progress, description="sweep",
-                                already_done=summary.skipped)
-        summary.done = len(outcome.done)
-        summary.failed = outcome.failed
-    summary.seconds = time.perf_counter() - started
-    write_summary(config, tasks, output, summary)
-    return summary
+    with io.held_folder(output):  # (another run's folder: refused before any change)
+        write_sweep_files(config, tasks, output)
+        partial = partial_tasks(tasks)
+        pending = pending_tasks(tasks)
+        summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(pending), done=0,
+                               output=output, partial=partial)
+        summary_path = os.path.join(output, SUMMARY_JSON)
+        if pending:
+            reserve_summary(summary_path, summary, len(pending))
+            summary.worker_log = os.path.join(output, WORKER_LOG) if client is None else ""
+            with dask_client(scheduler, workers, client, summary.worker_log or None) as \
+                    (dask, threads):
+                if threads:
+                    pending = [_with_threads(t, threads) for t in pending]
+                outcome = run_tasks(dask, run_render_task, pending, retries=retries,
+                                    progress=progress, description="sweep",
+                                    already_done=summary.skipped)
+            summary.done = len(outcome.done)
+            summary.failed = outcome.failed
+        summary.seconds = time.perf_counter() - started
+        write_summary(config, tasks, output, summary)
+        return summary
 
 
 #: bytes of summary.json kept per pending task, for its failure (task name and error)
