@@ -317,7 +317,8 @@ def scene_light_intensity(scene, preset: CameraPreset) -> float:
             raise CaptureError(f"{scene.source}: a {kind} cannot stand for {preset.name}'s "
                                "illuminator (absolute radiometry takes point and spot "
                                "lights, or none): the camera sees only its own modulated "
-                               "light; give room light as ambient_irradiance")
+                               "light; give room light as ambient_irradiance "
+                               "(load_scene_for_camera leaves a scene file's out)")
         intensities.append(float(np.mean(np.asarray(values["intensity.value"], np.float64))))
     if not max(intensities) > 0:
         raise CaptureError(f"{scene.source}: every light has zero intensity")
@@ -405,6 +406,8 @@ def _summary(scene, preset: CameraPreset, result: CameraResult, records, spp, se
     warnings = [w for w in (warning, scene_extent_warning(scene, preset)) if w]
     if warnings:
         summary["warnings"] = warnings
+    if scene.left_out_lights:  # (the loader's note says so on stderr)
+        summary["room_lights_left_out"] = list(scene.left_out_lights)
     return summary
 
 

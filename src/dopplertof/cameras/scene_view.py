@@ -29,16 +29,21 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
 def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
-    reaches past it; default the preset's view) added when it has no light at all (a
-    scene's own point and spot lights stand for it otherwise): at the preset's offset
+    reaches past it; default the preset's view) added when it has no light but room
+    light (:mod:`dopplertof.scene.room_lights`, which the loader leaves out through an
+    absolute preset; a scene's own point and spot lights stand for it otherwise): at the
+    preset's offset
     from the lens, riding with the camera (a keyframed camera's: placed at its first
     keyframe, whose pose the loader takes for the rest pose). The offset is in OpenCV's
     camera axes (x right, y down, z forward); Mitsuba's camera has x left and y up, so
     the light is translated by (-x, -y, z) in the camera's frame."""
     import xml.etree.ElementTree as ET
 
+    from ..scene.room_lights import room_lights
+
     root = ET.fromstring(text)
-    if next(root.iter("emitter"), None) is not None:
+    room = {id(emitter) for _, emitter in room_lights(root)}
+    if any(id(emitter) not in room for emitter in root.iter("emitter")):
         return text
     light = ET.fromstring(radiometry.illuminator_xml(preset, view))
     sensor = root.find("sensor")
@@ -121,7 +126,8 @@ def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
     if preset.absolute:
         text = with_illuminator(text, preset)
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
-                        base_dir=os.path.dirname(os.path.abspath(path)))
+                        base_dir=os.path.dirname(os.path.abspath(path)),
+                        without_room_lights=preset.absolute)
     fov = mi.traverse(scene.sensor).get("x_fov")
     if fov is None:
         raise CaptureError(f"{path}: --keep-view needs a perspective sensor (a field of "
@@ -141,7 +147,10 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     ``keep_view`` (``preset`` is :func:`preset_with_scene_view`'s: the scene's view).
     ``camera_keyframes``: :class:`dopplertof.scene.motion.Keyframes` of the sensor's
     to_world that replace its placement (a trajectory's,
-    :meth:`dopplertof.scene.trajectory.Trajectory.keyframes`)."""
+    :meth:`dopplertof.scene.trajectory.Trajectory.keyframes`). Through an absolute
+    preset the scene's room lights are left out (:mod:`dopplertof.scene.room_lights`),
+    with a note naming them, and where no light remains the preset's illuminator
+    lights it (:func:`with_illuminator`)."""
     from dataclasses import replace
 
     from ..scene import load_string
@@ -158,5 +167,19 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
         text = with_illuminator(text, preset,
                                 radiometry.view_tangents(preset.fov_deg, width, height))
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
-                        base_dir=os.path.dirname(os.path.abspath(path)))
-    return replace(scene, notes=scene.notes + (note,)) if note else scene
+                        base_dir=os.path.dirname(os.path.abspath(path)),
+                        without_room_lights=preset.absolute)
+    notes = tuple(n for n in (note, room_light_note(scene, preset)) if n)
+    return replace(scene, notes=scene.notes + notes) if notes else scene
+
+
+def room_light_note(scene, preset: CameraPreset) -> str | None:
+    """The one line naming the room lights the loader left out of ``scene`` (its
+    ``left_out_lights``) through ``preset`` and why; None when it left out none."""
+    if not scene.left_out_lights:
+        return None
+    return (f"{scene.source}: room light left out of the render through {preset.name}, "
+            f"which sees only its own modulated light: {', '.join(scene.left_out_lights)}; "
+            "the sensor's demodulation rejects room light but for its shot noise: give its "
+            f"level with --ambient-irradiance (uW/cm^2/nm; {preset.name}'s default "
+            f"{preset.default_ambient:g})")

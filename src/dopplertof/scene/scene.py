@@ -122,6 +122,8 @@ class DopplerScene:
     #: {modality: settings} of the modalities besides the D-ToF camera, from the
     #: <integrator>'s prefixed parameters (parameters.MODALITY_SETTINGS)
     modality_settings: dict = field(default_factory=default_settings)
+    #: the room lights the loader left out (:mod:`.room_lights`), one string each
+    left_out_lights: tuple = ()
 
     @property
     def sensor(self):
@@ -263,6 +265,8 @@ class SceneDescription:
     folders: tuple = ()
     #: where and what its integrator is when it is not a D-ToF one (the defaults render)
     other_integrator: str | None = None
+    #: the room lights left out of it (:func:`.room_lights.leave_out`), one string each
+    left_out_lights: tuple = ()
 
 
 def _parameters(d: SceneDescription) -> tuple:
@@ -332,7 +336,8 @@ def build(mi, description: SceneDescription, load_part) -> DopplerScene:
                                                                  d.other_integrator),)
     return DopplerScene(static, tuple(bodies), params, spp, mi.variant(), source, fingerprint,
                         sensor_motion, tuple(light_motions), notes, tuple(d.inputs),
-                        modality_settings=settings)
+                        modality_settings=settings,
+                        left_out_lights=tuple(d.left_out_lights))
 
 
 def _check_sensor(sensor, source: str, shutter_given: str | None,

@@ -29,6 +29,7 @@ from ..hints import did_you_mean, with_plugin_hint
 from .inputs import Resolver, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
+from .room_lights import leave_out
 from .scene import (CORRELATED_SAMPLER_PARAMS, DTOF_INTEGRATORS, DTOF_PLUGINS, SHUTTER_NAMES,
                     MotionClaim, SceneDescription, SceneError, build, correlated_sampler_params,
                     mitsuba_load)
@@ -451,32 +452,36 @@ def _search_folders(doc: _Doc, base_dir: str) -> tuple:
 
 
 def load_string(text: str, overrides: dict | None = None, source: str = "<string>",
-                base_dir: str = ".", params: dict | None = None):
-    """Load a scene from XML text (see :func:`load_file`)."""
+                base_dir: str = ".", params: dict | None = None,
+                without_room_lights: bool = False):
+    """Load a scene from XML text (see :func:`load_file`); ``without_room_lights``:
+    its room lights left out (:mod:`.room_lights`; the scene's ``left_out_lights``)."""
     from ..backend import require_variant
 
     mi = require_variant()
     doc = _Doc(text, source)
-    description = describe(doc, overrides, Resolver.of(mi), base_dir)
+    description = describe(doc, overrides, Resolver.of(mi), base_dir, without_room_lights)
     if params:  # (the command's, over the <integrator>'s)
         description.parameters.append(("parameters given", dict(params)))
     return build(mi, description,
                  lambda part, what: _load_string(mi, doc, part, description.folders))
 
 
-def describe(doc: _Doc, overrides: dict | None = None,
-             resolver: Resolver | None = None, base_dir: str = ".") -> SceneDescription:
+def describe(doc: _Doc, overrides: dict | None = None, resolver: Resolver | None = None,
+             base_dir: str = ".", without_room_lights: bool = False) -> SceneDescription:
     """The SceneDescription of an XML document: ``<default>`` values substituted, the
     files it references found (in the scene's folders, :func:`_search_folders`, then
     with ``resolver``, as Mitsuba will), the integrator's
     and the correlated sampler's parameters taken out, the moving bodies split off
     into documents of their own, the camera's and lights' keyframes replaced by their
-    rest poses (parts: XML elements)."""
+    rest poses (parts: XML elements); ``without_room_lights``: its room lights left out
+    (:func:`.room_lights.leave_out`)."""
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
     values = _substitute(doc, {k: v for k, v in (overrides or {}).items()})
     _check_finite(doc)
+    left_out = leave_out(doc.root) if without_room_lights else ()
     if "unit" in values:
         in_metres(doc, unit_metres(values["unit"], doc.source + ": unit"))
     folders = _search_folders(doc, base_dir)
@@ -502,7 +507,7 @@ def describe(doc: _Doc, overrides: dict | None = None,
                             sensor_keyframes=sensor_kf, light_keyframes=light_kfs,
                             motions=motions, has_integrator=has_integrator,
                             shutter_given=shutter_given, inputs=inputs, folders=folders,
-                            other_integrator=other_integrator)
+                            other_integrator=other_integrator, left_out_lights=left_out)
 
 
 def load_file(path, overrides: dict | None = None, params: dict | None = None):

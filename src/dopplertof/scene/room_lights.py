@@ -1,0 +1,44 @@
+"""Room light in a scene description: the lights a ToF camera's demodulation rejects.
+
+A ToF camera sees only its own modulated light. A stock scene's area lights (an
+``<emitter type="area">`` nested in a ``<shape>``), its environment (``envmap``,
+``constant``) and its directional lights light the room, unmodulated: the sensor's
+demodulation cancels them except for their shot noise, which the camera's ambient
+irradiance models. Through an absolute camera preset they are left out of the modulated
+render (:func:`leave_out`, before Mitsuba loads the description); a shape that carried an
+area light stays as a surface (its BSDF, or Mitsuba's default). Point and spot lights
+(and projectors) are not room light: they stand for the camera's illuminator.
+"""
+
+from __future__ import annotations
+
+#: the emitter types that are room light
+ROOM_LIGHT_TYPES = ("area", "envmap", "constant", "directional")
+
+
+def room_lights(root) -> list:
+    """(parent, emitter) of every room light of an XML scene's root element: the
+    top-level emitters of ROOM_LIGHT_TYPES and those nested in a top-level shape."""
+    return [(parent, emitter) for parent in [root, *root.findall("shape")]
+            for emitter in parent.findall("emitter")
+            if emitter.get("type") in ROOM_LIGHT_TYPES]
+
+
+def _named(emitter, parent, root) -> str:
+    """``the area light of shape 'light'``, ``the envmap 'sky'``, ``a constant emitter``."""
+    kind = emitter.get("type")
+    if parent is not root:
+        shape = (f"shape {parent.get('id')!r}" if parent.get("id")
+                 else f"a {parent.get('type')} shape")
+        return f"the {kind} light of {shape}"
+    return f"the {kind} {emitter.get('id')!r}" if emitter.get("id") else f"a {kind} emitter"
+
+
+def leave_out(root) -> tuple:
+    """Remove every room light (:func:`room_lights`) from the XML scene's ``root`` in
+    place; what was left out, one string each."""
+    left = []
+    for parent, emitter in room_lights(root):
+        left.append(_named(emitter, parent, root))
+        parent.remove(emitter)
+    return tuple(left)

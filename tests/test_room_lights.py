@@ -1,0 +1,130 @@
+"""Room light through an absolute camera preset: a stock scene's area lights, environments
+and directional lights are left out of the modulated render (the sensor's demodulation
+rejects them but for their shot noise, --ambient-irradiance's), with one note naming them
+and summary.json's ``room_lights_left_out``; the capture equals the one of the same scene
+with them removed by hand (bitwise, same seed). Without --camera and through an
+auto-exposed preset the scene loads as written."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from dopplertof.scene import SceneError
+
+STOCK = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "stock")
+CORNELL = os.path.join(STOCK, "cornell", "scene.xml")
+CHECKER = os.path.join(STOCK, "textured", "checker.png")
+AREA = '<emitter type="area"><rgb name="radiance" value="18.4, 15.6, 8.0"/></emitter>'
+ROOM = (f'<emitter type="envmap" id="sky"><string name="filename" value="{CHECKER}"/>'
+        '</emitter><emitter type="directional"><vector name="direction" value="0, -1, 1"/>'
+        '</emitter>')
+NOTE = "room light left out of the render through azure-kinect"
+
+
+def _cornell():
+    with open(CORNELL, encoding="utf-8") as f:
+        text = f.read()
+    assert text.count(AREA) == 1  # (the light removed by hand below is the scene's)
+    return text
+
+
+def _write(folder, name, text):
+    path = folder / name
+    path.write_text(text)
+    return str(path)
+
+
+def _capture(capsys, scene, out, *args):
+    """``capture SCENE -D unit=mm --camera azure-kinect`` at 12x10, 2 spp, mixed pixels
+    kept (at 12x10 most pixels' footprints straddle two walls); (summary,
+    depth, raw, the note lines on stderr)."""
+    from dopplertof.cli import main
+
+    code = main(["capture", scene, "-D", "unit=mm", "--camera", "azure-kinect", "--res",
+                 "12x10", "--spp", "2", "--seed", "3", "--keep-mixed-pixels", "-o", str(out),
+                 "--quiet", *args])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    return (summary, np.load(out / "depth.npy"), np.load(out / "raw.npy"),
+            [line for line in err.splitlines() if NOTE in line])
+
+
+@pytest.fixture
+def by_hand(tmp_path, capsys):
+    """The Cornell box with its area light removed by hand: (depth, raw) of its capture,
+    which notes no room light."""
+    plain = _write(tmp_path, "by_hand.xml", _cornell().replace(AREA, ""))
+    summary, depth, raw, notes = _capture(capsys, plain, tmp_path / "by_hand")
+    assert notes == [] and "room_lights_left_out" not in summary
+    assert np.isfinite(depth).any() and raw.max() > raw.min()  # (the illuminator lights it)
+    return depth, raw
+
+
+def test_the_cornell_boxs_area_light_is_left_out(tmp_path, capsys, by_hand):
+    summary, depth, raw, notes = _capture(capsys, CORNELL, tmp_path / "out")
+    assert len(notes) == 1, notes
+    assert "the area light of shape 'light'" in notes[0]
+    assert CORNELL in notes[0] and "--ambient-irradiance" in notes[0]
+    assert summary["room_lights_left_out"] == ["the area light of shape 'light'"]
+    assert np.array_equal(depth, by_hand[0], equal_nan=True)
+    assert np.array_equal(raw, by_hand[1])
+
+
+def test_an_environment_and_a_directional_light_are_left_out(tmp_path, capsys, by_hand):
+    scene = _write(tmp_path, "sky.xml", _cornell().replace(AREA, "").replace(
+        "</scene>", ROOM + "</scene>"))
+    summary, depth, raw, notes = _capture(capsys, scene, tmp_path / "out")
+    assert len(notes) == 1, notes
+    assert "the envmap 'sky'" in notes[0] and "a directional emitter" in notes[0]
+    assert summary["room_lights_left_out"] == ["the envmap 'sky'", "a directional emitter"]
+    assert np.array_equal(depth, by_hand[0], equal_nan=True)
+    assert np.array_equal(raw, by_hand[1])
+
+
+def _kinds(scene):
+    return sorted(e.class_name() for e in scene.static.emitters())
+
+
+def test_a_point_light_still_stands_for_the_illuminator(tmp_path):
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    scene = _write(tmp_path, "lamp.xml", _cornell().replace(
+        "</scene>", '<emitter type="point"><point name="position" value="278, 273, -700"/>'
+        '<rgb name="intensity" value="1e5"/></emitter></scene>'))
+    loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4),
+                                   {"unit": "mm"})
+    assert _kinds(loaded) == ["PointLight"]  # (no illuminator added: the lamp stands for it)
+    assert loaded.left_out_lights == ("the area light of shape 'light'",)
+    assert sum(NOTE in n for n in loaded.notes) == 1
+
+
+def test_without_a_camera_or_through_an_auto_exposed_preset_the_lights_stay(tmp_path):
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    for scene in (dopplertof.load_file(CORNELL, {"unit": "mm"}),
+                  load_scene_for_camera(CORNELL, load_preset("opt8241"), (4, 4),
+                                        {"unit": "mm"})):
+        assert _kinds(scene) == ["AreaLight"] and scene.left_out_lights == ()
+        assert not [n for n in scene.notes if "room light" in n]
+    sky = _write(tmp_path, "sky.xml", _cornell().replace("</scene>", ROOM + "</scene>"))
+    with pytest.raises(SceneError, match="environment emitters are not modulated"):
+        dopplertof.load_file(sky, {"unit": "mm"})
+    with pytest.raises(SceneError, match="environment emitters are not modulated"):
+        load_scene_for_camera(sky, load_preset("opt8241"), (4, 4), {"unit": "mm"})
+
+
+def test_a_stream_through_a_preset_leaves_them_out_too(tmp_path, capsys):
+    from dopplertof.cli import main
+
+    code = main(["animate", CORNELL, "-D", "unit=mm", "--camera", "azure-kinect",
+                 "--frames", "1", "--res", "8x6", "--spp", "2", "--workers", "1",
+                 "-o", str(tmp_path / "out"), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((tmp_path / "out" / "frame_0000" / "summary.json").read_text())
+    assert summary["room_lights_left_out"] == ["the area light of shape 'light'"]
