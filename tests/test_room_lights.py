@@ -88,17 +88,17 @@ def _kinds(scene):
     return sorted(e.class_name() for e in scene.static.emitters())
 
 
-def test_a_point_light_still_stands_for_the_illuminator(tmp_path):
+def test_a_point_light_still_stands_for_the_illuminator_a_constant_is_left_out(tmp_path):
     from dopplertof.cameras.preset import load_preset
     from dopplertof.cameras.scene_view import load_scene_for_camera
 
     scene = _write(tmp_path, "lamp.xml", _cornell().replace(
         "</scene>", '<emitter type="point"><point name="position" value="278, 273, -700"/>'
-        '<rgb name="intensity" value="1e5"/></emitter></scene>'))
+        '<rgb name="intensity" value="1e5"/></emitter><emitter type="constant"/></scene>'))
     loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4),
                                    {"unit": "mm"})
     assert _kinds(loaded) == ["PointLight"]  # (no illuminator added: the lamp stands for it)
-    assert loaded.left_out_lights == ("the area light of shape 'light'",)
+    assert loaded.left_out_lights == ("a constant emitter", "the area light of shape 'light'")
     assert sum(NOTE in n for n in loaded.notes) == 1
 
 
@@ -123,8 +123,12 @@ def test_a_stream_through_a_preset_leaves_them_out_too(tmp_path, capsys):
     from dopplertof.cli import main
 
     code = main(["animate", CORNELL, "-D", "unit=mm", "--camera", "azure-kinect",
-                 "--frames", "1", "--res", "8x6", "--spp", "2", "--workers", "1",
+                 "--frames", "2", "--res", "8x6", "--spp", "2", "--workers", "1",
                  "-o", str(tmp_path / "out"), "--quiet"])
-    assert code == 0, capsys.readouterr().err
-    summary = json.loads((tmp_path / "out" / "frame_0000" / "summary.json").read_text())
-    assert summary["room_lights_left_out"] == ["the area light of shape 'light'"]
+    err = capsys.readouterr().err
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if NOTE in line]
+    assert len(notes) == 1 and "the area light of shape 'light'" in notes[0], err
+    for index in ("stream.json", os.path.join("frame_0000", "summary.json")):
+        summary = json.loads((tmp_path / "out" / index).read_text())
+        assert summary["room_lights_left_out"] == ["the area light of shape 'light'"]

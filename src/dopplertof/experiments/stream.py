@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass
 
@@ -159,6 +160,10 @@ class StreamPlan:
     camera: str  #: the preset's name
     trajectory: object = None  #: the Trajectory, or None
     warning: str | None = None
+    #: the room lights the loader leaves out of every frame (an absolute preset's,
+    #: :func:`dopplertof.cameras.scene_view.room_light_note`) and the note saying so
+    left_out_lights: tuple = ()
+    note: str | None = None
 
 
 def _stream_fps(preset, fps) -> float:
@@ -219,7 +224,7 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
     ``"WIDTHxHEIGHT"``; None: the preset's."""
     from ..arguments import check_seed
     from ..backend import DEFAULT_VARIANT
-    from ..cameras.scene_view import load_scene_for_camera, parse_resolution
+    from ..cameras.scene_view import load_scene_for_camera, parse_resolution, room_light_note
     from ..cameras.preset import load_preset, sequence_window
     from ..scene.inputs import scene_file_digest
     from ..scene.trajectory import read_tum
@@ -265,7 +270,8 @@ def plan_stream(scene, output, frames: int, camera, *, fps=None, trajectory=None
         shutter_close=t0 + k / fps + window[1],
         camera_keyframes=keyframes[k]) for k in range(frames)]
     warning = frames_past_keyframes(tasks, _moving_span(probe))
-    return StreamPlan(tasks, fps, preset.name, trajectory, warning)
+    return StreamPlan(tasks, fps, preset.name, trajectory, warning, probe.left_out_lights,
+                      room_light_note(probe, preset))
 
 
 # ---- Running ----------------------------------------------------------------------------
@@ -281,6 +287,8 @@ def run_stream(scene, output, frames: int, camera, *, scheduler=None, workers=No
     started = time.perf_counter()
     output = io.check_output_folder(os.fspath(output))
     plan = plan_stream(scene, output, frames, camera, **options)
+    if plan.note:  # (once for the stream; every frame's summary.json lists them)
+        print(f"dopplertof: note: {plan.note}", file=sys.stderr)
     with io.held_folder(output):  # (another run's folder: refused before any change)
         summary = run_frame_tasks(run_stream_frame_task, plan.tasks, output,
                                   [plan.warning] if plan.warning else [], scheduler=scheduler,
@@ -378,6 +386,8 @@ def write_stream_index(path, plan: StreamPlan, summary: AnimationSummary) -> Non
         "noise": first.noise, "resolution": first.resolution, "params": first.params,
         "frames": [{**e, "timestamp": f"{e['timestamp']:.9f}"} for e in entries],
         "warnings": summary.warnings,
+        **({"room_lights_left_out": list(plan.left_out_lights)} if plan.left_out_lights
+           else {}),
         "last_run": {"done": summary.done, "skipped": summary.skipped,
                      "failed": [{"task": n, "error": e} for n, e in summary.failed],
                      "seconds": round(summary.seconds, 3)},
