@@ -138,7 +138,7 @@ def test_random_error_grows_with_distance_as_the_photon_count_predicts(tmp_path)
         assert r.random_m == pytest.approx(r.predicted_random_m, rel=0.2)
 
 
-def test_a_scene_without_light_gets_the_illuminator_and_area_lights_are_refused(tmp_path):
+def test_a_scene_without_light_gets_the_illuminator_and_area_lights_are_left_out(tmp_path):
     import dopplertof
     from dopplertof.cameras.capture import capture_camera
     from dopplertof.cameras.scene_view import load_scene_for_camera
@@ -155,9 +155,13 @@ def test_a_scene_without_light_gets_the_illuminator_and_area_lights_are_refused(
     area = tmp_path / "area.xml"
     area.write_text(scene.read_text().replace(
         "</shape>", '<emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>'))
+    # the camera's loader leaves the area light out: the illuminator lights the sphere
+    lit = load_scene_for_camera(str(area), preset, (4, 4))
+    assert [e.id() for e in lit.static.emitters()] == ["camera_illuminator"]
+    assert lit.left_out_lights == ("the area light of a sphere shape",)
+    # a scene loaded as written keeps it: that cannot stand for the illuminator
     with pytest.raises(CaptureError, match="AreaLight cannot stand for"):
-        capture_camera(load_scene_for_camera(str(area), preset, (4, 4)), preset, 1,
-                       progress=False)
+        capture_camera(dopplertof.load_file(area), preset, 1, progress=False)
     with pytest.raises(CaptureError, match="ambient_irradiance must be a number"):
         capture_camera(loaded, preset, 1, progress=False, ambient_irradiance=-1.0)
 
