@@ -132,3 +132,20 @@ def test_a_stream_through_a_preset_leaves_them_out_too(tmp_path, capsys):
     for index in ("stream.json", os.path.join("frame_0000", "summary.json")):
         summary = json.loads((tmp_path / "out" / index).read_text())
         assert summary["room_lights_left_out"] == ["the area light of shape 'light'"]
+
+
+def test_an_area_light_given_by_reference_goes_with_its_ref(tmp_path):
+    """``<emitter type="area" id="ceiling_light">`` at the top level, ``<ref
+    id="ceiling_light"/>`` in the shape: both go (a dangling ref would not load)."""
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    named = AREA.replace('type="area"', 'type="area" id="ceiling_light"')
+    floor = '<shape type="rectangle" id="floor">'
+    scene = _write(tmp_path, "ref.xml", _cornell().replace(
+        AREA, '<ref id="ceiling_light"/>').replace(floor, named + floor))
+    assert _kinds(dopplertof.load_file(scene, {"unit": "mm"})) == ["AreaLight"]
+    loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), {"unit": "mm"})
+    assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
+    assert loaded.left_out_lights == ("the area light 'ceiling_light'",)

@@ -318,7 +318,8 @@ def scene_light_intensity(scene, preset: CameraPreset) -> float:
                                "illuminator (absolute radiometry takes point and spot "
                                "lights, or none): the camera sees only its own modulated "
                                "light; give room light as ambient_irradiance "
-                               "(load_scene_for_camera leaves a scene file's out)")
+                               "(load_scene_for_camera leaves a scene file's room "
+                               "lights out)")
         intensities.append(float(np.mean(np.asarray(values["intensity.value"], np.float64))))
     if not max(intensities) > 0:
         raise CaptureError(f"{scene.source}: every light has zero intensity")

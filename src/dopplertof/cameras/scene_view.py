@@ -32,11 +32,10 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     reaches past it; default the preset's view) added when it has no light but room
     light (:mod:`dopplertof.scene.room_lights`, which the loader leaves out through an
     absolute preset; a scene's own point and spot lights stand for it otherwise): at the
-    preset's offset
-    from the lens, riding with the camera (a keyframed camera's: placed at its first
-    keyframe, whose pose the loader takes for the rest pose). The offset is in OpenCV's
-    camera axes (x right, y down, z forward); Mitsuba's camera has x left and y up, so
-    the light is translated by (-x, -y, z) in the camera's frame."""
+    preset's offset from the lens, riding with the camera (a keyframed camera's: placed
+    at its first keyframe, whose pose the loader takes for the rest pose). The offset is
+    in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left and
+    y up, so the light is translated by (-x, -y, z) in the camera's frame."""
     import xml.etree.ElementTree as ET
 
     from ..scene.room_lights import room_lights

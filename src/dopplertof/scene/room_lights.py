@@ -18,19 +18,23 @@ ROOM_LIGHT_TYPES = ("area", "envmap", "constant", "directional")
 
 def room_lights(root) -> list:
     """(parent, emitter) of every room light of an XML scene's root element: the
-    top-level emitters of ROOM_LIGHT_TYPES and those nested in a top-level shape."""
-    return [(parent, emitter) for parent in [root, *root.findall("shape")]
-            for emitter in parent.findall("emitter")
-            if emitter.get("type") in ROOM_LIGHT_TYPES]
+    top-level emitters of ROOM_LIGHT_TYPES, those nested in a top-level shape and a
+    shape's ``<ref>`` to a top-level one."""
+    found = [(parent, emitter) for parent in [root, *root.findall("shape")]
+             for emitter in parent.findall("emitter")
+             if emitter.get("type") in ROOM_LIGHT_TYPES]
+    ids = {emitter.get("id") for parent, emitter in found if parent is root} - {None}
+    return found + [(shape, ref) for shape in root.findall("shape")
+                    for ref in shape.findall("ref") if ref.get("id") in ids]
 
 
 def _named(emitter, parent, root) -> str:
     """``the area light of shape 'light'``, ``the envmap 'sky'``, ``a constant emitter``."""
-    kind = emitter.get("type")
+    kind = emitter.get("type") + (" light" if emitter.get("type") == "area" else "")
     if parent is not root:
         shape = (f"shape {parent.get('id')!r}" if parent.get("id")
                  else f"a {parent.get('type')} shape")
-        return f"the {kind} light of {shape}"
+        return f"the {kind} of {shape}"
     return f"the {kind} {emitter.get('id')!r}" if emitter.get("id") else f"a {kind} emitter"
 
 
@@ -39,6 +43,7 @@ def leave_out(root) -> tuple:
     place; what was left out, one string each."""
     left = []
     for parent, emitter in room_lights(root):
-        left.append(_named(emitter, parent, root))
+        if emitter.tag == "emitter":  # (a <ref> to one goes with it, unnamed)
+            left.append(_named(emitter, parent, root))
         parent.remove(emitter)
     return tuple(left)
