@@ -149,3 +149,22 @@ def test_an_area_light_given_by_reference_goes_with_its_ref(tmp_path):
     loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), {"unit": "mm"})
     assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
     assert loaded.left_out_lights == ("the area light 'ceiling_light'",)
+
+
+def test_an_area_light_whose_type_is_a_parameter_is_left_out_too(tmp_path):
+    """``<emitter type="$lamp">`` with ``lamp`` an area light, by its ``<default>`` or
+    by -D: left out as the literal one is, and the camera's illuminator lights the scene
+    (before, the illuminator was not added: "the scene has no emitter")."""
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    typed = _cornell().replace(AREA, AREA.replace('type="area"', 'type="$lamp"'))
+    declared = typed.replace('<scene version="3.0.0">',
+                             '<scene version="3.0.0"><default name="lamp" value="area"/>', 1)
+    for name, text, defines in (("default.xml", declared, {}),
+                                ("given.xml", typed, {"lamp": "area"})):
+        loaded = load_scene_for_camera(_write(tmp_path, name, text),
+                                       load_preset("azure-kinect"), (4, 4),
+                                       {"unit": "mm", **defines})
+        assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"], name
+        assert loaded.left_out_lights == ("the area light of shape 'light'",)

@@ -12,20 +12,32 @@ area light stays as a surface (its BSDF, or Mitsuba's default). Point and spot l
 
 from __future__ import annotations
 
+import re
+
 #: the emitter types that are room light
 ROOM_LIGHT_TYPES = ("area", "envmap", "constant", "directional")
 
 
-def room_lights(root) -> list:
+def room_lights(root, values: dict | None = None) -> list:
     """(parent, emitter) of every room light of an XML scene's root element: the
     top-level emitters of ROOM_LIGHT_TYPES, those nested in a top-level shape and a
-    shape's ``<ref>`` to a top-level one."""
+    shape's ``<ref>`` to a top-level one. ``values``: the scene's parameters ({name:
+    value}, its ``<default>`` values and the -D ones) where its ``$name`` values are not
+    substituted yet (an emitter ``type="$light"``)."""
     found = [(parent, emitter) for parent in [root, *root.findall("shape")]
              for emitter in parent.findall("emitter")
-             if emitter.get("type") in ROOM_LIGHT_TYPES]
+             if _type(emitter, values or {}) in ROOM_LIGHT_TYPES]
     ids = {emitter.get("id") for parent, emitter in found if parent is root} - {None}
     return found + [(shape, ref) for shape in root.findall("shape")
                     for ref in shape.findall("ref") if ref.get("id") in ids]
+
+
+def _type(emitter, values: dict) -> str | None:
+    """``emitter``'s type, its ``$name`` parts replaced by ``values``' (those missing
+    left as they are: the loader names them)."""
+    kind = emitter.get("type")
+    return kind and re.sub(r"\$(\w+)", lambda m: str(values.get(m.group(1), m.group(0))),
+                           kind)
 
 
 def _named(emitter, parent, root) -> str:
