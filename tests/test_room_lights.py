@@ -168,3 +168,26 @@ def test_an_area_light_whose_type_is_a_parameter_is_left_out_too(tmp_path):
                                        {"unit": "mm", **defines})
         assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"], name
         assert loaded.left_out_lights == ("the area light of shape 'light'",)
+
+
+def test_a_room_light_in_an_included_file_is_named_with_the_include(tmp_path, capsys):
+    """The loader leaves out the scene file's own room lights; one in a file it
+    ``<include>``s reaches the capture, which refuses it in one line that says so and
+    what to do (it said "load_scene_for_camera leaves a scene file's room lights out",
+    which the user had done), exit 2, nothing written."""
+    from dopplertof.cli import main
+
+    cornell = _cornell()
+    start = cornell.index('<shape type="rectangle" id="light">')
+    end = cornell.index("</shape>", start) + len("</shape>")
+    _write(tmp_path, "lamp.xml", '<scene version="3.0.0">' + cornell[start:end].replace(
+        '<ref id="lamp"/>', "") + "</scene>")
+    scene = _write(tmp_path, "included.xml", cornell[:start] + '<include filename="lamp.xml"/>'
+                   + cornell[end:])
+    code = main(["capture", scene, "-D", "unit=mm", "--camera", "azure-kinect", "--res",
+                 "4x4", "--spp", "2", "-o", str(tmp_path / "out"), "--quiet"])
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert code == 2 and len(errors) == 1, errors
+    assert "an AreaLight cannot stand for azure-kinect's illuminator" in errors[0]
+    assert "not those of a file it <include>s: move them into the scene file" in errors[0]
+    assert not (tmp_path / "out").exists()
