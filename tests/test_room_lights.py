@@ -191,3 +191,20 @@ def test_a_room_light_in_an_included_file_is_named_with_the_include(tmp_path, ca
     assert "an AreaLight cannot stand for azure-kinect's illuminator" in errors[0]
     assert "not those of a file it <include>s: move them into the scene file" in errors[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_an_area_light_on_a_mesh_without_an_id_is_named_by_its_type(tmp_path):
+    """An area light on an unnamed ``obj`` mesh beside the Cornell box's lamp: both left
+    out, the mesh's named "the area light of an obj shape" (it read "a obj shape")."""
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    panel = os.path.join(STOCK, "common", "panel.obj")
+    scene = _write(tmp_path, "panel.xml", _cornell().replace(
+        "</scene>", f'<shape type="obj"><string name="filename" value="{panel}"/>'
+        '<transform name="to_world"><scale value="30"/><translate x="278" y="540" '
+        f'z="279"/></transform>{AREA}</shape></scene>'))
+    loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), {"unit": "mm"})
+    assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
+    assert loaded.left_out_lights == ("the area light of shape 'light'",
+                                      "the area light of an obj shape")

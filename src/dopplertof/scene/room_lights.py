@@ -41,11 +41,13 @@ def _type(emitter, values: dict) -> str | None:
 
 
 def _named(emitter, parent, root) -> str:
-    """``the area light of shape 'light'``, ``the envmap 'sky'``, ``a constant emitter``."""
+    """``the area light of shape 'light'``, ``the area light of an obj shape``, ``the
+    envmap 'sky'``, ``a constant emitter``."""
     kind = emitter.get("type") + (" light" if emitter.get("type") == "area" else "")
     if parent is not root:
+        article = "an" if str(parent.get("type"))[:1] in "aeiou" else "a"
         shape = (f"shape {parent.get('id')!r}" if parent.get("id")
-                 else f"a {parent.get('type')} shape")
+                 else f"{article} {parent.get('type')} shape")
         return f"the {kind} of {shape}"
     return f"the {kind} {emitter.get('id')!r}" if emitter.get("id") else f"a {kind} emitter"
 
