@@ -208,3 +208,33 @@ def test_an_area_light_on_a_mesh_without_an_id_is_named_by_its_type(tmp_path):
     assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
     assert loaded.left_out_lights == ("the area light of shape 'light'",
                                       "the area light of an obj shape")
+
+
+def test_a_point_light_in_an_included_file_still_stands_for_the_illuminator(tmp_path):
+    """examples/translating_sphere.xml with its point light moved into a file it
+    ``<include>``s: that light stands for the illuminator as the inline one does, no
+    illuminator added beside it (it was: two lights, the capture silently another);
+    a nested include and a name given by a parameter are followed too."""
+    import re
+
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    sphere = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          "examples", "translating_sphere.xml")
+    with open(sphere, encoding="utf-8") as f:
+        text = f.read()
+    lamp = re.search(r'<emitter type="point">.*?</emitter>', text, flags=re.S).group(0)
+    (tmp_path / "lights").mkdir()
+    _write(tmp_path / "lights", "lamp.xml", f'<scene version="3.0.0">{lamp}</scene>')
+    _write(tmp_path / "lights", "all.xml",
+           '<scene version="3.0.0"><include filename="lamp.xml"/></scene>')
+    dopplertof.set_variant("llvm_ad_rgb")
+    for name, include, defines in (("direct.xml", "lights/lamp.xml", {}),
+                                   ("nested.xml", "lights/all.xml", {}),
+                                   ("named.xml", "lights/$lights.xml", {"lights": "lamp"})):
+        scene = _write(tmp_path, name, text.replace(lamp, f'<include filename="{include}"/>'))
+        loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), defines)
+        assert [e.class_name() for e in loaded.static.emitters()] == ["PointLight"], name
+        assert [e.id() for e in loaded.static.emitters()] != ["camera_illuminator"]

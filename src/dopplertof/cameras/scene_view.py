@@ -26,7 +26,8 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
         source, "a camera preset", CaptureError)
 
 
-def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None) -> str:
+def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None,
+                     folder: str = ".") -> str:
     """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
     reaches past it; default the preset's view) added when it has no light but room
@@ -37,15 +38,15 @@ def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None) -
     in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left and
     y up, so the light is translated by (-x, -y, z) in the camera's frame. ``defines``:
     the -D values, with the scene's ``<default>`` ones, that an emitter's ``$name`` type
-    takes (as the loader substitutes them)."""
+    takes (as the loader substitutes them); ``folder``: the scene file's, where the files
+    it ``<include>`` are read (their lights count too)."""
     import xml.etree.ElementTree as ET
 
-    from ..scene.room_lights import room_lights
+    from ..scene.room_lights import has_other_light
 
     root = ET.fromstring(text)
     values = {el.get("name"): el.get("value") for el in root.findall("default")}
-    room = {id(emitter) for _, emitter in room_lights(root, {**values, **(defines or {})})}
-    if any(id(emitter) not in room for emitter in root.iter("emitter")):
+    if has_other_light(root, {**values, **(defines or {})}, folder):
         return text
     light = ET.fromstring(radiometry.illuminator_xml(preset, view))
     sensor = root.find("sensor")
@@ -126,7 +127,8 @@ def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
                                   ("film", "integer", "height", int(height))],
                                  os.fspath(path), "a camera preset", CaptureError)
     if preset.absolute:
-        text = with_illuminator(text, preset, defines=defines)
+        text = with_illuminator(text, preset, defines=defines,
+                                folder=os.path.dirname(os.path.abspath(path)))
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
                         base_dir=os.path.dirname(os.path.abspath(path)),
                         without_room_lights=preset.absolute)
@@ -168,7 +170,7 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     if preset.absolute:
         text = with_illuminator(text, preset,
                                 radiometry.view_tangents(preset.fov_deg, width, height),
-                                defines)
+                                defines, os.path.dirname(os.path.abspath(path)))
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
                         base_dir=os.path.dirname(os.path.abspath(path)),
                         without_room_lights=preset.absolute)

@@ -33,11 +33,39 @@ def room_lights(root, values: dict | None = None) -> list:
 
 
 def _type(emitter, values: dict) -> str | None:
-    """``emitter``'s type, its ``$name`` parts replaced by ``values``' (those missing
-    left as they are: the loader names them)."""
-    kind = emitter.get("type")
-    return kind and re.sub(r"\$(\w+)", lambda m: str(values.get(m.group(1), m.group(0))),
-                           kind)
+    return _substituted(emitter.get("type"), values)
+
+
+def _substituted(text, values: dict):
+    """``text`` with its ``$name`` parts replaced by ``values``' (those missing left as
+    they are: the loader names them)."""
+    return text and re.sub(r"\$(\w+)", lambda m: str(values.get(m.group(1), m.group(0))),
+                           text)
+
+
+def has_other_light(root, values: dict | None = None, folder: str = ".") -> bool:
+    """Whether an XML scene's root element, or a file it ``<include>``s (directly or
+    through another; a relative name read from the including file's ``folder``), holds
+    an emitter that is not room light (:func:`room_lights`; ``values`` as there). A file
+    that cannot be read counts for nothing here: the loader names it."""
+    import os
+    import xml.etree.ElementTree as ET
+
+    todo, read = [(root, folder)], 0
+    while todo and read <= 64:  # (a file that includes itself: read a bounded number)
+        element, where = todo.pop()
+        room = {id(emitter) for _, emitter in room_lights(element, values)}
+        if any(id(emitter) not in room for emitter in element.iter("emitter")):
+            return True
+        for include in element.iter("include"):
+            path = os.path.join(where, os.path.expanduser(
+                _substituted(include.get("filename") or "", values or {})))
+            read += 1
+            try:
+                todo.append((ET.parse(path).getroot(), os.path.dirname(path)))
+            except (OSError, ET.ParseError):
+                continue
+    return False
 
 
 def _named(emitter, parent, root) -> str:
