@@ -12,7 +12,7 @@ area light stays as a surface (its BSDF, or Mitsuba's default). Point and spot l
 
 from __future__ import annotations
 
-import re
+from .includes import substituted
 
 #: the emitter types that are room light
 ROOM_LIGHT_TYPES = ("area", "envmap", "constant", "directional")
@@ -33,39 +33,27 @@ def room_lights(root, values: dict | None = None) -> list:
 
 
 def _type(emitter, values: dict) -> str | None:
-    return _substituted(emitter.get("type"), values)
-
-
-def _substituted(text, values: dict):
-    """``text`` with its ``$name`` parts replaced by ``values``' (those missing left as
-    they are: the loader names them)."""
-    return text and re.sub(r"\$(\w+)", lambda m: str(values.get(m.group(1), m.group(0))),
-                           text)
+    return substituted(emitter.get("type"), values)
 
 
 def has_other_light(root, values: dict | None = None, folder: str = ".") -> bool:
-    """Whether an XML scene's root element, or a file it ``<include>``s (directly or
-    through another; a relative name read from the including file's ``folder``), holds
+    """Whether an XML scene's root element, with the files it ``<include>``s read in
+    (:func:`.includes.inline`; a relative name read from the scene's ``folder``), holds
     an emitter that is not room light (:func:`room_lights`; ``values`` as there). A file
     that cannot be read counts for nothing here: the loader names it."""
-    import os
-    import xml.etree.ElementTree as ET
+    import copy
 
-    todo, read = [(root, folder)], 0
-    while todo and read <= 64:  # (a file that includes itself: read a bounded number)
-        element, where = todo.pop()
-        room = {id(emitter) for _, emitter in room_lights(element, values)}
-        if any(id(emitter) not in room for emitter in element.iter("emitter")):
-            return True
-        for include in element.iter("include"):
-            path = os.path.join(where, os.path.expanduser(
-                _substituted(include.get("filename") or "", values or {})))
-            read += 1
-            try:
-                todo.append((ET.parse(path).getroot(), os.path.dirname(path)))
-            except (OSError, ET.ParseError):
-                continue
-    return False
+    from .includes import inline
+    from .inputs import Resolver
+    from .scene import SceneError
+
+    root = copy.deepcopy(root)
+    try:
+        inline(root, values or {}, Resolver((folder,)))
+    except SceneError:
+        pass  # (the loader names it)
+    room = {id(emitter) for _, emitter in room_lights(root, values)}
+    return any(id(emitter) not in room for emitter in root.iter("emitter"))
 
 
 def _named(emitter, parent, root) -> str:

@@ -26,7 +26,8 @@ import xml.parsers.expat
 import numpy as np
 
 from ..hints import did_you_mean, with_plugin_hint
-from .inputs import Resolver, xml_inputs
+from .includes import inline
+from .inputs import InputFile, Resolver, file_sha256, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
 from .room_lights import leave_out
@@ -47,6 +48,7 @@ class _Doc:
         self.source = source
         self.lines: dict[int, int] = {}
         self.overridden: dict[int, list] = {}  #: element id -> [(name, value)] from overrides
+        self.sources: dict[int, str] = {}  #: element id -> the included file it comes from
         stack: list[ET.Element] = []
         self.root = None
         parser = xml.parsers.expat.ParserCreate()
@@ -70,44 +72,47 @@ class _Doc:
 
     def where(self, elem) -> str:
         line = self.lines.get(id(elem))
-        return f"{self.source}:{line}" if line else self.source
+        source = self.sources.get(id(elem), self.source)
+        return f"{source}:{line}" if line else source
+
+    def adopt(self, part: "_Doc") -> None:
+        """Take in the places of an included file's document ``part``."""
+        for table, theirs in ((self.lines, part.lines), (self.overridden, part.overridden),
+                              (self.sources, part.sources)):
+            table.update(theirs)
+        for elem in part.root.iter():
+            self.sources.setdefault(id(elem), part.source)
 
     def copy(self, elem):
         """A deep copy of ``elem`` whose elements keep the source lines of the original."""
         twin = copy.deepcopy(elem)
         for a, b in zip(elem.iter(), twin.iter()):
-            for table in (self.lines, self.overridden):
+            for table in (self.lines, self.overridden, self.sources):
                 if id(a) in table:
                     table[id(b)] = table[id(a)]
         return twin
 
 
-def _substitute(doc: _Doc, overrides: dict) -> dict:
-    """Resolve ``$name`` from <default> values and overrides; drop <default>; the values
-    (a scene option, SCENE_OPTIONS, may be given without a <default>)."""
-    root = doc.root
-    values = {}
-    for el in root.findall("default"):
+def _take_defaults(doc: _Doc, values: dict, declared: set, included: bool = False) -> None:
+    """Move the ``<default>`` values of ``doc``'s root into ``values`` and their names into
+    ``declared``; an ``included`` file's keeps a value already there (an override's, the
+    including file's), as Mitsuba does."""
+    for el in doc.root.findall("default"):
         if "name" not in el.attrib or "value" not in el.attrib:
             raise SceneError(f"{doc.where(el)}: <default> needs 'name' and 'value'")
-        values[el.attrib["name"]] = el.attrib["value"]
-        root.remove(el)
-    used = set()
-    for el in root.iter():
-        for v in el.attrib.values():
-            used.update(re.findall(r"\$(\w+)", v))
-    for name, value in overrides.items():
-        if name not in values and name not in used and name not in SCENE_OPTIONS:
-            declared = ", ".join(sorted(values)) or "none"
-            raise SceneError(f"{doc.source}: unknown scene parameter {name!r}"
-                             f"{did_you_mean(name, set(values) | used)} "
-                             f"(declared defaults: {declared})")
-        values[name] = str(value)
+        if not (included and el.attrib["name"] in values):
+            values[el.attrib["name"]] = el.attrib["value"]
+        declared.add(el.attrib["name"])
+        doc.root.remove(el)
 
-    for el in root.iter():
+
+def _substitute(doc: _Doc, values: dict, overrides: dict, used: set) -> None:
+    """Resolve ``$name`` in ``doc`` from ``values``; the names used go to ``used``."""
+    for el in doc.root.iter():
         for key, v in el.attrib.items():
             if "$" not in v:
                 continue
+            used.update(re.findall(r"\$(\w+)", v))
 
             def repl(m, el=el):
                 if m.group(1) not in values:
@@ -119,7 +124,45 @@ def _substitute(doc: _Doc, overrides: dict) -> dict:
                 return values[m.group(1)]
 
             el.set(key, re.sub(r"\$(\w+)", repl, v))
-    return values
+
+
+def _check_overrides(doc: _Doc, overrides: dict, declared: set, used: set) -> None:
+    """An override of a name no ``<default>`` declares and no value uses (a scene
+    option, SCENE_OPTIONS, may be given without one) is an error."""
+    for name in overrides:
+        if name not in declared and name not in used and name not in SCENE_OPTIONS:
+            known = ", ".join(sorted(declared)) or "none"
+            raise SceneError(f"{doc.source}: unknown scene parameter {name!r}"
+                             f"{did_you_mean(name, declared | used)} "
+                             f"(declared defaults: {known})")
+
+
+def _read_in(doc: _Doc, overrides: dict, base_dir: str, resolver: Resolver) -> tuple:
+    """``doc`` with its ``<default>`` values and overrides substituted and the files it
+    ``<include>``s read in (:func:`.includes.inline`, each substituted as it is read):
+    (values, the scene's folders, [(name, path)] of the files included)."""
+    values, declared, used = {}, set(), set()
+    _take_defaults(doc, values, declared)
+    values.update({name: str(value) for name, value in overrides.items()})
+    _substitute(doc, values, overrides, used)
+    folders = _search_folders(doc, base_dir)
+
+    def read(path):
+        try:
+            with open(path, encoding="utf-8") as f:
+                part = _Doc(f.read(), path)
+        except (OSError, UnicodeDecodeError) as e:
+            raise SceneError(f"{path}: cannot read the included file: {e}") from None
+        if part.root.tag == "scene":
+            _take_defaults(part, values, declared, included=True)
+        _substitute(part, values, overrides, used)
+        doc.adopt(part)
+        return part.root
+
+    included = inline(doc.root, values, Resolver(folders + resolver.folders), read,
+                      doc.where)
+    _check_overrides(doc, overrides, declared, used)
+    return values, folders, included
 
 
 #: the names a scene may be given with -D without declaring them (loader options)
@@ -479,14 +522,16 @@ def describe(doc: _Doc, overrides: dict | None = None, resolver: Resolver | None
     if doc.root.tag != "scene":
         raise SceneError(f"{doc.where(doc.root)}: the root element must be <scene>, "
                          f"got <{doc.root.tag}>")
-    values = _substitute(doc, {k: v for k, v in (overrides or {}).items()})
+    values, folders, included = _read_in(doc, dict(overrides or {}), base_dir,
+                                         resolver or Resolver(()))
     _check_finite(doc)
     left_out = leave_out(doc.root) if without_room_lights else ()
     if "unit" in values:
         in_metres(doc, unit_metres(values["unit"], doc.source + ": unit"))
-    folders = _search_folders(doc, base_dir)
     resolver = Resolver(folders + (resolver or Resolver(())).folders)
-    inputs = xml_inputs(doc.root, resolver, folders[-1])
+    inputs = list(dict.fromkeys([InputFile(name, path, file_sha256(path))
+                                 for name, path in included]
+                                + xml_inputs(doc.root, resolver, folders[-1])))
     other_integrator = next((f"{doc.where(el)}: <integrator type=\"{el.get('type')}\">"
                              for el in doc.root.findall("integrator")
                              if el.get("type") not in DTOF_INTEGRATORS), None)
