@@ -100,7 +100,9 @@ REFERENCES = [
 
 
 def _changed(content):
-    return content + (b"\n" if isinstance(content, bytes) else "# changed\n")
+    if isinstance(content, bytes):
+        return content + b"\n"
+    return content + ("<!-- changed -->\n" if content.startswith("<") else "# changed\n")
 
 
 @pytest.mark.parametrize("shapes, files, changed", [c[1:] for c in REFERENCES],

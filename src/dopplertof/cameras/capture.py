@@ -319,9 +319,8 @@ def scene_light_intensity(scene, preset: CameraPreset) -> float:
                                f"{preset.name}'s illuminator (absolute radiometry takes "
                                "point and spot lights, or none): the camera sees only its "
                                "own modulated light; give room light as ambient_irradiance "
-                               "(load_scene_for_camera leaves a scene file's own room "
-                               "lights out, not those of a file it <include>s: move them "
-                               "into the scene file)")
+                               "(load_scene_for_camera leaves a scene file's room lights "
+                               "out)")
         intensities.append(float(np.mean(np.asarray(values["intensity.value"], np.float64))))
     if not max(intensities) > 0:
         raise CaptureError(f"{scene.source}: every light has zero intensity")
