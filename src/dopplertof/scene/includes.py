@@ -15,8 +15,11 @@ from __future__ import annotations
 import os
 import re
 
-from .inputs import MAX_INCLUDE_DEPTH, Resolver
+from .inputs import Resolver
 from .scene import SceneError
+
+#: nested ``<include>`` files followed at most this deep (Mitsuba refuses deeper ones)
+MAX_INCLUDE_DEPTH = 15
 
 
 def substituted(text, values: dict):

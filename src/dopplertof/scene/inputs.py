@@ -1,6 +1,6 @@
 """What a scene reads besides its own description: the files it names (meshes,
-textures, spectra, included XML files: every ``filename``), resolved as Mitsuba
-resolves them, and the content hash that covers them.
+textures, spectra: every ``filename``), resolved as Mitsuba resolves them, and the content
+hash that covers them (the files a scene includes are read into it by :mod:`.includes`).
 
 :func:`content_digest` is the one hash of "a scene and every file it references":
 the scene's fingerprint (checkpoint keys), and the scene digest of sweep and
@@ -13,13 +13,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import xml.etree.ElementTree as ET
 from typing import NamedTuple
 
 #: the property (XML ``<string name=...>``, dict key) and attribute that name a file
 FILENAME = "filename"
-#: nested ``<include>`` files followed at most this deep (Mitsuba refuses deeper ones)
-MAX_INCLUDE_DEPTH = 15
 
 
 class InputFile(NamedTuple):
@@ -112,36 +109,27 @@ class Resolver:
 # ---- The files a scene names ---------------------------------------------------------------
 
 def _named_files(element):
-    """(name, is an <include>) of every file an XML element tree names, in document
-    order: a ``filename`` attribute (<include>, <spectrum>) or a <string
-    name="filename">."""
+    """Every file name an XML element tree names, in document order: a ``filename``
+    attribute (<spectrum>) or a <string name="filename">."""
     for el in element.iter():
         if FILENAME in el.attrib:
-            yield el.attrib[FILENAME], el.tag == "include"
+            yield el.attrib[FILENAME]
         elif el.tag == "string" and el.get("name") == FILENAME and "value" in el.attrib:
-            yield el.attrib["value"], False
+            yield el.attrib["value"]
 
 
-def xml_inputs(root, resolver: Resolver, folder: str | None = None, depth: int = 0) -> list:
-    """Every InputFile an XML scene (``root``, its ``$`` values substituted; read from
-    ``folder``, None for a string) references, and the files its <include>s
-    reference, resolved as Mitsuba's parser does: an included file from the including
-    file's folder first, every other file with ``resolver`` (the scene's folder
-    first), a top-level <path> folder searched first for what follows it."""
+def xml_inputs(root, resolver: Resolver, folder: str | None = None) -> list:
+    """Every InputFile an XML scene (``root``, its ``$`` values substituted and its
+    includes read in; read from ``folder``, None for a string) references, resolved as
+    Mitsuba's parser does: with ``resolver`` (the scene's folder first), a top-level
+    <path> folder searched first for what follows it."""
     found = []
     for child in root:
         if child.tag == "path" and "value" in child.attrib:
             resolver = resolver.inside(_resource_folder(child.attrib["value"], resolver,
                                                         folder))
             continue
-        for name, is_include in _named_files(child):
-            if not is_include:
-                found.append(resolver.input_file(name))
-                continue
-            item = (resolver.inside(folder) if folder else resolver).input_file(name)
-            found.append(item)
-            if item.sha256 != "missing" and depth < MAX_INCLUDE_DEPTH:
-                found += _included_inputs(item.path, resolver, depth)
+        found += [resolver.input_file(name) for name in _named_files(child)]
     return _unique(found)
 
 
@@ -150,15 +138,6 @@ def _resource_folder(name: str, resolver: Resolver, folder: str | None) -> str:
     folder for a string), else where the resolver finds it."""
     beside = os.path.join(folder or "", name)
     return os.path.abspath(beside) if os.path.exists(beside) else resolver.resolve(name)
-
-
-def _included_inputs(path: str, resolver: Resolver, depth: int) -> list:
-    """The files an included XML file references (none if it is not XML)."""
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError, UnicodeDecodeError):
-        return []  # Mitsuba names the problem when it loads the scene
-    return xml_inputs(root, resolver, os.path.dirname(path), depth + 1)
 
 
 def dict_inputs(scene, resolver: Resolver) -> list:
