@@ -4,6 +4,8 @@ What this loader adds to Mitsuba's own:
 
 * ``<default>`` values and ``-D`` overrides are resolved here, so that animation
   keyframes may use them too; an override of an undeclared, unused name is an error.
+* the files it ``<include>``s are read into the description (:mod:`.includes`), so that
+  its unit, room-light and motion handling reach them as the rest.
 * ``<integrator type="dopplertof">`` (alias ``dopplertofpath``) parameters are parsed
   into :class:`RenderParams`.
 * ``<sampler type="correlated">`` (the published sampler) becomes Mitsuba's
