@@ -147,7 +147,8 @@ def _add_capture_command(sub) -> None:
                    help="keep every finished render (capture, raw frame, batch) in DIR; "
                    "after Ctrl-C or a kill the same command renders only the missing ones, "
                    "bitwise as an uninterrupted run (DIR is emptied when the outputs are "
-                   f"written; its folder {FOLDER_HELP})")
+                   f"written; its folder {FOLDER_HELP}); a capture holds DIR while it runs: "
+                   "a second one with the same DIR is refused, naming the first")
     # ---- the groups: precision limits, sensor noise
     _add_capture_precision_options(c)
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")
