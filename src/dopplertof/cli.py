@@ -26,7 +26,10 @@ def _parser() -> argparse.ArgumentParser:
     """The ``dopplertof`` parser: the global options and one subcommand per command."""
     p = argparse.ArgumentParser(prog="dopplertof",
                                 description="Doppler time-of-flight camera simulator",
-                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
+                                epilog=f"Every command's output folder is {FOLDER_HELP}. A first "
+                                "try: `dopplertof demo -o demo_out`; `dopplertof COMMAND "
+                                "--help` for a command's options; README.md and docs/*.md "
+                                "for the rest.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)

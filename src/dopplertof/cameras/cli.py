@@ -197,12 +197,14 @@ def _compare(args) -> int:
 def check_capture_options(args) -> None:
     """--res and --noiseless need --camera; with it, the options its preset replaces
     are refused (one line naming them)."""
+    from ..cli_options import RES_WITHOUT_CAMERA
     from ..tof.capture import CaptureError
 
     if args.camera is None:
         for option in ("res", "noiseless", "ambient_irradiance", "keep_view"):
             if getattr(args, option, None) not in (None, False):
-                raise CaptureError(f"--{option.replace('_', '-')} needs --camera")
+                raise CaptureError(f"--{option.replace('_', '-')} needs --camera"
+                                   + (RES_WITHOUT_CAMERA if option == "res" else ""))
         return
     given = [o for o in PRESET_OWNS if getattr(args, o, None) is not None]
     given += ["noise"] if args.noise else []

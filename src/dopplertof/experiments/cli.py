@@ -11,8 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli_options import (FOLDER_HELP, HELD_HELP, add_camera_options, add_defines_option,
-                           add_params_option, non_negative_int, parse_pairs, positive_int)
+from ..cli_options import (FOLDER_HELP, HELD_HELP, RES_WITHOUT_CAMERA, add_camera_options,
+                           add_defines_option, add_params_option, non_negative_int,
+                           parse_pairs, positive_int)
 from ..sampling import SEED_LIMIT
 
 
@@ -221,7 +222,8 @@ def _check_stream_options(args) -> None:
     if args.camera is None:
         wrong = [n for n in STREAM_ONLY if given(n)]
         if wrong:
-            raise ConfigError(f"--{wrong[0].replace('_', '-')} needs --camera")
+            raise ConfigError(f"--{wrong[0].replace('_', '-')} needs --camera"
+                              + (RES_WITHOUT_CAMERA if wrong[0] == "res" else ""))
         return
     wrong = [n for n in NOT_STREAM if given(n)]
     if wrong:
