@@ -39,8 +39,9 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     import xml.etree.ElementTree as ET
 
     from ..scene.room_lights import room_lights
+    from ..scene.sensor_text import parse_scene_text, scene_text
 
-    root = ET.fromstring(text)
+    root = parse_scene_text(text, "the scene", CaptureError)
     room = {id(emitter) for _, emitter in room_lights(root)}
     if any(id(emitter) not in room for emitter in root.iter("emitter")):
         return text
@@ -56,7 +57,7 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
         for step in placed:  # after the offset: the camera's own placement
             transform.append(step)
     root.append(light)
-    return ET.tostring(root, encoding="unicode")
+    return scene_text(root, text)
 
 
 def parse_resolution(text: str) -> tuple:
