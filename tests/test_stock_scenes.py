@@ -317,3 +317,23 @@ def test_an_error_through_a_preset_names_the_line_of_the_users_file(tmp_path, ca
     assert code == 2, err
     assert f"{scene}:{line}: failed to instantiate shape plugin of type \"cubee\"" in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_define_that_sizes_the_film_is_said_to_be_replaced():
+    """``-D res=32`` with ``--camera`` and no ``--res``: the scene's film (width and
+    height ``$res``) gives way to the preset's pixels, at the preset's full size; a note
+    says so and names --res. With --res (a resolution), or a define that does not size
+    the film, nothing is said."""
+    from dopplertof.cameras import load_preset, load_scene_for_camera
+
+    dopplertof.set_variant()
+    scene = os.path.join(os.path.dirname(STOCK), "..", "..", "examples",
+                         "translating_sphere.xml")
+    preset = load_preset("pmd-argos3d-p320")
+    loaded = load_scene_for_camera(scene, preset, None, {"res": "32"}, keep_view=True)
+    said = [n for n in loaded.notes if "-D res=32 sets the scene's film" in n]
+    assert len(said) == 1 and "352x287 pixels replace: --res WIDTHxHEIGHT" in said[0]
+    assert loaded.sensor.film().size().x == 352
+    for resolution, defines in (((8, 6), {"res": "32"}), (None, {"spp": "4"})):
+        loaded = load_scene_for_camera(scene, preset, resolution, defines, keep_view=True)
+        assert not any("sets the scene's film" in n for n in loaded.notes)
