@@ -88,7 +88,8 @@ def test_meshes_through_path_captured_from_another_folder(tmp_path, elsewhere):
     ../common through <path>, under a stock path integrator (its defaults, a note)."""
     out = tmp_path / "out"
     summary, camera, err = capture(PATHS, out, elsewhere)
-    assert "<integrator type=\"path\"> is not a D-ToF integrator" in err
+    assert ("<integrator type=\"path\"> (its max_depth 2 is not read: -P max_depth=2 "
+            "gives it) is not a D-ToF integrator: using the D-ToF defaults") in err
     check_depth(out, summary, camera,
                 lambda cos, t: (CAMERA_Z - 1.0 - SPEED * t) / cos)
     assert "warnings" not in summary
