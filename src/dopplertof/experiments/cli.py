@@ -102,8 +102,8 @@ def _add_animate(subparsers) -> None:
     a.add_argument("--fps", type=float, help="frames per second of the GIF (default 10); "
                    "with --camera, of the stream (default: the preset's frame_rate_hz)")
     a.add_argument("--previews", action="store_true",
-                   help="also write every frame's PNG previews; with --camera, a contact "
-                   "sheet of the stream (contact_sheet.png: its frames' depth, velocity and "
+                   help="also write every frame's PNG previews; with --camera (whose "
+                   "frames always have theirs), a contact sheet of the stream (contact_sheet.png: its frames' depth, velocity and "
                    "amplitude side by side)")
     add_defines_option(a)
     add_params_option(a, "override an integrator parameter (repeatable)")
