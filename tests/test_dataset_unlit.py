@@ -130,3 +130,35 @@ def test_a_folder_of_layout_3_without_the_mask_reads_it_as_absent(unlit, tmp_pat
         assert not any(k.startswith("camera_mask_unlit") for k in sample)
         assert "camera_mask_unlit" not in ds.units
         assert sample["camera_valid"].shape == (36, 40)
+
+
+def test_a_folder_of_layout_3_is_refused_as_such_not_as_another_configuration(tmp_path,
+                                                                              capsys):
+    """A layout 3 folder (its dataset.json as layout 3 wrote it for this very
+    configuration) is not added to by a layout 4 run: one line naming the layout, not
+    "another configuration ... or the configuration it was made with" (the one given);
+    dataset.json untouched."""
+    from dopplertof.backend import DEFAULT_VARIANT
+    from dopplertof.cli import main
+    from dopplertof.dataset import driver, load_config
+
+    config_file = _write_toml(tmp_path / "unlit.toml", UNLIT)
+    config = load_config(config_file)
+    written = driver.LAYOUT_VERSION
+    try:
+        driver.LAYOUT_VERSION = 3
+        old_hash = driver.config_hash(config, DEFAULT_VARIANT)
+    finally:
+        driver.LAYOUT_VERSION = written
+    assert old_hash != driver.config_hash(config, DEFAULT_VARIANT)
+    info = {"layout_version": 3, "config_hash": old_hash, "samples": 2}
+    info[driver.JSON_DIGEST] = driver.json_digest(info)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "dataset.json").write_text(json.dumps(info))
+    before = (tmp_path / "out" / "dataset.json").read_bytes()
+    assert main(["dataset", config_file, "-o", str(tmp_path / "out")]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and "holds a dataset of layout 3" in lines[0], lines
+    assert "another configuration" not in lines[0] and "writes layout 4" in lines[0]
+    assert (tmp_path / "out" / "dataset.json").read_bytes() == before
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["dataset.json"]

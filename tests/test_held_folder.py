@@ -172,3 +172,40 @@ def test_a_lock_file_of_a_killed_run_is_taken_over(tmp_path):
     with io.held_folder(tmp_path):
         assert holder_pid(tmp_path) == os.getpid()
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("garbage", ['{"pid": 1e400, "host": "h", "command": "c", '
+                                     '"started": "s"}', '[1]', '\x00\xff junk'])
+def test_a_garbled_holder_file_of_a_live_run_is_still_one_line(tmp_path, garbage):
+    """The holder file of a live run overwritten with junk (a pid of 1e400 raised
+    OverflowError): the refusal says the holder file is unreadable, on one line; a
+    holder's host and time with line breaks are put on one line too."""
+    with io.held_folder(tmp_path):
+        holder = tmp_path / io.RUN_HOLDER
+        holder.write_text(garbage, encoding="latin-1")
+        with pytest.raises(io.OutputError) as refused:
+            with io.held_folder(tmp_path):
+                pass
+        assert f"its holder file {io.RUN_HOLDER} unreadable" in str(refused.value)
+        holder.write_text(json.dumps({"pid": 12, "host": "node\n7", "command": "a\nb",
+                                      "started": "now\r\n"}))
+        with pytest.raises(io.OutputError) as refused:
+            with io.held_folder(tmp_path):
+                pass
+        assert "(pid 12 on node 7, started now: a b)" in str(refused.value)
+        assert len(str(refused.value).splitlines()) == 1
+
+
+@pytest.mark.parametrize("in_place", ["folder", "dangling link"])
+def test_a_lock_file_that_cannot_be_opened_is_named(tmp_path, in_place):
+    """A folder or a dangling link where the lock file goes: the error names the lock
+    file (it named the output folder: "OUT: Is a directory")."""
+    lock = tmp_path / io.RUN_LOCK
+    if in_place == "folder":
+        lock.mkdir()
+    else:
+        lock.symlink_to(tmp_path / "gone" / "lock")
+    with pytest.raises(io.WriteError) as refused:
+        with io.held_folder(tmp_path):
+            pass
+    assert refused.value.path == str(lock)

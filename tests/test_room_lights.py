@@ -149,3 +149,92 @@ def test_an_area_light_given_by_reference_goes_with_its_ref(tmp_path):
     loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), {"unit": "mm"})
     assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
     assert loaded.left_out_lights == ("the area light 'ceiling_light'",)
+
+
+def test_an_area_light_whose_type_is_a_parameter_is_left_out_too(tmp_path):
+    """``<emitter type="$lamp">`` with ``lamp`` an area light, by its ``<default>`` or
+    by -D: left out as the literal one is, and the camera's illuminator lights the scene
+    (before, the illuminator was not added: "the scene has no emitter")."""
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    typed = _cornell().replace(AREA, AREA.replace('type="area"', 'type="$lamp"'))
+    declared = typed.replace('<scene version="3.0.0">',
+                             '<scene version="3.0.0"><default name="lamp" value="area"/>', 1)
+    for name, text, defines in (("default.xml", declared, {}),
+                                ("given.xml", typed, {"lamp": "area"})):
+        loaded = load_scene_for_camera(_write(tmp_path, name, text),
+                                       load_preset("azure-kinect"), (4, 4),
+                                       {"unit": "mm", **defines})
+        assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"], name
+        assert loaded.left_out_lights == ("the area light of shape 'light'",)
+
+
+def test_a_room_light_in_an_included_file_is_named_with_the_include(tmp_path, capsys):
+    """The loader leaves out the scene file's own room lights; one in a file it
+    ``<include>``s reaches the capture, which refuses it in one line that says so and
+    what to do (it said "load_scene_for_camera leaves a scene file's room lights out",
+    which the user had done), exit 2, nothing written."""
+    from dopplertof.cli import main
+
+    cornell = _cornell()
+    start = cornell.index('<shape type="rectangle" id="light">')
+    end = cornell.index("</shape>", start) + len("</shape>")
+    _write(tmp_path, "lamp.xml", '<scene version="3.0.0">' + cornell[start:end].replace(
+        '<ref id="lamp"/>', "") + "</scene>")
+    scene = _write(tmp_path, "included.xml", cornell[:start] + '<include filename="lamp.xml"/>'
+                   + cornell[end:])
+    code = main(["capture", scene, "-D", "unit=mm", "--camera", "azure-kinect", "--res",
+                 "4x4", "--spp", "2", "-o", str(tmp_path / "out"), "--quiet"])
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert code == 2 and len(errors) == 1, errors
+    assert "an AreaLight cannot stand for azure-kinect's illuminator" in errors[0]
+    assert "not those of a file it <include>s: move them into the scene file" in errors[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_area_light_on_a_mesh_without_an_id_is_named_by_its_type(tmp_path):
+    """An area light on an unnamed ``obj`` mesh beside the Cornell box's lamp: both left
+    out, the mesh's named "the area light of an obj shape" (it read "a obj shape")."""
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    panel = os.path.join(STOCK, "common", "panel.obj")
+    scene = _write(tmp_path, "panel.xml", _cornell().replace(
+        "</scene>", f'<shape type="obj"><string name="filename" value="{panel}"/>'
+        '<transform name="to_world"><scale value="30"/><translate x="278" y="540" '
+        f'z="279"/></transform>{AREA}</shape></scene>'))
+    loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), {"unit": "mm"})
+    assert [e.id() for e in loaded.static.emitters()] == ["camera_illuminator"]
+    assert loaded.left_out_lights == ("the area light of shape 'light'",
+                                      "the area light of an obj shape")
+
+
+def test_a_point_light_in_an_included_file_still_stands_for_the_illuminator(tmp_path):
+    """examples/translating_sphere.xml with its point light moved into a file it
+    ``<include>``s: that light stands for the illuminator as the inline one does, no
+    illuminator added beside it (it was: two lights, the capture silently another);
+    a nested include and a name given by a parameter are followed too."""
+    import re
+
+    import dopplertof
+    from dopplertof.cameras.preset import load_preset
+    from dopplertof.cameras.scene_view import load_scene_for_camera
+
+    sphere = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          "examples", "translating_sphere.xml")
+    with open(sphere, encoding="utf-8") as f:
+        text = f.read()
+    lamp = re.search(r'<emitter type="point">.*?</emitter>', text, flags=re.S).group(0)
+    (tmp_path / "lights").mkdir()
+    _write(tmp_path / "lights", "lamp.xml", f'<scene version="3.0.0">{lamp}</scene>')
+    _write(tmp_path / "lights", "all.xml",
+           '<scene version="3.0.0"><include filename="lamp.xml"/></scene>')
+    dopplertof.set_variant("llvm_ad_rgb")
+    for name, include, defines in (("direct.xml", "lights/lamp.xml", {}),
+                                   ("nested.xml", "lights/all.xml", {}),
+                                   ("named.xml", "lights/$lights.xml", {"lights": "lamp"})):
+        scene = _write(tmp_path, name, text.replace(lamp, f'<include filename="{include}"/>'))
+        loaded = load_scene_for_camera(scene, load_preset("azure-kinect"), (4, 4), defines)
+        assert [e.class_name() for e in loaded.static.emitters()] == ["PointLight"], name
+        assert [e.id() for e in loaded.static.emitters()] != ["camera_illuminator"]

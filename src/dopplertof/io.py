@@ -504,7 +504,10 @@ def _take_run_lock(target: str):
     unsupported. Refused (OutputError) while another run holds it."""
     path = os.path.join(target, RUN_LOCK)
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:  # (a folder or a dangling link in its place: named)
+            raise write_error(path, exc) from exc
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -542,14 +545,19 @@ def _write_holder(target: str) -> None:
 
 
 def _holder(target: str) -> str:
-    """Who holds ``target`` (its holder file), in words."""
+    """Who holds ``target`` (its holder file), in words on one line."""
+    def words(value) -> str:
+        return " ".join(str(value).split())
+
     try:
         with open(os.path.join(target, RUN_HOLDER), encoding="utf-8") as f:
             info = json.load(f)
-        return (f"pid {int(info['pid'])} on {info['host']}, started {info['started']}: "
-                f"{' '.join(str(info['command']).split())}")
-    except (OSError, ValueError, TypeError, KeyError):
+        return (f"pid {int(info['pid'])} on {words(info['host'])}, started "
+                f"{words(info['started'])}: {words(info['command'])}")
+    except FileNotFoundError:
         return "its pid not written yet"
+    except (OSError, ValueError, TypeError, KeyError, OverflowError):
+        return f"its holder file {RUN_HOLDER} unreadable"
 
 
 def _missing_folders(folder: str) -> list:

@@ -314,12 +314,14 @@ def scene_light_intensity(scene, preset: CameraPreset) -> float:
         kind = emitter.class_name()
         values = mi.traverse(emitter)
         if kind not in ("PointLight", "SpotLight") or "intensity.value" not in values:
-            raise CaptureError(f"{scene.source}: a {kind} cannot stand for {preset.name}'s "
-                               "illuminator (absolute radiometry takes point and spot "
-                               "lights, or none): the camera sees only its own modulated "
-                               "light; give room light as ambient_irradiance "
-                               "(load_scene_for_camera leaves a scene file's room "
-                               "lights out)")
+            article = "an" if kind[:1] in "AEIOU" else "a"
+            raise CaptureError(f"{scene.source}: {article} {kind} cannot stand for "
+                               f"{preset.name}'s illuminator (absolute radiometry takes "
+                               "point and spot lights, or none): the camera sees only its "
+                               "own modulated light; give room light as ambient_irradiance "
+                               "(load_scene_for_camera leaves a scene file's own room "
+                               "lights out, not those of a file it <include>s: move them "
+                               "into the scene file)")
         intensities.append(float(np.mean(np.asarray(values["intensity.value"], np.float64))))
     if not max(intensities) > 0:
         raise CaptureError(f"{scene.source}: every light has zero intensity")

@@ -26,7 +26,8 @@ def scene_text_for_camera(text: str, width: int, height: int, fov_deg: float,
         source, "a camera preset", CaptureError)
 
 
-def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
+def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None,
+                     folder: str = ".") -> str:
     """The scene XML with the camera's illuminator (:func:`radiometry.illuminator_xml`,
     confined to its field where ``view``, the (tan_x, tan_y) of the view's half extents,
     reaches past it; default the preset's view) added when it has no light but room
@@ -35,15 +36,18 @@ def with_illuminator(text: str, preset: CameraPreset, view=None) -> str:
     preset's offset from the lens, riding with the camera (a keyframed camera's: placed
     at its first keyframe, whose pose the loader takes for the rest pose). The offset is
     in OpenCV's camera axes (x right, y down, z forward); Mitsuba's camera has x left and
-    y up, so the light is translated by (-x, -y, z) in the camera's frame."""
+    y up, so the light is translated by (-x, -y, z) in the camera's frame. ``defines``:
+    the -D values, with the scene's ``<default>`` ones, that an emitter's ``$name`` type
+    takes (as the loader substitutes them); ``folder``: the scene file's, where the files
+    it ``<include>`` are read (their lights count too)."""
     import xml.etree.ElementTree as ET
 
-    from ..scene.room_lights import room_lights
+    from ..scene.room_lights import has_other_light
     from ..scene.sensor_text import parse_scene_text, scene_text
 
     root = parse_scene_text(text, "the scene", CaptureError)
-    room = {id(emitter) for _, emitter in room_lights(root)}
-    if any(id(emitter) not in room for emitter in root.iter("emitter")):
+    values = {el.get("name"): el.get("value") for el in root.findall("default")}
+    if has_other_light(root, {**values, **(defines or {})}, folder):
         return text
     light = ET.fromstring(radiometry.illuminator_xml(preset, view))
     sensor = root.find("sensor")
@@ -147,7 +151,8 @@ def preset_with_scene_view(path, preset: CameraPreset, resolution=None,
                                   ("film", "integer", "height", int(height))],
                                  os.fspath(path), "a camera preset", CaptureError)
     if preset.absolute:
-        text = with_illuminator(text, preset)
+        text = with_illuminator(text, preset, defines=defines,
+                                folder=os.path.dirname(os.path.abspath(path)))
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
                         base_dir=os.path.dirname(os.path.abspath(path)),
                         without_room_lights=preset.absolute)
@@ -189,7 +194,8 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
                                     CaptureError)
     if preset.absolute:
         text = with_illuminator(text, preset,
-                                radiometry.view_tangents(preset.fov_deg, width, height))
+                                radiometry.view_tangents(preset.fov_deg, width, height),
+                                defines, os.path.dirname(os.path.abspath(path)))
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
                         base_dir=os.path.dirname(os.path.abspath(path)),
                         without_room_lights=preset.absolute)

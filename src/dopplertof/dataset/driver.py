@@ -175,6 +175,12 @@ def check_same_config(output: str, digest: str, source: str) -> None:
         raise DatasetError(f"{path} was edited after it was written (it does not match its "
                            "checksum) and the shards in the folder are of another "
                            f"configuration than {source}: use a new folder")
+    layout = info.get("layout_version")
+    if previous != digest and layout != LAYOUT_VERSION:
+        raise DatasetError(f"{output} holds a dataset of layout {layout!r}, written by an "
+                           f"earlier dopplertof; this one writes layout {LAYOUT_VERSION} "
+                           "and adds no shard to it (its samples still read): render into "
+                           "a new folder")
     if previous != digest:
         raise DatasetError(f"{output} holds a dataset of another configuration than "
                            f"{source} (config hash {str(previous)[:12]} vs {digest[:12]}): "
