@@ -409,6 +409,7 @@ def test_a_trajectory_for_a_camera_that_moves_already_is_refused(tmp_path, capsy
 
 @pytest.mark.parametrize("argv,expected", [
     (["--trajectory", "t.txt"], "--trajectory needs --camera"),
+    (["--res", "8x8"], "without a camera the scene's film sets the resolution: -D res=N"),
     (["--camera", "azure-kinect", "--frame-period", "0.1"], "--frame-period does not apply"),
 ])
 def test_stream_options_belong_to_streams(tmp_path, capsys, argv, expected):

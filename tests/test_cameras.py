@@ -525,6 +525,7 @@ def test_one_scene_through_several_cameras_side_by_side(tmp_path):
     (("--camera", "kinect-v2", "--unwrap-frequency", "20"), "drop --unwrap-frequency"),
     (("--camera", "kinect-v2", "--noise"), "drop --noise"),
     (("--res", "8x8"), "--res needs --camera"),
+    (("--res", "8x8"), "without a camera the scene's film sets the resolution: -D res=N"),
     (("--camera", "kinect-v2", "--res", "8by8"), "--res must be WIDTHxHEIGHT"),
     (("--camera", "kinnect"), "did you mean 'kinect-v2'?"),
 ])

@@ -341,6 +341,7 @@ def test_the_command_warns_of_folded_beats(tmp_path, capsys):
                  "--bins", "512", "-P", "max_depth=2"]) == 0
     err = capsys.readouterr().err
     assert "dopplertof: warning: the beats fold" in err
+    assert "raise B / T, or use an I/Q receiver (--iq" in err  # (what to do, both ways)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["folding"]["folded_pixels"] > 0
     assert summary["folding"]["unambiguous_beyond_m"] > 19

@@ -224,6 +224,16 @@ def test_a_command_outside_a_fenced_block_is_found():
         (17, "cd benchmarks && PYTHONPATH=../src ../.venv/bin/python spinning_torus.py")]
 
 
+def test_every_dopplertof_command_is_on_one_line():
+    """A command continued with a backslash gets the test's tiny options (SH_ADDED)
+    after the backslash, and a reader copies half of it: each dopplertof command in a
+    fenced sh block is one line (docs/cameras.md's --compare was three)."""
+    continued = [(doc, line) for doc, line, code in blocks("sh")
+                 for command in code.splitlines()
+                 if re.search(r"(^|/)dopplertof\b", command) and command.rstrip().endswith("\\")]
+    assert not continued, continued
+
+
 def test_a_doc_that_uses_pytorch_shows_its_cpu_wheel():
     """A plain ``pip install torch`` pulls the ~5 GB CUDA build: a doc whose code imports
     torch shows the CPU wheel's index beside it."""

@@ -88,7 +88,8 @@ def test_meshes_through_path_captured_from_another_folder(tmp_path, elsewhere):
     ../common through <path>, under a stock path integrator (its defaults, a note)."""
     out = tmp_path / "out"
     summary, camera, err = capture(PATHS, out, elsewhere)
-    assert "<integrator type=\"path\"> is not a D-ToF integrator" in err
+    assert ("<integrator type=\"path\"> (its max_depth 2 is not read: -P max_depth=2 "
+            "gives it) is not a D-ToF integrator: using the D-ToF defaults") in err
     check_depth(out, summary, camera,
                 lambda cos, t: (CAMERA_Z - 1.0 - SPEED * t) / cos)
     assert "warnings" not in summary
@@ -283,3 +284,57 @@ def test_keep_view_on_the_command_line(tmp_path, elsewhere):
     assert camera["fov_x_deg"] == pytest.approx(50.0, rel=1e-6)
     assert camera["K"][0][0] == pytest.approx(8 / math.tan(math.radians(25)), rel=1e-6)
     assert "field of view" not in err
+
+
+# ---- Lines of the user's file through a preset -------------------------------------------
+
+@pytest.mark.parametrize("how", [
+    ["capture", "--camera", "azure-kinect", "--res", "8x7"],
+    ["capture", "--camera", "kinect-v2", "--keep-view", "--res", "8x7"],
+    ["animate", "--camera", "azure-kinect", "--frames", "1", "--res", "8x7",
+     "--trajectory", os.path.join(os.path.dirname(STOCK), "..", "..", "examples", "stream",
+                                  "trajectory.txt")]])
+def test_an_error_through_a_preset_names_the_line_of_the_users_file(tmp_path, capsys, how):
+    """A preset edits the scene's text before it loads (its view, its resolution, the
+    illuminator, a trajectory's keyframes in place of the sensor's placement); the
+    message of an error after those edits names the line of the user's file, not of the
+    edited text: the stock Cornell box (a five-line comment before <scene>, an XML
+    declaration), its sensor's placement spread over three lines, a misspelt shape type
+    on line 42 of it (the edits dropped the comments and the blank lines: line 36)."""
+    from dopplertof.cli import main
+
+    with open(os.path.join(STOCK, "cornell", "scene.xml"), encoding="utf-8") as f:
+        text = f.read()
+    placed = '<transform name="to_world"><lookat'
+    text = text.replace(placed, '<transform name="to_world">\n\n            <lookat', 1)
+    text = text.replace('<shape type="cube"', '<shape type="cubee"', 1)
+    line = text[:text.index('type="cubee"')].count("\n") + 1
+    assert line == 42  # (the placement's two new lines before it)
+    scene = tmp_path / "scene.xml"
+    scene.write_text(text, encoding="utf-8")
+    code = main([how[0], str(scene), "-D", "unit=mm", "-o", str(tmp_path / "out"), "--quiet",
+                 *how[1:]])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"{scene}:{line}: failed to instantiate shape plugin of type \"cubee\"" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_define_that_sizes_the_film_is_said_to_be_replaced():
+    """``-D res=32`` with ``--camera`` and no ``--res``: the scene's film (width and
+    height ``$res``) gives way to the preset's pixels, at the preset's full size; a note
+    says so and names --res. With --res (a resolution), or a define that does not size
+    the film, nothing is said."""
+    from dopplertof.cameras import load_preset, load_scene_for_camera
+
+    dopplertof.set_variant()
+    scene = os.path.join(os.path.dirname(STOCK), "..", "..", "examples",
+                         "translating_sphere.xml")
+    preset = load_preset("pmd-argos3d-p320")
+    loaded = load_scene_for_camera(scene, preset, None, {"res": "32"}, keep_view=True)
+    said = [n for n in loaded.notes if "-D res=32 sets the scene's film" in n]
+    assert len(said) == 1 and "352x287 pixels replace: --res WIDTHxHEIGHT" in said[0]
+    assert loaded.sensor.film().size().x == 352
+    for resolution, defines in (((8, 6), {"res": "32"}), (None, {"spp": "4"})):
+        loaded = load_scene_for_camera(scene, preset, resolution, defines, keep_view=True)
+        assert not any("sets the scene's film" in n for n in loaded.notes)

@@ -26,7 +26,10 @@ def _parser() -> argparse.ArgumentParser:
     """The ``dopplertof`` parser: the global options and one subcommand per command."""
     p = argparse.ArgumentParser(prog="dopplertof",
                                 description="Doppler time-of-flight camera simulator",
-                                epilog=f"Every command's output folder is {FOLDER_HELP}.")
+                                epilog=f"Every command's output folder is {FOLDER_HELP}. A first "
+                                "try: `dopplertof demo -o demo_out`; `dopplertof COMMAND "
+                                "--help` for a command's options; README.md and docs/*.md "
+                                "for the rest.")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -147,7 +150,8 @@ def _add_capture_command(sub) -> None:
                    help="keep every finished render (capture, raw frame, batch) in DIR; "
                    "after Ctrl-C or a kill the same command renders only the missing ones, "
                    "bitwise as an uninterrupted run (DIR is emptied when the outputs are "
-                   f"written; its folder {FOLDER_HELP})")
+                   f"written; its folder {FOLDER_HELP}); a capture holds DIR while it runs: "
+                   "a second one with the same DIR is refused, naming the first")
     # ---- the groups: precision limits, sensor noise
     _add_capture_precision_options(c)
     n = c.add_argument_group("sensor noise (off unless --noise or any option below)")

@@ -9,6 +9,13 @@ import sys
 
 #: what every command's --help says about its output folder (io.make_output_folder)
 FOLDER_HELP = "created, with missing parents, if missing"
+#: what --res without --camera says to do instead
+RES_WITHOUT_CAMERA = (" (a preset's pixel count); without a camera the scene's film sets the "
+                      "resolution: -D res=N where the scene declares <default name=\"res\">")
+#: what every command that holds its output folder while it runs says in its --help
+HELD_HELP = ("A run holds its output folder until it ends: a second run into it is refused, "
+             "naming the first (pid and command); after a kill or Ctrl-C the same command "
+             "resumes.")
 
 
 def int_at_least(minimum: int, wording: str):

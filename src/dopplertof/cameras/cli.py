@@ -51,7 +51,10 @@ def add_capture_options(c) -> None:
     g = c.add_argument_group("real camera (a preset: its raw frames, sensor and depth)")
     g.add_argument("--camera", metavar="NAME|FILE.toml",
                    help="capture the preset's raw frame sequence, each frame in its own time "
-                   "window (dopplertof cameras lists them)")
+                   "window (dopplertof cameras lists them); through an absolute preset "
+                   "(azure-kinect, kinect-v2) the scene's room lights (area, environment, "
+                   "directional) are left out, with a note, and the preset's illuminator "
+                   "lights a scene with no other light (docs/own_scene.md)")
     add_camera_options(g)
     g.add_argument("--keep-view", action="store_true",
                    help="with --camera: keep the scene's field of view (its framing) with "
@@ -194,12 +197,14 @@ def _compare(args) -> int:
 def check_capture_options(args) -> None:
     """--res and --noiseless need --camera; with it, the options its preset replaces
     are refused (one line naming them)."""
+    from ..cli_options import RES_WITHOUT_CAMERA
     from ..tof.capture import CaptureError
 
     if args.camera is None:
         for option in ("res", "noiseless", "ambient_irradiance", "keep_view"):
             if getattr(args, option, None) not in (None, False):
-                raise CaptureError(f"--{option.replace('_', '-')} needs --camera")
+                raise CaptureError(f"--{option.replace('_', '-')} needs --camera"
+                                   + (RES_WITHOUT_CAMERA if option == "res" else ""))
         return
     given = [o for o in PRESET_OWNS if getattr(args, o, None) is not None]
     given += ["noise"] if args.noise else []

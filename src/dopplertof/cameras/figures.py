@@ -17,7 +17,7 @@ def write_wiggling(path, preset) -> dict:
     calibration tables; returns the numbers."""
     distances, per_frequency, raw, reported = wiggling_curves(preset)
     plt = image_files.pyplot()
-    fig, ax = plt.subplots(figsize=(7.0, 3.8), dpi=120)
+    fig, ax = plt.subplots(figsize=(7.0, 4.3), dpi=120)
     for f, error in per_frequency.items():
         ax.plot(distances, error * 1e3, lw=0.8, alpha=0.6, label=f"{f:g} MHz alone, uncalibrated")
     ax.plot(distances, raw * 1e3, "k", lw=1.5, label="reported depth, uncalibrated")
@@ -28,7 +28,8 @@ def write_wiggling(path, preset) -> dict:
     ax.set_xlabel("distance (m)")
     ax.set_ylabel("depth error (mm)")
     ax.set_title(f"{preset.name}: wiggling ({preset.waveform} modulation), noise-free", fontsize=10)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2,
+              frameon=False)  # (below the axes: the curves fill them)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     image_files.save_figure(fig, path)

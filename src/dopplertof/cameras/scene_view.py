@@ -43,8 +43,9 @@ def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None,
     import xml.etree.ElementTree as ET
 
     from ..scene.room_lights import has_other_light
+    from ..scene.sensor_text import parse_scene_text, scene_text
 
-    root = ET.fromstring(text)
+    root = parse_scene_text(text, "the scene", CaptureError)
     values = {el.get("name"): el.get("value") for el in root.findall("default")}
     if has_other_light(root, {**values, **(defines or {})}, folder):
         return text
@@ -60,7 +61,7 @@ def with_illuminator(text: str, preset: CameraPreset, view=None, defines=None,
         for step in placed:  # after the offset: the camera's own placement
             transform.append(step)
     root.append(light)
-    return ET.tostring(root, encoding="unicode")
+    return scene_text(root, text)
 
 
 def parse_resolution(text: str) -> tuple:
@@ -101,6 +102,29 @@ def scene_view_note(text: str, preset: CameraPreset, source: str) -> str | None:
             f"horizontal field of view replaces the scene's sensor's ({said}): the framing "
             "differs from the scene's; --keep-view keeps the scene's view with the preset's "
             "sensor")
+
+
+def film_define_note(text: str, defines, preset: CameraPreset, source: str) -> str | None:
+    """A note when a ``-D`` value sets the scene's film size (``width="$res"``), which
+    the preset's pixels replace: ``--res`` sets the camera's. None otherwise."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    try:
+        films = [film for sensor in ET.fromstring(text) if sensor.tag == "sensor"
+                 for film in sensor if film.tag == "film"]
+    except ET.ParseError:
+        return None  # the loader names the problem
+    names = {m for film in films for el in film if el.get("name") in ("width", "height")
+             for m in re.findall(r"\$(\w+)", el.get("value") or "")}
+    given = sorted(n for n in names if n in (defines or {}))
+    if not given:
+        return None
+    said = ", ".join(f"-D {n}={defines[n]}" for n in given)
+    width, height = preset.resolution
+    return (f"{source}: {said} sets the scene's film, which the camera preset "
+            f"{preset.name}'s {width}x{height} pixels replace: --res WIDTHxHEIGHT sets the "
+            "camera's pixel count (the same field of view)")
 
 
 def _scene_text(path) -> str:
@@ -162,6 +186,7 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
 
     text = _scene_text(path)
     note = None if keep_view else scene_view_note(text, preset, os.fspath(path))
+    film = None if resolution else film_define_note(text, defines, preset, os.fspath(path))
     width, height = resolution or preset.resolution
     text = scene_text_for_camera(text, width, height, preset.fov_deg, os.fspath(path))
     if camera_keyframes is not None:
@@ -174,7 +199,7 @@ def load_scene_for_camera(path, preset: CameraPreset, resolution=None, defines=N
     scene = load_string(text, dict(defines or {}), source=os.fspath(path),
                         base_dir=os.path.dirname(os.path.abspath(path)),
                         without_room_lights=preset.absolute)
-    notes = tuple(n for n in (note, room_light_note(scene, preset)) if n)
+    notes = tuple(n for n in (note, film, room_light_note(scene, preset)) if n)
     return replace(scene, notes=scene.notes + notes) if notes else scene
 
 

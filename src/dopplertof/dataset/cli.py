@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import sys
 
-from ..cli_options import FOLDER_HELP, TERMINATED_EXIT, Terminated, sigterm_as_interrupt
+from ..cli_options import FOLDER_HELP, HELD_HELP, TERMINATED_EXIT, Terminated, sigterm_as_interrupt
 
 
 def add_subcommand(subparsers) -> None:
@@ -16,7 +16,7 @@ def add_subcommand(subparsers) -> None:
         "dataset", help="randomized dynamic scenes rendered on Dask into HDF5 shards",
         description="Render a dataset of random moving scenes (raw frames of three splits, "
                     "depth, velocity, flow, instances, normals, albedo, K, pose). A rerun "
-                    "resumes at the first unfinished shard.")
+                    "resumes at the first unfinished shard. " + HELD_HELP)
     d.add_argument("config", help="dataset configuration (.toml; examples/dataset.toml), "
                                   "or `verify`, `show` or `export` with the dataset folder "
                                   "FOLDER")

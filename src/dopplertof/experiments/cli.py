@@ -11,8 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli_options import (FOLDER_HELP, add_camera_options, add_defines_option,
-                           add_params_option, non_negative_int, parse_pairs, positive_int)
+from ..cli_options import (FOLDER_HELP, HELD_HELP, RES_WITHOUT_CAMERA, add_camera_options,
+                           add_defines_option, add_params_option, non_negative_int,
+                           parse_pairs, positive_int)
 from ..sampling import SEED_LIMIT
 
 
@@ -53,7 +54,7 @@ def add_subcommands(subparsers) -> None:
     s = subparsers.add_parser(
         "sweep", help="render a grid of configurations on Dask (TOML file or --preset)",
         description="Render every point of a sweep grid as one Dask task. A rerun skips "
-                    "what is complete.")
+                    "what is complete. " + HELD_HELP)
     s.add_argument("config", nargs="?", help="sweep configuration (.toml)")
     s.add_argument("-o", "--output", required=True, help=f"results folder ({FOLDER_HELP})")
     s.add_argument("--preset", choices=PRESETS, help="one of the paper's experiments")
@@ -85,7 +86,9 @@ def _add_animate(subparsers) -> None:
     a = subparsers.add_parser(
         "animate", help="render a keyframed scene as a sequence of camera frames on Dask",
         description="Frame k exposes [start + k * period, start + k * period + T]; each "
-                    "frame runs the camera pipeline; velocity.gif is written beside them.")
+                    "frame runs the camera pipeline; velocity.gif is written beside them (with "
+                    "--camera: a stream at the preset's frame rate, video.mp4 or video.gif, "
+                    "docs/cameras.md). " + HELD_HELP)
     a.add_argument("scene", help="Mitsuba 3 XML scene with <animation> keyframes")
     a.add_argument("--frames", type=positive_int, required=True, help="number of frames")
     a.add_argument("-o", "--output", required=True, help=f"frames folder ({FOLDER_HELP})")
@@ -99,8 +102,8 @@ def _add_animate(subparsers) -> None:
     a.add_argument("--fps", type=float, help="frames per second of the GIF (default 10); "
                    "with --camera, of the stream (default: the preset's frame_rate_hz)")
     a.add_argument("--previews", action="store_true",
-                   help="also write every frame's PNG previews; with --camera, a contact "
-                   "sheet of the stream (contact_sheet.png: its frames' depth, velocity and "
+                   help="also write every frame's PNG previews; with --camera (whose "
+                   "frames always have theirs), a contact sheet of the stream (contact_sheet.png: its frames' depth, velocity and "
                    "amplitude side by side)")
     add_defines_option(a)
     add_params_option(a, "override an integrator parameter (repeatable)")
@@ -219,7 +222,8 @@ def _check_stream_options(args) -> None:
     if args.camera is None:
         wrong = [n for n in STREAM_ONLY if given(n)]
         if wrong:
-            raise ConfigError(f"--{wrong[0].replace('_', '-')} needs --camera")
+            raise ConfigError(f"--{wrong[0].replace('_', '-')} needs --camera"
+                              + (RES_WITHOUT_CAMERA if wrong[0] == "res" else ""))
         return
     wrong = [n for n in NOT_STREAM if given(n)]
     if wrong:

@@ -181,7 +181,8 @@ def folding(chirp: Chirp, truth, beats: np.ndarray):
                    f"{int(ambiguous.sum())} pixel(s) ambiguous (the folded reading fits "
                    f"speeds up to the scene's {fastest:.3g} m/s as well: ambiguous.npy); "
                    f"this chirp reads {fastest:.3g} m/s unambiguously only beyond "
-                   f"{beyond:.3g} m: raise B / T")
+                   f"{beyond:.3g} m: raise B / T, or use an I/Q receiver (--iq, "
+                   "fmcw_iq), which sees the beats' signs and does not fold")
     return record, ambiguous, warning
 
 

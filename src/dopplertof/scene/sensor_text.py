@@ -4,18 +4,49 @@ and film (a camera preset's view and resolution), or its placement replaced by k
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 
 from .scene import SceneError
 
 
+def parse_scene_text(text: str, source: str, error=SceneError):
+    """The root element of the scene XML ``text``, its comments kept, so that
+    :func:`scene_text` writes every element back on its line of ``text``: an edited
+    scene's messages name the lines of the user's file. ``error`` for text that is no
+    XML."""
+    try:
+        return ET.fromstring(text, ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    except ET.ParseError as e:
+        raise error(f"{source}: malformed XML: {e}") from None
+
+
+def scene_text(root, text: str) -> str:
+    """``root`` (:func:`parse_scene_text`'s, edited) as XML text whose root element
+    starts on the line where it stands in the original ``text`` (the XML declaration
+    and the comments before it become blank lines)."""
+    start = next(m for m in re.finditer(r"<!--.*?-->|<\?.*?\?>|<!.*?>|<", text, re.S)
+                 if m.group(0) == "<")
+    return "\n" * text.count("\n", 0, start.start()) + ET.tostring(root, encoding="unicode")
+
+
+def remove_keeping_lines(parent, child) -> None:
+    """Remove ``child`` from ``parent``, leaving as many line breaks as it (and its
+    tail) held, so that the elements after it keep their lines."""
+    breaks = "\n" * ET.tostring(child, encoding="unicode").count("\n")
+    index = list(parent).index(child)
+    if index:
+        before = parent[index - 1]
+        before.tail = (before.tail or "") + breaks
+    else:
+        parent.text = (parent.text or "") + breaks
+    parent.remove(child)
+
+
 def _one_sensor(text: str, source: str, needed_by: str, error):
     """(root, the one top-level <sensor>) of the scene XML ``text``; ``error`` saying that
     ``needed_by`` needs one otherwise."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as e:
-        raise error(f"{source}: malformed XML: {e}") from None
+    root = parse_scene_text(text, source, error)
     sensors = [el for el in root if el.tag == "sensor"]
     if len(sensors) != 1:
         raise error(f"{source}: {needed_by} needs exactly one <sensor> at the top level of "
@@ -34,7 +65,7 @@ def set_sensor_keyframes(text: str, keyframes, source: str, needed_by: str,
         raise error(f"{source}: the scene's sensor has an <animation> of its own; "
                     f"{needed_by} moves the camera: remove one of them")
     for placed in [t for t in sensor.findall("transform") if t.get("name") == "to_world"]:
-        sensor.remove(placed)
+        remove_keeping_lines(sensor, placed)
     animation = ET.Element("animation", {"name": "to_world",
                                          "interpolation": keyframes.interpolation})
     for time, matrix in zip(keyframes.times, keyframes.matrices):
@@ -42,7 +73,7 @@ def set_sensor_keyframes(text: str, keyframes, source: str, needed_by: str,
         ET.SubElement(step, "matrix", {"value": " ".join(repr(float(v)) for row in matrix
                                                          for v in row)})
     sensor.insert(0, animation)
-    return ET.tostring(root, encoding="unicode")
+    return scene_text(root, text)
 
 
 def set_sensor_properties(text: str, values, source: str, needed_by: str,
@@ -64,4 +95,4 @@ def set_sensor_properties(text: str, values, source: str, needed_by: str,
             element = ET.SubElement(parent, tag, name=name)
         element.tag = tag
         element.set("value", str(value))
-    return ET.tostring(root, encoding="unicode")
+    return scene_text(root, text)

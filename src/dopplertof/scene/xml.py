@@ -476,6 +476,14 @@ def _load_string(mi, doc: _Doc, root: ET.Element, folders):
             resolver.append(folder)
 
 
+def _unread_depth(integrator) -> str:
+    """`` (its max_depth 3 is not read: -P max_depth=3 gives it)`` for a stock
+    integrator that sets one (the D-ToF defaults replace it), else ``""``."""
+    depth = next((el.get("value") for el in integrator if el.get("name") == "max_depth"), None)
+    return (f" (its max_depth {depth} is not read: -P max_depth={depth} gives it)"
+            if depth is not None else "")
+
+
 def _search_folders(doc: _Doc, base_dir: str) -> tuple:
     """The folders a scene's relative file names are looked up in, first first, as
     stock Mitsuba does for a scene file: each top-level ``<path value=...>`` (relative to
@@ -535,7 +543,7 @@ def describe(doc: _Doc, overrides: dict | None = None, resolver: Resolver | None
                                  for name, path in included]
                                 + xml_inputs(doc.root, resolver, folders[-1])))
     other_integrator = next((f"{doc.where(el)}: <integrator type=\"{el.get('type')}\">"
-                             for el in doc.root.findall("integrator")
+                             + _unread_depth(el) for el in doc.root.findall("integrator")
                              if el.get("type") not in DTOF_INTEGRATORS), None)
     has_integrator = bool(doc.root.findall("integrator")) and other_integrator is None
     integrator = _integrator_params(doc)
