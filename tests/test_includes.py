@@ -9,6 +9,7 @@ import os
 import re
 
 import numpy as np
+import pytest
 
 import dopplertof
 
@@ -134,3 +135,23 @@ def test_a_scene_in_metres_renders_as_with_its_include_inline(tmp_path):
                                seed=1, progress=False) for path in (inline, scene))
     assert a.radiance.max() > 0
     assert np.array_equal(a.radiance, b.radiance)
+
+
+@pytest.mark.parametrize("part, message", [
+    ('<scene version="3.0.0"><include filename="part.xml"/></scene>',
+     r"part\.xml:1: <include> of 'part\.xml' nested more than 15 files deep \(Mitsuba's "
+     r"limit\): does a file include itself\?"),
+    ('<scene version="3.0.0"><emitter type="point"', r"part\.xml:1: malformed XML"),
+    ('<scene><emitter type="point"/></scene>',
+     r"part\.xml: the root element <scene> of a file .*scene\.xml:\d+ includes has no "
+     r"'version'"),
+], ids=["includes-itself", "malformed", "no-version"])
+def test_a_bad_included_file_is_one_line_naming_it(tmp_path, part, message):
+    from dopplertof.scene import SceneError
+
+    _write(tmp_path, "part.xml", part)
+    scene = _write(tmp_path, "scene.xml", _cornell('<include filename="part.xml"/>'))
+    dopplertof.set_variant("llvm_ad_rgb")
+    with pytest.raises(SceneError, match=message) as caught:
+        dopplertof.load_file(scene, {"unit": "mm"})
+    assert len(str(caught.value).splitlines()) == 1
