@@ -107,8 +107,9 @@ def scene_view_note(text: str, preset: CameraPreset, source: str) -> str | None:
 def film_define_note(text: str, defines, preset: CameraPreset, source: str) -> str | None:
     """A note when a ``-D`` value sets the scene's film size (``width="$res"``), which
     the preset's pixels replace: ``--res`` sets the camera's. None otherwise."""
-    import re
     import xml.etree.ElementTree as ET
+
+    from ..scene.includes import PARAMETER
 
     try:
         films = [film for sensor in ET.fromstring(text) if sensor.tag == "sensor"
@@ -116,7 +117,7 @@ def film_define_note(text: str, defines, preset: CameraPreset, source: str) -> s
     except ET.ParseError:
         return None  # the loader names the problem
     names = {m for film in films for el in film if el.get("name") in ("width", "height")
-             for m in re.findall(r"\$(\w+)", el.get("value") or "")}
+             for m in PARAMETER.findall(el.get("value") or "")}
     given = sorted(n for n in names if n in (defines or {}))
     if not given:
         return None

@@ -32,8 +32,8 @@ def kinds_alive(config: DatasetConfig) -> list:
     materials = sorted(set(config["objects"]["materials"]) | {"diffuse"})
 
     def make(mi):
-        return [mi.load_string(_kind_scene(shapes[k % len(shapes)],
-                                           materials[k % len(materials)], k))
+        return [mi.load_string(kinds.shape_scene(shapes[k % len(shapes)],
+                                                 _kind_bsdf(materials[k % len(materials)]), k))
                 for k in range(max(len(shapes), len(materials)))]
 
     name = f"dataset {shapes} {materials} {reserved_ids(config)}"
@@ -57,10 +57,7 @@ def reserved_ids(config: DatasetConfig) -> int:
     return 4 * (int(config["objects"]["count"][1]) + 2) + 8
 
 
-def _kind_scene(shape: str, material: str, k: int) -> str:
-    """A Mitsuba scene of one ``shape`` of BSDF kind ``material``, as a sample's (its
-    colour not grey: Mitsuba makes a grey one another kind of texture)."""
-    bsdf = bsdf_xml({"kind": material, "colour": [0.3, 0.5, 0.7], "roughness": 0.1})
-    return (f'<scene version="3.0.0"><shape type="{shape}" id="kind_{k}">'
-            f'<transform name="to_world"><translate value="0 0 {-10.0 - k}"/></transform>'
-            f"{bsdf}</shape></scene>")
+def _kind_bsdf(material: str) -> str:
+    """A BSDF of kind ``material`` as a sample's (its colour not grey: Mitsuba makes a
+    grey one another kind of texture)."""
+    return bsdf_xml({"kind": material, "colour": [0.3, 0.5, 0.7], "roughness": 0.1})

@@ -20,13 +20,14 @@ from .scene import SceneError
 
 #: nested ``<include>`` files followed at most this deep (Mitsuba refuses deeper ones)
 MAX_INCLUDE_DEPTH = 15
+#: a ``$name`` reference to a scene parameter (a ``<default>`` or -D value)
+PARAMETER = re.compile(r"\$(\w+)")
 
 
 def substituted(text, values: dict):
     """``text`` with its ``$name`` parts replaced by ``values``' (those missing left as
     they are: the loader names them)."""
-    return text and re.sub(r"\$(\w+)", lambda m: str(values.get(m.group(1), m.group(0))),
-                           text)
+    return text and PARAMETER.sub(lambda m: str(values.get(m.group(1), m.group(0))), text)
 
 
 def parsed(path: str):

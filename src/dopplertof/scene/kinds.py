@@ -1,5 +1,5 @@
-"""Kinds of Mitsuba objects kept alive in a process, so that scenes of other shapes,
-materials and lights share their Dr.Jit kernels.
+"""Kinds of Mitsuba objects kept alive in a process, so that scenes of other shapes (and,
+for a dataset, other materials) share their Dr.Jit kernels.
 
 Dr.Jit's calls over Mitsuba's shapes, BSDFs and emitters trace one function per kind of
 every instance alive in the process, whichever scene the call is over; and its getters
@@ -15,8 +15,9 @@ fewer instances (Dr.Jit hands out the lowest free id, so a scene's own instances
 the freed ids below them). Both must be made before a process's first scene, so that
 they hold the same ids in every process.
 
-:func:`keep_alive` keeps a given set; :data:`COMMON` is the set a user's scene meets
-through the command line (the starter scenes' and Mitsuba's everyday kinds).
+:func:`keep_alive` keeps a given set (a dataset's: dataset/structure.py);
+:func:`keep_common_alive` the set a user's scene meets through the command line, the
+common shape types and mesh layouts (COMMON_SHAPES, COMMON_MESHES).
 """
 
 from __future__ import annotations
@@ -76,8 +77,15 @@ def common_scenes(mi) -> list:
 
 
 def _common_scene_texts() -> list:
-    return [_scene(f'<shape type="{shape}">{_away(k)}{_bsdf(k)}</shape>')
+    return [shape_scene(shape, COMMON_BSDFS[k % len(COMMON_BSDFS)], k)
             for k, shape in enumerate(COMMON_SHAPES)]
+
+
+def shape_scene(shape: str, bsdf: str, k: int) -> str:
+    """The XML of a scene of one ``shape`` (a Mitsuba shape type) wearing ``bsdf`` (its
+    XML), the ``k``-th kept, out of every camera's way."""
+    return (f'<scene version="3.0.0"><shape type="{shape}"><transform name="to_world">'
+            f'<translate value="0 0 {-10.0 - k}"/></transform>{bsdf}</shape></scene>')
 
 
 def _meshes(mi) -> list:
@@ -96,18 +104,6 @@ def _meshes(mi) -> list:
         params.update()
         meshes.append(mesh)
     return meshes
-
-
-def _scene(body: str) -> str:
-    return f'<scene version="3.0.0">{body}</scene>'
-
-
-def _away(k: float) -> str:
-    return f'<transform name="to_world"><translate value="0 0 {-10.0 - k}"/></transform>'
-
-
-def _bsdf(k: int) -> str:
-    return COMMON_BSDFS[k % len(COMMON_BSDFS)]
 
 
 def _sentinels(mi, count: int) -> list:

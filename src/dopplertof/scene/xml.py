@@ -28,7 +28,7 @@ import xml.parsers.expat
 import numpy as np
 
 from ..hints import did_you_mean, with_plugin_hint
-from .includes import inline
+from .includes import PARAMETER, inline
 from .inputs import InputFile, Resolver, file_sha256, xml_inputs
 from .meshes import mesh_file_message
 from .motion import Keyframes, MotionError
@@ -114,7 +114,7 @@ def _substitute(doc: _Doc, values: dict, overrides: dict, used: set) -> None:
         for key, v in el.attrib.items():
             if "$" not in v:
                 continue
-            used.update(re.findall(r"\$(\w+)", v))
+            used.update(PARAMETER.findall(v))
 
             def repl(m, el=el):
                 if m.group(1) not in values:
@@ -125,7 +125,7 @@ def _substitute(doc: _Doc, values: dict, overrides: dict, used: set) -> None:
                         (m.group(1), values[m.group(1)]))
                 return values[m.group(1)]
 
-            el.set(key, re.sub(r"\$(\w+)", repl, v))
+            el.set(key, PARAMETER.sub(repl, v))
 
 
 def _check_overrides(doc: _Doc, overrides: dict, declared: set, used: set) -> None:
