@@ -79,8 +79,10 @@ def test_interrupt_wrapped_by_drjit_is_the_interrupt_line(tmp_path, monkeypatch,
 def test_sigint_at_any_moment_of_a_render_is_one_line(tmp_path):
     """SIGINT at several moments after the CLI's main starts: while it builds its parser,
     sets the variant, loads the scene, renders. Always the one line and exit 130. (The
-    render is long, 16384 spp, so that the last moment falls inside it: at 2048 spp a
-    clean-clone run once finished it before 2.5 s and committed x.npy.)"""
+    render is long, 16384 spp, so that the last moment falls inside it. A clean-clone run
+    once found x.npy written: a SIGINT whose KeyboardInterrupt was lost let the render go
+    on to its end; io.atomic_path no longer commits a file after one, see the test
+    below.)"""
     out = tmp_path / "x.npy"
     code = ("import sys, dopplertof.cli as cli; print('ready', flush=True); "
             "sys.exit(cli.main(sys.argv[1:]))")
@@ -151,6 +153,44 @@ def test_a_ctrl_c_python_drops_in_a_weakref_callback_still_stops_the_command(tmp
     assert "dopplertof: interrupted" in err.strip().splitlines()
     assert "Exception ignored" not in err and "Traceback" not in err, err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_ctrl_c_python_drops_before_a_single_file_is_written_commits_no_file(
+        tmp_path, capsys, monkeypatch):
+    """The same lost KeyboardInterrupt before ``render -o x.npy`` writes its one file
+    (io.atomic_path, not an output folder): exit 130, one line, and no x.npy. Found by a
+    clean-clone run in which a SIGINT into a render was lost, the render went on to the
+    end and its file was written before the command said it was interrupted."""
+    import weakref
+
+    import dopplertof.cli
+    from dopplertof import io
+
+    class Target:
+        pass
+
+    kept = []
+    atomic_path = io.atomic_path
+
+    def write_after_lost_interrupt(path):  # the write begins: a callback meets Ctrl-C
+        target = Target()
+        kept.append(weakref.ref(target, lambda ref: signal.raise_signal(signal.SIGINT)))
+        del target  # the callback runs now; its KeyboardInterrupt is dropped
+        return atomic_path(path)
+
+    monkeypatch.setattr(io, "atomic_path", write_after_lost_interrupt)
+    out = tmp_path / "x.npy"
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # (a terminal's)
+    try:
+        code = dopplertof.cli.main(["render", SPHERE, "-D", "res=4", "--spp", "8",
+                                    "--quiet", "-o", str(out)])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    err = capsys.readouterr().err
+    assert kept and code == 130, err
+    assert err.strip().splitlines()[-1] == "dopplertof: interrupted", err
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert os.listdir(tmp_path) == []  # neither x.npy nor a temporary beside it
 
 
 # ---- Ctrl-C while the local Dask cluster starts (issue 39) ------------------------------

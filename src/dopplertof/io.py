@@ -116,8 +116,10 @@ def check_output_path(path) -> str:
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path`` (same extension); rename on success.
-    A missing folder is created first."""
+    """Yield a temporary path beside ``path`` (same extension); rename on success, unless
+    the command was interrupted meanwhile (its KeyboardInterrupt may have been lost: a
+    file is not committed after a Ctrl-C, as :func:`output_folder`'s are not). A missing
+    folder is created first."""
     path = os.fspath(path)
     base, ext = os.path.splitext(os.path.basename(path))
     try:
@@ -129,6 +131,8 @@ def atomic_path(path):
     try:
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
         yield tmp
+        if INTERRUPT_SEEN.is_set():  # interrupted, even if the KeyboardInterrupt was lost
+            raise KeyboardInterrupt
         os.chmod(tmp, 0o666 & ~_umask())  # made 0600: follow the umask instead
         os.replace(tmp, path)
     except BaseException as exc:
